@@ -1,0 +1,335 @@
+//! The bottom-up compiler: from a [`Tree`] to every node's success and
+//! failure probabilities and mean times.
+//!
+//! Nodes are visited children first. For each control node the compiler
+//! builds the node's marking reachability graph ([`mrg`]) and a chain over it,
+//! which [`crate::solve`] solves:
+//!
+//! * **Sequence / Fallback**, both methods: the DTMC over the MRG whose
+//!   transitions are the children's outcomes with probabilities `ps_h`,
+//!   `pf_h` (Remark 9.5) and mean durations `MTTS_h`, `MTTF_h`. Mean times
+//!   add along paths whatever the children's time distributions, so this is
+//!   exact, and it is linear in the number of children.
+//! * **Parallel, `exact`**: the children's exact phase chains run jointly
+//!   ([`phase`]); the node's figures come from that product CTMC.
+//! * **Parallel, `book`**: the chapter's recursion. Each child is summarised
+//!   as an exponential action `(ps, pf, mu = 1/MTTS, nu = 1/MTTF)`; the DTMC
+//!   over the MRG has probabilities (9.38)–(9.39) and the marking's mean
+//!   sojourn (9.40) as the duration of each transition.
+
+pub mod mrg;
+pub mod phase;
+
+use crate::solve::chain::{AbsorbingChain, Edge, Target};
+use crate::solve::{solve_absorbing, Absorption};
+use crate::tree::{Duration, NodeId, NodeKind, Tree};
+use mrg::{Mrg, Outcome, Policy, Status};
+
+/// Which analysis to run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Method {
+    /// Exact composition of the actions' phase-type distributions (default).
+    #[default]
+    Exact,
+    /// The book's recursion: every subtree replaced by an exponential action.
+    Book,
+}
+
+impl Method {
+    /// The method's name as used on the command line and in outputs.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Method::Exact => "exact",
+            Method::Book => "book",
+        }
+    }
+}
+
+/// Default limit on the number of states of one chain.
+pub const DEFAULT_MAX_STATES: usize = 4_000_000;
+
+/// Options of an analysis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Options {
+    /// Which method.
+    pub method: Method,
+    /// Largest chain (number of transient states) the analysis may build.
+    pub max_states: usize,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            method: Method::Exact,
+            max_states: DEFAULT_MAX_STATES,
+        }
+    }
+}
+
+/// Success/failure probabilities and conditional mean times of one node.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Figures {
+    /// Probability that the node returns Success.
+    pub ps: f64,
+    /// Probability that the node returns Failure.
+    pub pf: f64,
+    /// Mean Time To Succeed, E[T | Success]; `None` when `ps = 0`.
+    pub mtts: Option<f64>,
+    /// Mean Time To Fail, E[T | Failure]; `None` when `pf = 0`.
+    pub mttf: Option<f64>,
+}
+
+impl Figures {
+    /// Success rate `mu = 1 / MTTS` (eq. 9.54); `None` when MTTS is undefined
+    /// or zero.
+    pub fn mu(&self) -> Option<f64> {
+        self.mtts.filter(|&t| t > 0.0).map(|t| 1.0 / t)
+    }
+
+    /// Failure rate `nu = 1 / MTTF` (eq. 9.55).
+    pub fn nu(&self) -> Option<f64> {
+        self.mttf.filter(|&t| t > 0.0).map(|t| 1.0 / t)
+    }
+
+    /// Mean execution time E[T] = ps·MTTS + pf·MTTF.
+    pub fn mean_time(&self) -> f64 {
+        self.ps * self.mtts.unwrap_or(0.0) + self.pf * self.mttf.unwrap_or(0.0)
+    }
+
+    fn from_absorption(a: &Absorption) -> Figures {
+        Figures {
+            ps: a.success,
+            pf: a.failure,
+            mtts: (a.success > 0.0).then(|| a.time_success / a.success),
+            mttf: (a.failure > 0.0).then(|| a.time_failure / a.failure),
+        }
+    }
+}
+
+/// What can go wrong while analysing a valid tree.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum AnalysisError {
+    /// A deterministic or hybrid action where the analysis needs exponential times.
+    #[error(
+        "action '{leaf}' has deterministic or hybrid times, which the exact analysis of a \
+         Parallel node does not support yet; use --method book for the book's approximation"
+    )]
+    NotMarkovian {
+        /// The offending leaf.
+        leaf: String,
+    },
+    /// A chain would exceed the state budget.
+    #[error(
+        "node '{node}' needs a chain of about {states:.3e} states, more than the budget of \
+         {budget}; use --method book (approximate) or raise the budget with --max-states"
+    )]
+    StateBudget {
+        /// The node whose chain is too large.
+        node: String,
+        /// Estimated number of states.
+        states: f64,
+        /// The budget.
+        budget: usize,
+    },
+    /// The linear algebra produced a non-finite or out-of-range number.
+    #[error("numerical failure at node '{node}': {what}")]
+    Numerical {
+        /// The node.
+        node: String,
+        /// What was wrong.
+        what: String,
+    },
+}
+
+/// The analysis of a whole tree: one [`Figures`] per node, indexed by [`NodeId`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Analysis {
+    /// The method used.
+    pub method: Method,
+    /// Figures of every node, in tree order.
+    pub nodes: Vec<Figures>,
+}
+
+/// Analyses every node of the tree, bottom-up.
+pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError> {
+    let mut figures: Vec<Option<Figures>> = vec![None; tree.nodes.len()];
+    // pre-order: children come after their parent, so reverse order is bottom-up
+    for id in (0..tree.nodes.len()).rev() {
+        let f = node_figures(tree, id, &figures, options)?;
+        check(&f, &tree.node(id).name)?;
+        figures[id] = Some(f);
+    }
+    Ok(Analysis {
+        method: options.method,
+        nodes: figures.into_iter().flatten().collect(),
+    })
+}
+
+/// Figures of an action, identical under both methods.
+pub fn leaf_figures(kind: &NodeKind) -> Option<Figures> {
+    match kind {
+        NodeKind::Action(a) => Some(Figures {
+            ps: a.ps,
+            pf: a.pf,
+            mtts: (a.ps > 0.0).then(|| a.success.map_or(0.0, |d: Duration| d.mean())),
+            mttf: (a.pf > 0.0).then(|| a.failure.map_or(0.0, |d: Duration| d.mean())),
+        }),
+        NodeKind::Condition { ps } => Some(Figures {
+            ps: *ps,
+            pf: 1.0 - ps,
+            mtts: (*ps > 0.0).then_some(0.0),
+            mttf: (*ps < 1.0).then_some(0.0),
+        }),
+        _ => None,
+    }
+}
+
+fn node_figures(
+    tree: &Tree,
+    id: NodeId,
+    done: &[Option<Figures>],
+    options: &Options,
+) -> Result<Figures, AnalysisError> {
+    let node = tree.node(id);
+    if let Some(f) = leaf_figures(&node.kind) {
+        return Ok(f);
+    }
+    let children = node.kind.children();
+    let policy = Policy::of(&node.kind).expect("control node");
+    let child_figs: Vec<Figures> = children
+        .iter()
+        .map(|&c| done[c].expect("children are analysed first"))
+        .collect();
+    let numerical = |what: String| AnalysisError::Numerical {
+        node: node.name.clone(),
+        what,
+    };
+    let chain = match (policy, options.method) {
+        (Policy::Sequence | Policy::Fallback, _) => {
+            mrg_chain(&Mrg::build(policy, children.len()), &child_figs, false)
+        }
+        (Policy::Parallel { success_threshold }, Method::Book) => {
+            let est = mrg::parallel_marking_count(children.len(), success_threshold);
+            if est > options.max_states as f64 {
+                return Err(AnalysisError::StateBudget {
+                    node: node.name.clone(),
+                    states: est,
+                    budget: options.max_states,
+                });
+            }
+            mrg_chain(&Mrg::build(policy, children.len()), &child_figs, true)
+        }
+        (Policy::Parallel { .. }, Method::Exact) => {
+            phase::phase_chain(tree, id, options.max_states)?.jump_chain()
+        }
+    };
+    let a = solve_absorbing(&chain).map_err(numerical)?;
+    Ok(Figures::from_absorption(&a))
+}
+
+/// The DTMC over an MRG with children summarised by their figures.
+///
+/// Each event "child h returns Success (Failure)" has probability
+/// `ps_h`/`pf_h` when h is the only feasible child, and otherwise
+/// (Parallel, `book`) the share (9.38)–(9.39) of the competing children's
+/// rates `1 / SJ_h` with `SJ_h = ps_h·MTTS_h + pf_h·MTTF_h` (9.41). The
+/// duration of an event is the child's MTTS/MTTF when it is the only
+/// feasible child (as in Lemma 9.2) and the marking's mean sojourn (9.40)
+/// otherwise. Children of zero mean duration (conditions) return first,
+/// in order, in zero time.
+fn mrg_chain(g: &Mrg, children: &[Figures], competing: bool) -> AbsorbingChain {
+    // transient markings are renumbered densely, keeping their order
+    let mut dense = vec![usize::MAX; g.len()];
+    let mut n = 0;
+    for (i, s) in g.status.iter().enumerate() {
+        if *s == Status::Running {
+            dense[i] = n;
+            n += 1;
+        }
+    }
+    let target = |m: usize| match g.status[m] {
+        Status::Running => Target::State(dense[m]),
+        Status::Success => Target::Success,
+        Status::Failure => Target::Failure,
+    };
+    let sojourn = |f: &Figures| f.mean_time();
+    let mut edges = Vec::with_capacity(g.events.len());
+    let mut start = 0;
+    while start < g.events.len() {
+        let from = g.events[start].from;
+        let end = start + g.events[start..].partition_point(|e| e.from == from);
+        let events = &g.events[start..end];
+        let feasible: Vec<usize> = events
+            .iter()
+            .filter(|e| e.outcome == Outcome::Success)
+            .map(|e| e.child)
+            .collect();
+        let instantaneous = feasible
+            .iter()
+            .copied()
+            .find(|&h| sojourn(&children[h]) == 0.0);
+        let single = feasible.len() == 1 || !competing;
+        let total_rate: f64 = feasible.iter().map(|&h| 1.0 / sojourn(&children[h])).sum();
+        for e in events {
+            let f = &children[e.child];
+            let p_outcome = match e.outcome {
+                Outcome::Success => f.ps,
+                Outcome::Failure => f.pf,
+            };
+            let (prob, duration) = if single {
+                let t = match e.outcome {
+                    Outcome::Success => f.mtts,
+                    Outcome::Failure => f.mttf,
+                };
+                (p_outcome, t.unwrap_or(0.0))
+            } else if let Some(h) = instantaneous {
+                if e.child != h {
+                    continue;
+                }
+                (p_outcome, 0.0)
+            } else {
+                let share = (1.0 / sojourn(f)) / total_rate;
+                (p_outcome * share, 1.0 / total_rate)
+            };
+            if prob > 0.0 {
+                edges.push(Edge {
+                    from: dense[from],
+                    to: target(e.to),
+                    prob,
+                    duration,
+                });
+            }
+        }
+        start = end;
+    }
+    AbsorbingChain {
+        n,
+        initial: vec![(0, 1.0)],
+        initial_success: 0.0,
+        initial_failure: 0.0,
+        edges,
+    }
+}
+
+fn check(f: &Figures, node: &str) -> Result<(), AnalysisError> {
+    let bad = |what: &str, x: f64| AnalysisError::Numerical {
+        node: node.to_string(),
+        what: format!("{what} = {x}"),
+    };
+    for (what, x) in [("ps", f.ps), ("pf", f.pf)] {
+        if !x.is_finite() || !(-1e-9..=1.0 + 1e-9).contains(&x) {
+            return Err(bad(what, x));
+        }
+    }
+    if (f.ps + f.pf - 1.0).abs() > 1e-6 {
+        return Err(bad("ps + pf", f.ps + f.pf));
+    }
+    for (what, x) in [("MTTS", f.mtts), ("MTTF", f.mttf)] {
+        if let Some(x) = x {
+            if !x.is_finite() || x < 0.0 {
+                return Err(bad(what, x));
+            }
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,331 @@
+//! Exact phase chains: every subtree whose actions are stochastic (Def. 9.7)
+//! is exactly an absorbing CTMC of exponential phases.
+//!
+//! * An action is the two-phase mixture of Def. 9.7: with probability `ps`
+//!   it enters a phase of rate `mu` that exits to Success, with probability
+//!   `pf` a phase of rate `nu` that exits to Failure.
+//! * A condition has no phase: it starts in Success with probability `ps`,
+//!   in Failure otherwise.
+//! * A Sequence (Fallback) concatenates its children's phases: a child's
+//!   Success (Failure) exit enters the next child's initial distribution, its
+//!   other exit is the node's outcome. Instantaneous outcomes of a child pass
+//!   straight on to the next child.
+//! * A Parallel runs its children jointly: its phases are the reachable
+//!   tuples of the children's local states (a phase, or "returned Success",
+//!   or "returned Failure"), and it exits as soon as ≥ M children have
+//!   succeeded or > N − M have failed (the rest are halted). Tuples are
+//!   numbered by the sum of the children's local ranks, which every
+//!   transition increases: the chain stays acyclic and topologically ordered.
+
+use std::collections::HashMap;
+
+use super::mrg::{Policy, Status};
+use super::AnalysisError;
+use crate::solve::chain::PhaseChain;
+use crate::tree::{Duration, NodeId, NodeKind, Tree};
+
+/// A distribution over "where a run goes next": transient phases, or an
+/// instantaneous Success or Failure.
+#[derive(Debug, Clone, Default)]
+struct Entry {
+    states: Vec<(usize, f64)>,
+    success: f64,
+    failure: f64,
+}
+
+/// Builds the exact phase chain of the subtree rooted at `id`.
+///
+/// Fails if a leaf's times are not exponential (deterministic and hybrid
+/// actions have no finite phase representation) or if a Parallel's product
+/// would exceed `max_states` phases.
+pub fn phase_chain(
+    tree: &Tree,
+    id: NodeId,
+    max_states: usize,
+) -> Result<PhaseChain, AnalysisError> {
+    let node = tree.node(id);
+    match &node.kind {
+        NodeKind::Action(a) => {
+            let mut c = PhaseChain::default();
+            for (p, d, success) in [(a.ps, a.success, true), (a.pf, a.failure, false)] {
+                if p <= 0.0 {
+                    continue;
+                }
+                let rate = match d {
+                    Some(Duration::Exponential { rate }) => rate,
+                    _ => {
+                        return Err(AnalysisError::NotMarkovian {
+                            leaf: node.name.clone(),
+                        })
+                    }
+                };
+                let i = c.push_phase();
+                if success {
+                    c.exit_success[i] = rate;
+                } else {
+                    c.exit_failure[i] = rate;
+                }
+                c.initial.push((i, p));
+            }
+            Ok(c)
+        }
+        NodeKind::Condition { ps } => Ok(PhaseChain {
+            initial_success: *ps,
+            initial_failure: 1.0 - ps,
+            ..PhaseChain::default()
+        }),
+        NodeKind::Sequence { children } | NodeKind::Fallback { children } => {
+            let chains = children
+                .iter()
+                .map(|&c| phase_chain(tree, c, max_states))
+                .collect::<Result<Vec<_>, _>>()?;
+            let total: usize = chains.iter().map(PhaseChain::len).sum();
+            if total > max_states {
+                return Err(AnalysisError::StateBudget {
+                    node: node.name.clone(),
+                    states: total as f64,
+                    budget: max_states,
+                });
+            }
+            let sequence = matches!(node.kind, NodeKind::Sequence { .. });
+            Ok(concatenate(chains, sequence))
+        }
+        NodeKind::Parallel {
+            success_threshold,
+            children,
+        } => {
+            let chains = children
+                .iter()
+                .map(|&c| phase_chain(tree, c, max_states))
+                .collect::<Result<Vec<_>, _>>()?;
+            let policy = Policy::Parallel {
+                success_threshold: *success_threshold,
+            };
+            product(&chains, policy, max_states).ok_or_else(|| AnalysisError::StateBudget {
+                node: node.name.clone(),
+                states: chains.iter().map(|c| (c.len() + 2) as f64).product(),
+                budget: max_states,
+            })
+        }
+    }
+}
+
+/// Sequence (`sequence = true`) or Fallback composition of children's chains.
+fn concatenate(chains: Vec<PhaseChain>, sequence: bool) -> PhaseChain {
+    let offsets: Vec<usize> = chains
+        .iter()
+        .scan(0, |acc, c| {
+            let o = *acc;
+            *acc += c.len();
+            Some(o)
+        })
+        .collect();
+    let mut out = PhaseChain::default();
+    let total = offsets
+        .last()
+        .map_or(0, |&o| o + chains.last().map_or(0, |c| c.len()));
+    out.transitions = vec![Vec::new(); total];
+    out.exit_success = vec![0.0; total];
+    out.exit_failure = vec![0.0; total];
+    // where a run goes after the last child "continues"
+    let mut next = Entry {
+        states: Vec::new(),
+        success: if sequence { 1.0 } else { 0.0 },
+        failure: if sequence { 0.0 } else { 1.0 },
+    };
+    for (k, c) in chains.iter().enumerate().rev() {
+        let off = offsets[k];
+        for i in 0..c.len() {
+            let gi = off + i;
+            out.transitions[gi].extend(c.transitions[i].iter().map(|&(j, r)| (off + j, r)));
+            let (cont, stop) = if sequence {
+                (c.exit_success[i], c.exit_failure[i])
+            } else {
+                (c.exit_failure[i], c.exit_success[i])
+            };
+            if stop > 0.0 {
+                if sequence {
+                    out.exit_failure[gi] += stop;
+                } else {
+                    out.exit_success[gi] += stop;
+                }
+            }
+            if cont > 0.0 {
+                out.transitions[gi].extend(next.states.iter().map(|&(j, w)| (j, cont * w)));
+                out.exit_success[gi] += cont * next.success;
+                out.exit_failure[gi] += cont * next.failure;
+            }
+        }
+        // entry of child k: its initial phases, plus its instantaneous
+        // outcomes routed on
+        let (cont0, stop0) = if sequence {
+            (c.initial_success, c.initial_failure)
+        } else {
+            (c.initial_failure, c.initial_success)
+        };
+        let mut entry = Entry {
+            states: c.initial.iter().map(|&(j, p)| (off + j, p)).collect(),
+            success: 0.0,
+            failure: 0.0,
+        };
+        if sequence {
+            entry.failure += stop0;
+        } else {
+            entry.success += stop0;
+        }
+        if cont0 > 0.0 {
+            entry
+                .states
+                .extend(next.states.iter().map(|&(j, w)| (j, cont0 * w)));
+            entry.success += cont0 * next.success;
+            entry.failure += cont0 * next.failure;
+        }
+        next = entry;
+    }
+    out.initial = next.states;
+    out.initial_success = next.success;
+    out.initial_failure = next.failure;
+    out
+}
+
+const SUCCEEDED: u32 = u32::MAX - 1;
+const FAILED: u32 = u32::MAX;
+
+/// Joint chain of a Parallel node's children. Returns `None` if more than
+/// `max_states` phases would be needed.
+fn product(chains: &[PhaseChain], policy: Policy, max_states: usize) -> Option<PhaseChain> {
+    let n = chains.len();
+    let status_of = |key: &[u32]| {
+        let s = key.iter().filter(|&&x| x == SUCCEEDED).count();
+        let f = key.iter().filter(|&&x| x == FAILED).count();
+        policy.status(n, s, f)
+    };
+    // topological rank of a local state: phases 1..=len, returned len + 1
+    let rank = |key: &[u32]| -> u64 {
+        key.iter()
+            .zip(chains)
+            .map(|(&x, c)| {
+                if x >= SUCCEEDED {
+                    c.len() as u64 + 1
+                } else {
+                    x as u64 + 1
+                }
+            })
+            .sum()
+    };
+
+    let mut keys: Vec<Box<[u32]>> = Vec::new();
+    let mut index: HashMap<Box<[u32]>, usize> = HashMap::new();
+    let mut out = PhaseChain::default();
+    // intern a tuple; None if the budget is exceeded
+    let mut intern =
+        |key: Box<[u32]>, keys: &mut Vec<Box<[u32]>>, out: &mut PhaseChain| -> Option<usize> {
+            if let Some(&i) = index.get(&key) {
+                return Some(i);
+            }
+            if keys.len() >= max_states {
+                return None;
+            }
+            let i = out.push_phase();
+            keys.push(key.clone());
+            index.insert(key, i);
+            Some(i)
+        };
+
+    // initial distribution: product of the children's entries
+    let mut partial: Vec<(Vec<u32>, f64)> = vec![(Vec::with_capacity(n), 1.0)];
+    for c in chains {
+        let mut next = Vec::new();
+        for (key, p) in &partial {
+            let mut options: Vec<(u32, f64)> =
+                c.initial.iter().map(|&(j, q)| (j as u32, q)).collect();
+            options.push((SUCCEEDED, c.initial_success));
+            options.push((FAILED, c.initial_failure));
+            for (x, q) in options {
+                if q > 0.0 {
+                    let mut k = key.clone();
+                    k.push(x);
+                    next.push((k, p * q));
+                }
+            }
+        }
+        partial = next;
+        if partial.len() > max_states.saturating_mul(4) {
+            return None;
+        }
+    }
+    for (key, p) in partial {
+        match status_of(&key) {
+            Status::Success => out.initial_success += p,
+            Status::Failure => out.initial_failure += p,
+            Status::Running => {
+                let i = intern(key.into_boxed_slice(), &mut keys, &mut out)?;
+                out.initial.push((i, p));
+            }
+        }
+    }
+
+    // explore
+    let mut next = 0;
+    while next < keys.len() {
+        let key = keys[next].clone();
+        for (h, c) in chains.iter().enumerate() {
+            let x = key[h];
+            if x >= SUCCEEDED {
+                continue;
+            }
+            let p = x as usize;
+            let mut moves: Vec<(u32, f64)> = c.transitions[p]
+                .iter()
+                .map(|&(j, r)| (j as u32, r))
+                .collect();
+            moves.push((SUCCEEDED, c.exit_success[p]));
+            moves.push((FAILED, c.exit_failure[p]));
+            for (y, r) in moves {
+                if r <= 0.0 {
+                    continue;
+                }
+                let mut k = key.clone();
+                k[h] = y;
+                match status_of(&k) {
+                    Status::Success => out.exit_success[next] += r,
+                    Status::Failure => out.exit_failure[next] += r,
+                    Status::Running => {
+                        let j = intern(k, &mut keys, &mut out)?;
+                        out.transitions[next].push((j, r));
+                    }
+                }
+            }
+        }
+        next += 1;
+    }
+
+    // renumber in topological order (by rank)
+    let mut order: Vec<usize> = (0..keys.len()).collect();
+    order.sort_by_key(|&i| rank(&keys[i]));
+    let mut new_index = vec![0usize; keys.len()];
+    for (new, &old) in order.iter().enumerate() {
+        new_index[old] = new;
+    }
+    let mut sorted = PhaseChain {
+        initial: out
+            .initial
+            .iter()
+            .map(|&(i, p)| (new_index[i], p))
+            .collect(),
+        initial_success: out.initial_success,
+        initial_failure: out.initial_failure,
+        ..PhaseChain::default()
+    };
+    for &old in &order {
+        sorted.transitions.push(
+            out.transitions[old]
+                .iter()
+                .map(|&(j, r)| (new_index[j], r))
+                .collect(),
+        );
+        sorted.exit_success.push(out.exit_success[old]);
+        sorted.exit_failure.push(out.exit_failure[old]);
+    }
+    Some(sorted)
+}

@@ -1,0 +1,35 @@
+//! # btrel — reliability of Stochastic Behavior Trees
+//!
+//! btrel computes how reliable a Stochastic Behavior Tree (SBT) is, following
+//! chapter 9 of *Behavior Trees in Robotics and AI* (Colledanchise & Ögren):
+//! every node's probability to succeed and to fail, its Mean Time To Succeed
+//! (MTTS) and Mean Time To Fail (MTTF).
+//!
+//! The pipeline, one module per stage:
+//!
+//! 1. [`tree`]: parse and validate a YAML tree;
+//! 2. [`compile`]: build each control node's marking reachability graph and
+//!    the chain over it, bottom-up;
+//! 3. [`solve`]: linear algebra on those chains (faer);
+//! 4. [`report`]: per-node figures as a table, JSON or CSV.
+//!
+//! ```
+//! let tree = btrel::tree::parse_str(
+//!     "tree:\n  fallback:\n    children:\n      - action: {ps: 0.5, mu: 1.0, nu: 2.0}\n      - action: {ps: 0.5, mu: 1.0, nu: 2.0}\n",
+//!     "example.yaml",
+//! ).unwrap();
+//! let analysis = btrel::compile::analyze(&tree, &Default::default()).unwrap();
+//! let root = analysis.nodes[0];
+//! assert!((root.ps - 0.75).abs() < 1e-12);
+//! // MTTF = 1/nu + 1/nu (eq. 9.75)
+//! assert!((root.mttf.unwrap() - 1.0).abs() < 1e-12);
+//! ```
+
+pub mod compile;
+pub mod output;
+pub mod report;
+pub mod solve;
+pub mod tree;
+
+pub use compile::{analyze, Analysis, AnalysisError, Figures, Method, Options};
+pub use tree::{parse_file, parse_str, Tree};

@@ -1,0 +1,226 @@
+//! The tree model: what a parsed, validated Stochastic Behavior Tree is.
+//!
+//! A [`Tree`] is an arena of [`Node`]s in pre-order (tree order): index 0 is
+//! the root and every node's children follow it. Trees are built by
+//! [`parse`](crate::tree::parse) from YAML, which validates every parameter,
+//! so code downstream can rely on the invariants documented on each type.
+
+pub mod error;
+pub mod parse;
+
+pub use error::TreeError;
+pub use parse::{parse_file, parse_str, parse_str_with, ParseLimits};
+
+/// Index of a node in [`Tree::nodes`].
+pub type NodeId = usize;
+
+/// A validated Stochastic Behavior Tree.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tree {
+    /// Optional title (`name:` at the top of the file).
+    pub title: Option<String>,
+    /// Nodes in pre-order; `nodes[0]` is the root.
+    pub nodes: Vec<Node>,
+}
+
+/// A node of the tree.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Node {
+    /// Unique name: the explicit `name`, or one generated from kind and path
+    /// (e.g. `fallback@0.1`).
+    pub name: String,
+    /// Dotted child indices from the root, which is `0` (first child `0.0`).
+    pub path: String,
+    /// Depth in the tree (root 0).
+    pub depth: usize,
+    /// Parent node, `None` for the root.
+    pub parent: Option<NodeId>,
+    /// What the node is.
+    pub kind: NodeKind,
+    /// 1-based line and column of the node in its source file, if known.
+    pub location: Option<(usize, usize)>,
+}
+
+/// The kind of a node, with its parameters.
+#[derive(Debug, Clone, PartialEq)]
+pub enum NodeKind {
+    /// A leaf that runs for some time, then succeeds or fails (Defs. 9.7–9.9).
+    Action(Action),
+    /// A leaf of zero duration that succeeds with probability `ps` (Assumption 9.2).
+    Condition {
+        /// Probability of Success; Failure has probability `1 - ps`.
+        ps: f64,
+    },
+    /// Ticks children in order; fails at the first Failure, succeeds when all succeed.
+    Sequence {
+        /// Children, in order (at least one).
+        children: Vec<NodeId>,
+    },
+    /// Ticks children in order; succeeds at the first Success, fails when all fail.
+    Fallback {
+        /// Children, in order (at least one).
+        children: Vec<NodeId>,
+    },
+    /// Runs all children at once; Success when `success_threshold` (M) children
+    /// have succeeded, Failure when more than N − M have failed.
+    Parallel {
+        /// M, in `1..=children.len()`.
+        success_threshold: usize,
+        /// Children (at least one).
+        children: Vec<NodeId>,
+    },
+}
+
+impl NodeKind {
+    /// The kind's keyword as written in the YAML format.
+    pub fn keyword(&self) -> &'static str {
+        match self {
+            NodeKind::Action(_) => "action",
+            NodeKind::Condition { .. } => "condition",
+            NodeKind::Sequence { .. } => "sequence",
+            NodeKind::Fallback { .. } => "fallback",
+            NodeKind::Parallel { .. } => "parallel",
+        }
+    }
+
+    /// Children of a control node; empty for leaves.
+    pub fn children(&self) -> &[NodeId] {
+        match self {
+            NodeKind::Sequence { children }
+            | NodeKind::Fallback { children }
+            | NodeKind::Parallel { children, .. } => children,
+            NodeKind::Action(_) | NodeKind::Condition { .. } => &[],
+        }
+    }
+}
+
+/// An action's outcome probabilities and the time each outcome takes.
+///
+/// Invariants (checked by the parser): `ps, pf ∈ [0, 1]`, `ps + pf = 1`
+/// within 1e-9; `success` is `Some` whenever `ps > 0` and `failure` is `Some`
+/// whenever `pf > 0`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Action {
+    /// Probability of Success.
+    pub ps: f64,
+    /// Probability of Failure.
+    pub pf: f64,
+    /// How long a run that ends in Success takes.
+    pub success: Option<Duration>,
+    /// How long a run that ends in Failure takes.
+    pub failure: Option<Duration>,
+}
+
+/// The time an action takes to reach one of its outcomes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Duration {
+    /// Exponentially distributed with this rate (`mu` or `nu`, Def. 9.7).
+    Exponential {
+        /// Rate > 0 (1/s).
+        rate: f64,
+    },
+    /// Exactly this long (`tau_s` or `tau_f`, Def. 9.8).
+    Fixed {
+        /// Time ≥ 0 (s).
+        time: f64,
+    },
+    /// Exponential with `rate`, cut off at `cap`: the time is `min(X, cap)`,
+    /// `X ~ Exp(rate)`. This is the random side of a hybrid action (Def. 9.9),
+    /// where the other outcome happens at the deterministic time `cap`.
+    TruncatedExponential {
+        /// Rate > 0 (1/s).
+        rate: f64,
+        /// The deterministic time of the other outcome (s).
+        cap: f64,
+    },
+}
+
+impl Duration {
+    /// Mean of the duration.
+    pub fn mean(&self) -> f64 {
+        match *self {
+            Duration::Exponential { rate } => 1.0 / rate,
+            Duration::Fixed { time } => time,
+            // E[min(X, c)] = ∫_0^c e^{-λt} dt = (1 - e^{-λc}) / λ
+            Duration::TruncatedExponential { rate, cap } => -(-rate * cap).exp_m1() / rate,
+        }
+    }
+
+    /// Whether the duration is a single exponential phase.
+    pub fn is_exponential(&self) -> bool {
+        matches!(self, Duration::Exponential { .. })
+    }
+}
+
+/// How an action's timing was specified (Defs. 9.7–9.9).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TimingKind {
+    /// `mu`, `nu`: exponential times (Def. 9.7).
+    Stochastic,
+    /// `tau_s`, `tau_f`: fixed times (Def. 9.8).
+    Deterministic,
+    /// `tau_s` + `nu`: deterministic success time (Def. 9.9).
+    HybridDeterministicSuccess,
+    /// `mu` + `tau_f`: deterministic failure time (Def. 9.9).
+    HybridDeterministicFailure,
+}
+
+impl Action {
+    /// Classifies the action's timing.
+    pub fn timing_kind(&self) -> TimingKind {
+        use Duration::*;
+        match (self.success, self.failure) {
+            (Some(Fixed { .. }), Some(TruncatedExponential { .. })) => {
+                TimingKind::HybridDeterministicSuccess
+            }
+            (Some(TruncatedExponential { .. }), Some(Fixed { .. })) => {
+                TimingKind::HybridDeterministicFailure
+            }
+            (Some(Fixed { .. }), _) | (_, Some(Fixed { .. })) => TimingKind::Deterministic,
+            _ => TimingKind::Stochastic,
+        }
+    }
+
+    /// Whether every outcome time is exponential (the action is a two-phase
+    /// mixture that a CTMC represents exactly).
+    pub fn is_markovian(&self) -> bool {
+        self.success.is_none_or(|d| d.is_exponential())
+            && self.failure.is_none_or(|d| d.is_exponential())
+    }
+}
+
+impl Tree {
+    /// The root node's id (always 0).
+    pub const ROOT: NodeId = 0;
+
+    /// The node with this id.
+    pub fn node(&self, id: NodeId) -> &Node {
+        &self.nodes[id]
+    }
+
+    /// Finds a node by name, or by path (`0.1.2`).
+    pub fn find(&self, name_or_path: &str) -> Option<NodeId> {
+        self.nodes
+            .iter()
+            .position(|n| n.name == name_or_path)
+            .or_else(|| self.nodes.iter().position(|n| n.path == name_or_path))
+    }
+
+    /// Number of leaves (actions and conditions).
+    pub fn leaf_count(&self) -> usize {
+        self.nodes
+            .iter()
+            .filter(|n| n.kind.children().is_empty())
+            .count()
+    }
+
+    /// Ids of the nodes of the subtree rooted at `id` (pre-order, `id` first).
+    pub fn subtree(&self, id: NodeId) -> std::ops::Range<NodeId> {
+        let depth = self.nodes[id].depth;
+        let end = self.nodes[id + 1..]
+            .iter()
+            .position(|n| n.depth <= depth)
+            .map_or(self.nodes.len(), |p| id + 1 + p);
+        id..end
+    }
+}

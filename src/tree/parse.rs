@@ -1,0 +1,638 @@
+//! YAML front end: reads a tree file, validates it, and builds a [`Tree`].
+//!
+//! The format (see the README for the full reference):
+//!
+//! ```yaml
+//! name: search and grasp          # optional title
+//! tree:
+//!   sequence:                     # or fallback, parallel, action, condition
+//!     name: root                  # optional, unique
+//!     children:
+//!       - condition: {name: ready, ps: 0.9}
+//!       - action: {name: grasp, ps: 0.5, mu: 0.1, nu: 0.05}
+//! ```
+//!
+//! Parsing is bounded: file size, number of YAML nodes, alias expansion and
+//! nesting depth are limited ([`ParseLimits`]), and parsing runs on a thread
+//! with a stack large enough for the deepest tree allowed, so hostile input
+//! is rejected with an error instead of exhausting memory or the stack.
+
+use serde::Deserialize;
+use serde_saphyr::Spanned;
+
+use super::error::{nearest, TreeError};
+use super::{Action, Duration, Node, NodeKind, Tree};
+
+/// Bounds on what the parser accepts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ParseLimits {
+    /// Largest file, in bytes.
+    pub max_bytes: usize,
+    /// Deepest nesting of tree nodes (the root is level 1).
+    pub max_depth: usize,
+    /// Most YAML nodes (after alias expansion).
+    pub max_yaml_nodes: usize,
+}
+
+impl Default for ParseLimits {
+    fn default() -> Self {
+        ParseLimits {
+            max_bytes: 256 << 20,
+            max_depth: 200,
+            max_yaml_nodes: 50_000_000,
+        }
+    }
+}
+
+/// Tolerance on `ps + pf = 1`.
+pub const PROBABILITY_SUM_TOLERANCE: f64 = 1e-9;
+
+const NODE_KINDS: &[&str] = &["sequence", "fallback", "parallel", "action", "condition"];
+const ACTION_KEYS: &[&str] = &["name", "ps", "pf", "mu", "nu", "tau_s", "tau_f"];
+const CONDITION_KEYS: &[&str] = &["name", "ps"];
+const CONTROL_KEYS: &[&str] = &["name", "children"];
+const PARALLEL_KEYS: &[&str] = &["name", "success_threshold", "children"];
+const FILE_KEYS: &[&str] = &["name", "tree"];
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileDef {
+    #[serde(default)]
+    name: Option<String>,
+    tree: Spanned<NodeDef>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum NodeDef {
+    Sequence(ControlDef),
+    Fallback(ControlDef),
+    Parallel(ParallelDef),
+    Action(Box<ActionDef>),
+    Condition(ConditionDef),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ControlDef {
+    #[serde(default)]
+    name: Option<Spanned<String>>,
+    children: Spanned<Vec<Spanned<NodeDef>>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ParallelDef {
+    #[serde(default)]
+    name: Option<Spanned<String>>,
+    #[serde(default)]
+    success_threshold: Option<Spanned<f64>>,
+    children: Spanned<Vec<Spanned<NodeDef>>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ActionDef {
+    #[serde(default)]
+    name: Option<Spanned<String>>,
+    ps: Spanned<f64>,
+    #[serde(default)]
+    pf: Option<Spanned<f64>>,
+    #[serde(default)]
+    mu: Option<Spanned<f64>>,
+    #[serde(default)]
+    nu: Option<Spanned<f64>>,
+    #[serde(default)]
+    tau_s: Option<Spanned<f64>>,
+    #[serde(default)]
+    tau_f: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ConditionDef {
+    #[serde(default)]
+    name: Option<Spanned<String>>,
+    ps: Spanned<f64>,
+}
+
+/// Reads and parses a tree file with default limits.
+pub fn parse_file(path: &std::path::Path) -> Result<Tree, TreeError> {
+    let file = path.display().to_string();
+    let io_err = |e: std::io::Error| TreeError {
+        file: file.clone(),
+        line: 0,
+        column: 0,
+        message: format!("cannot read the file: {e}"),
+        help: None,
+        source_line: None,
+    };
+    let limits = ParseLimits::default();
+    let meta = std::fs::metadata(path).map_err(io_err)?;
+    if meta.len() > limits.max_bytes as u64 {
+        return Err(too_large(&file, meta.len() as usize, &limits));
+    }
+    let bytes = std::fs::read(path).map_err(io_err)?;
+    let source = String::from_utf8(bytes).map_err(|e| {
+        let before = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+        let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
+        let column = before.iter().rev().take_while(|&&b| b != b'\n').count() + 1;
+        TreeError {
+            file: file.clone(),
+            line,
+            column,
+            message: "the file is not valid UTF-8 text".into(),
+            help: Some("a tree file is YAML text; is this the right file?".into()),
+            source_line: None,
+        }
+    })?;
+    parse_str_with(&source, &file, limits)
+}
+
+/// Parses a tree from YAML text with default limits; `file` names the source
+/// in error messages.
+pub fn parse_str(source: &str, file: &str) -> Result<Tree, TreeError> {
+    parse_str_with(source, file, ParseLimits::default())
+}
+
+fn too_large(file: &str, len: usize, limits: &ParseLimits) -> TreeError {
+    TreeError {
+        file: file.into(),
+        line: 0,
+        column: 0,
+        message: format!(
+            "the file is {len} bytes, more than the limit of {} bytes",
+            limits.max_bytes
+        ),
+        help: None,
+        source_line: None,
+    }
+}
+
+/// Parses a tree from YAML text within `limits`.
+pub fn parse_str_with(source: &str, file: &str, limits: ParseLimits) -> Result<Tree, TreeError> {
+    if source.len() > limits.max_bytes {
+        return Err(too_large(file, source.len(), &limits));
+    }
+    // serde recursion uses stack per YAML level: run on a thread whose stack
+    // fits the deepest document the depth budget admits.
+    std::thread::scope(|s| {
+        std::thread::Builder::new()
+            .name("btrel-parse".into())
+            .stack_size(256 << 20)
+            .spawn_scoped(s, || parse_on_this_thread(source, file, limits))
+            .map_err(|e| TreeError {
+                file: file.into(),
+                line: 0,
+                column: 0,
+                message: format!("cannot start the parser thread: {e}"),
+                help: None,
+                source_line: None,
+            })?
+            .join()
+            .unwrap_or_else(|_| {
+                Err(TreeError {
+                    file: file.into(),
+                    line: 0,
+                    column: 0,
+                    message: "internal error: the parser panicked".into(),
+                    help: Some("please report this file as a bug".into()),
+                    source_line: None,
+                })
+            })
+    })
+}
+
+fn parse_on_this_thread(source: &str, file: &str, limits: ParseLimits) -> Result<Tree, TreeError> {
+    // each tree level is three YAML levels: kind map, node map, children list
+    let options = serde_saphyr::options! {
+        budget: serde_saphyr::budget! {
+            max_depth: 3 * limits.max_depth + 4,
+            max_nodes: limits.max_yaml_nodes,
+            max_events: 4 * limits.max_yaml_nodes,
+            max_total_scalar_bytes: limits.max_bytes,
+        },
+        alias_limits: serde_saphyr::alias_limits! {
+            max_total_replayed_events: 4 * limits.max_yaml_nodes,
+        },
+        with_snippet: false,
+    };
+    if source.trim().is_empty() {
+        return Err(
+            TreeError::at(file, source, (1, 1), "the file is empty").with_help(
+                "a tree file needs a `tree:` key, e.g. `tree: {action: {ps: 0.5, mu: 1, nu: 1}}`",
+            ),
+        );
+    }
+    let def: FileDef = serde_saphyr::from_str_with_options(source, options)
+        .map_err(|e| yaml_error(&e, source, file, &limits))?;
+    let mut b = Builder {
+        source,
+        file,
+        nodes: Vec::new(),
+        max_depth: limits.max_depth,
+        locations: Vec::new(),
+    };
+    b.node(&def.tree, None, 0, "0".into())?;
+    b.check_names()?;
+    Ok(Tree {
+        title: def.name,
+        nodes: b.nodes,
+    })
+}
+
+fn yaml_error(
+    e: &serde_saphyr::Error,
+    source: &str,
+    file: &str,
+    limits: &ParseLimits,
+) -> TreeError {
+    use serde_saphyr::Error as E;
+    let loc = e
+        .location()
+        .map_or((0, 0), |l| (l.line() as usize, l.column() as usize));
+    let inner = e.without_snippet();
+    let (message, help): (String, Option<String>) = match inner {
+        E::SerdeUnknownField {
+            field, expected, ..
+        } => {
+            let keys: &[&str] = match expected.first().copied() {
+                Some("success_threshold") | None => PARALLEL_KEYS,
+                _ => keys_for(expected),
+            };
+            let hint = match nearest(field, keys) {
+                Some(k) => format!("did you mean `{k}`? accepted keys: {}", keys.join(", ")),
+                None => format!("accepted keys: {}", keys.join(", ")),
+            };
+            (format!("unknown key `{field}`"), Some(hint))
+        }
+        E::SerdeUnknownVariant { variant, .. } => {
+            let hint = match nearest(variant, NODE_KINDS) {
+                Some(k) => format!("did you mean `{k}`? node kinds: {}", NODE_KINDS.join(", ")),
+                None => format!("node kinds: {}", NODE_KINDS.join(", ")),
+            };
+            (format!("unknown node kind `{variant}`"), Some(hint))
+        }
+        E::SerdeMissingField { field, .. } => {
+            let hint = match *field {
+                "ps" => {
+                    "every action and condition needs `ps`, its probability of success in [0, 1]"
+                }
+                "children" => "a control node needs `children:`, a list of at least one node",
+                "tree" => "a tree file needs a `tree:` key holding the root node",
+                _ => "add the missing key",
+            };
+            (format!("missing key `{field}`"), Some(hint.to_string()))
+        }
+        E::InvalidScalar { ty, .. } => (
+            format!("expected a number ({ty})"),
+            Some("write a plain number such as 0.25 or 1e-3".into()),
+        ),
+        E::Budget { breach, .. } => {
+            let msg = format!("{breach:?}");
+            if msg.starts_with("Depth") {
+                (
+                    "the tree is nested too deeply".into(),
+                    Some(format!(
+                        "btrel accepts trees up to {} levels deep",
+                        limits.max_depth
+                    )),
+                )
+            } else {
+                (
+                    format!("the document exceeds a size limit ({msg})"),
+                    Some("is this really a behavior tree? alias expansion and very large documents are bounded".into()),
+                )
+            }
+        }
+        E::AliasError { .. } | E::AliasReplayLimitExceeded { .. } => (
+            strip_location(&inner.to_string()),
+            Some("alias expansion is bounded; expand fewer or smaller aliases".into()),
+        ),
+        other => {
+            let text = strip_location(&other.to_string());
+            let help = if text.contains("recursion limit") {
+                Some(format!(
+                    "btrel accepts trees up to {} levels deep",
+                    limits.max_depth
+                ))
+            } else if text.contains("expected mapping") {
+                Some("a node is written `kind: {key: value, ...}` or as a block mapping".into())
+            } else {
+                None
+            };
+            (text, help)
+        }
+    };
+    let mut err = TreeError::at(file, source, loc, message);
+    err.help = help;
+    err
+}
+
+/// serde-saphyr appends " at line L, column C"; the location is shown separately.
+fn strip_location(s: &str) -> String {
+    match s.rfind(" at line ") {
+        Some(i) => s[..i].to_string(),
+        None => s.to_string(),
+    }
+}
+
+fn keys_for(expected: &[&str]) -> &'static [&'static str] {
+    for keys in [
+        ACTION_KEYS,
+        PARALLEL_KEYS,
+        CONTROL_KEYS,
+        CONDITION_KEYS,
+        FILE_KEYS,
+    ] {
+        if keys.len() == expected.len() && keys.iter().zip(expected).all(|(a, b)| a == b) {
+            return keys;
+        }
+    }
+    ACTION_KEYS
+}
+
+struct Builder<'a> {
+    source: &'a str,
+    file: &'a str,
+    nodes: Vec<Node>,
+    locations: Vec<(usize, usize)>,
+    max_depth: usize,
+}
+
+fn loc<T>(s: &Spanned<T>) -> (usize, usize) {
+    (s.referenced.line() as usize, s.referenced.column() as usize)
+}
+
+impl Builder<'_> {
+    fn err(&self, at: (usize, usize), msg: impl Into<String>) -> TreeError {
+        TreeError::at(self.file, self.source, at, msg)
+    }
+
+    fn node(
+        &mut self,
+        def: &Spanned<NodeDef>,
+        parent: Option<usize>,
+        depth: usize,
+        path: String,
+    ) -> Result<usize, TreeError> {
+        let at = loc(def);
+        if depth >= self.max_depth {
+            return Err(self
+                .err(at, "the tree is nested too deeply")
+                .with_help(format!(
+                    "btrel accepts trees up to {} levels deep",
+                    self.max_depth
+                )));
+        }
+        let id = self.nodes.len();
+        let (name, kind, children) = match &def.value {
+            NodeDef::Action(a) => (&a.name, NodeKind::Action(self.action(a)?), None),
+            NodeDef::Condition(c) => {
+                let ps = self.probability("ps", &c.ps)?;
+                (&c.name, NodeKind::Condition { ps }, None)
+            }
+            NodeDef::Sequence(c) => (
+                &c.name,
+                NodeKind::Sequence {
+                    children: Vec::new(),
+                },
+                Some(&c.children),
+            ),
+            NodeDef::Fallback(c) => (
+                &c.name,
+                NodeKind::Fallback {
+                    children: Vec::new(),
+                },
+                Some(&c.children),
+            ),
+            NodeDef::Parallel(p) => (
+                &p.name,
+                NodeKind::Parallel {
+                    success_threshold: 0,
+                    children: Vec::new(),
+                },
+                Some(&p.children),
+            ),
+        };
+        let name = match name {
+            Some(n) if n.value.trim().is_empty() => {
+                return Err(self
+                    .err(loc(n), "a node name must not be empty")
+                    .with_help("omit `name` to get a generated one"))
+            }
+            Some(n) => n.value.clone(),
+            None => format!("{}@{}", kind.keyword(), path),
+        };
+        self.nodes.push(Node {
+            name,
+            path: path.clone(),
+            depth,
+            parent,
+            kind,
+            location: Some(at),
+        });
+        self.locations.push(name_location(def).unwrap_or(at));
+        if let Some(list) = children {
+            if list.value.is_empty() {
+                let keyword = self.nodes[id].kind.keyword();
+                return Err(self
+                    .err(loc(list), format!("{keyword} has no children"))
+                    .with_help("a control node needs at least one child"));
+            }
+            let mut ids = Vec::with_capacity(list.value.len());
+            for (i, child) in list.value.iter().enumerate() {
+                ids.push(self.node(child, Some(id), depth + 1, format!("{path}.{i}"))?);
+            }
+            let threshold = match &def.value {
+                NodeDef::Parallel(p) => Some(self.threshold(p, ids.len())?),
+                _ => None,
+            };
+            match &mut self.nodes[id].kind {
+                NodeKind::Sequence { children } | NodeKind::Fallback { children } => {
+                    *children = ids
+                }
+                NodeKind::Parallel {
+                    children,
+                    success_threshold,
+                } => {
+                    *children = ids;
+                    *success_threshold = threshold.unwrap_or(0);
+                }
+                _ => unreachable!("only control nodes have children"),
+            }
+        }
+        Ok(id)
+    }
+
+    fn threshold(&self, p: &ParallelDef, n: usize) -> Result<usize, TreeError> {
+        let Some(t) = &p.success_threshold else {
+            return Ok(n);
+        };
+        let v = t.value;
+        if !(v.is_finite() && v.fract() == 0.0 && v >= 1.0 && v <= n as f64) {
+            return Err(self
+                .err(
+                    loc(t),
+                    format!("success_threshold = {v} is not valid for {n} children"),
+                )
+                .with_help(format!(
+                    "success_threshold (M) must be a whole number from 1 to {n}: Success at >= M \
+                     successes, Failure at > N - M failures"
+                )));
+        }
+        Ok(v as usize)
+    }
+
+    fn probability(&self, key: &str, v: &Spanned<f64>) -> Result<f64, TreeError> {
+        let x = v.value;
+        if !x.is_finite() || !(0.0..=1.0).contains(&x) {
+            return Err(self
+                .err(loc(v), format!("{key} = {x} is not a probability"))
+                .with_help(format!("{key} must be a number in [0, 1]")));
+        }
+        Ok(x)
+    }
+
+    fn rate(&self, key: &str, v: &Spanned<f64>) -> Result<f64, TreeError> {
+        let x = v.value;
+        if !x.is_finite() || x <= 0.0 {
+            return Err(self
+                .err(loc(v), format!("{key} = {x} is not a valid rate"))
+                .with_help(format!(
+                    "{key} is a rate in 1/s and must be a finite number > 0 (mean time = 1/{key})"
+                )));
+        }
+        Ok(x)
+    }
+
+    fn time(&self, key: &str, v: &Spanned<f64>) -> Result<f64, TreeError> {
+        let x = v.value;
+        if !x.is_finite() || x < 0.0 {
+            return Err(self
+                .err(loc(v), format!("{key} = {x} is not a valid time"))
+                .with_help(format!(
+                    "{key} is a time in s and must be a finite number >= 0"
+                )));
+        }
+        Ok(x)
+    }
+
+    fn action(&self, a: &ActionDef) -> Result<Action, TreeError> {
+        let ps = self.probability("ps", &a.ps)?;
+        let pf = match &a.pf {
+            None => 1.0 - ps,
+            Some(pf_def) => {
+                let pf = self.probability("pf", pf_def)?;
+                if (ps + pf - 1.0).abs() > PROBABILITY_SUM_TOLERANCE {
+                    return Err(self
+                        .err(loc(pf_def), format!("ps + pf = {} but must be 1", ps + pf))
+                        .with_help(format!(
+                            "ps = {ps} and pf = {pf}; the outcomes are exclusive, so pf = 1 - ps \
+                             (within {PROBABILITY_SUM_TOLERANCE:e}); omit pf to get 1 - ps"
+                        )));
+                }
+                pf
+            }
+        };
+        if let (Some(m), Some(t)) = (&a.mu, &a.tau_s) {
+            let at = loc(m).max(loc(t));
+            return Err(self
+                .err(at, "both `mu` and `tau_s` give the success time")
+                .with_help(
+                    "give `mu` (exponential, rate) or `tau_s` (deterministic, time), not both",
+                ));
+        }
+        if let (Some(n), Some(t)) = (&a.nu, &a.tau_f) {
+            let at = loc(n).max(loc(t));
+            return Err(self
+                .err(at, "both `nu` and `tau_f` give the failure time")
+                .with_help(
+                    "give `nu` (exponential, rate) or `tau_f` (deterministic, time), not both",
+                ));
+        }
+        let mu = a.mu.as_ref().map(|v| self.rate("mu", v)).transpose()?;
+        let nu = a.nu.as_ref().map(|v| self.rate("nu", v)).transpose()?;
+        let tau_s = a
+            .tau_s
+            .as_ref()
+            .map(|v| self.time("tau_s", v))
+            .transpose()?;
+        let tau_f = a
+            .tau_f
+            .as_ref()
+            .map(|v| self.time("tau_f", v))
+            .transpose()?;
+        let at = loc(&a.ps);
+        if ps > 0.0 && mu.is_none() && tau_s.is_none() {
+            return Err(self
+                .err(
+                    at,
+                    format!("action can succeed (ps = {ps}) but has no success time"),
+                )
+                .with_help(
+                    "add `mu` (success rate, 1/s) or `tau_s` (deterministic success time, s)",
+                ));
+        }
+        if pf > 0.0 && nu.is_none() && tau_f.is_none() {
+            return Err(self
+                .err(
+                    at,
+                    format!("action can fail (pf = {pf}) but has no failure time"),
+                )
+                .with_help(
+                    "add `nu` (failure rate, 1/s) or `tau_f` (deterministic failure time, s)",
+                ));
+        }
+        // Def. 9.9: in a hybrid action the random side is cut off at the
+        // deterministic time of the other outcome.
+        let success = match (mu, tau_s, tau_f) {
+            (Some(rate), _, Some(cap)) => Some(Duration::TruncatedExponential { rate, cap }),
+            (Some(rate), _, None) => Some(Duration::Exponential { rate }),
+            (None, Some(time), _) => Some(Duration::Fixed { time }),
+            (None, None, _) => None,
+        };
+        let failure = match (nu, tau_f, tau_s) {
+            (Some(rate), _, Some(cap)) => Some(Duration::TruncatedExponential { rate, cap }),
+            (Some(rate), _, None) => Some(Duration::Exponential { rate }),
+            (None, Some(time), _) => Some(Duration::Fixed { time }),
+            (None, None, _) => None,
+        };
+        Ok(Action {
+            ps,
+            pf,
+            success: success.filter(|_| ps > 0.0),
+            failure: failure.filter(|_| pf > 0.0),
+        })
+    }
+
+    fn check_names(&self) -> Result<(), TreeError> {
+        let mut seen: std::collections::HashMap<&str, usize> = std::collections::HashMap::new();
+        for (i, n) in self.nodes.iter().enumerate() {
+            if let Some(&j) = seen.get(n.name.as_str()) {
+                let (l, c) = self.locations[j];
+                return Err(self
+                    .err(
+                        self.locations[i],
+                        format!("duplicate node name '{}'", n.name),
+                    )
+                    .with_help(format!(
+                        "names must be unique; '{}' is already used at line {l}, column {c}",
+                        n.name
+                    )));
+            }
+            seen.insert(&n.name, i);
+        }
+        Ok(())
+    }
+}
+
+fn name_location(def: &Spanned<NodeDef>) -> Option<(usize, usize)> {
+    let name = match &def.value {
+        NodeDef::Action(a) => &a.name,
+        NodeDef::Condition(c) => &c.name,
+        NodeDef::Sequence(c) | NodeDef::Fallback(c) => &c.name,
+        NodeDef::Parallel(p) => &p.name,
+    };
+    name.as_ref().map(loc)
+}
