@@ -26,8 +26,10 @@
 //! ```
 
 pub mod compile;
+pub mod generate;
 pub mod output;
 pub mod report;
+pub mod sim;
 pub mod solve;
 pub mod tree;
 

@@ -11,20 +11,34 @@ pub fn significant(x: f64, digits: usize) -> String {
         return x.to_string();
     }
     let digits = digits.max(1);
-    let magnitude = x.abs().log10().floor() as i32;
-    if (-4..6).contains(&magnitude) {
-        let decimals = (digits as i32 - 1 - magnitude).max(0) as usize;
-        let s = format!("{x:.decimals$}");
-        // rounding can carry into a new digit (9.99995 -> 10.0000): drop one
-        let rounded: f64 = s.parse().unwrap_or(x);
-        if rounded.abs().log10().floor() as i32 > magnitude && decimals > 0 {
-            let d = decimals - 1;
-            return format!("{x:.d$}");
-        }
-        s
-    } else {
-        format!("{:.*e}", digits - 1, x)
+    // scientific formatting rounds correctly and gives the exponent after
+    // rounding (9.99999 -> 1.0000e1)
+    let sci = format!("{:.*e}", digits - 1, x.abs());
+    let (mantissa, exponent) = sci.split_once('e').expect("scientific notation");
+    let exponent: i32 = exponent.parse().expect("integer exponent");
+    let sign = if x < 0.0 { "-" } else { "" };
+    if !(-4..6).contains(&exponent) {
+        return format!("{sign}{mantissa}e{exponent}");
     }
+    let significand: String = mantissa.chars().filter(|&c| c != '.').collect();
+    let mut out = String::with_capacity(digits + 8);
+    out.push_str(sign);
+    if exponent >= 0 {
+        let int_len = exponent as usize + 1;
+        if significand.len() <= int_len {
+            out.push_str(&significand);
+            out.extend(std::iter::repeat_n('0', int_len - significand.len()));
+        } else {
+            out.push_str(&significand[..int_len]);
+            out.push('.');
+            out.push_str(&significand[int_len..]);
+        }
+    } else {
+        out.push_str("0.");
+        out.extend(std::iter::repeat_n('0', (-exponent - 1) as usize));
+        out.push_str(&significand);
+    }
+    out
 }
 
 /// Formats an optional figure; undefined values are an em dash.
@@ -45,6 +59,9 @@ mod tests {
         assert_eq!(significant(1234567.0, 5), "1.2346e6");
         assert_eq!(significant(9.99999, 5), "10.000");
         assert_eq!(significant(0.0, 5), "0");
+        assert_eq!(significant(-0.012345678, 4), "-0.01235");
+        assert_eq!(significant(100000.0, 3), "100000");
+        assert_eq!(significant(0.00012345, 3), "0.000123");
         assert_eq!(significant_or_dash(None, 5), "—");
     }
 }

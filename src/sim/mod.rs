@@ -1,0 +1,461 @@
+//! Monte Carlo simulation of a Stochastic Behavior Tree: the independent
+//! referee for the analytic engine.
+//!
+//! The simulator plays the real tick semantics of the tree in continuous time
+//! (*Behavior Trees in Robotics and AI*, §1.3 and ch. 9) and shares nothing
+//! with [`compile`](crate::compile) and [`solve`](crate::solve) but the parsed
+//! [`Tree`]:
+//!
+//! * an **action** draws its outcome (Success with probability `ps`), then a
+//!   duration from that outcome's [`Duration`](crate::tree::Duration):
+//!   `Exp(rate)`, a fixed time, or `min(Exp(rate), cap)`;
+//! * a **condition** takes no time and succeeds with probability `ps`;
+//! * a **Sequence** runs its children in order and fails at the first
+//!   Failure; a **Fallback** succeeds at the first Success;
+//! * a **Parallel** node with threshold M over N children starts them all at
+//!   once; it succeeds the moment the M-th child succeeds and fails the moment
+//!   the (N−M+1)-th child fails, halting the others.
+//!
+//! Every node is run once per execution of its parent, and a node's duration
+//! is the time from its start to its outcome.
+//!
+//! # What is estimated
+//!
+//! * **Per node** ([`SimOptions::per_node`]): every node's subtree is run on
+//!   its own [`SimOptions::runs`] times, as if it were the root, giving `ps`,
+//!   `pf` (binomial), MTTS and MTTF (means of the durations of the successful
+//!   and of the failed runs), comparable with the analytic per-node report.
+//! * **Curve** ([`SimOptions::times`]): for the simulated root, the
+//!   probabilities of having returned Success, Failure, or neither by each
+//!   time point.
+//!
+//! # Reproducibility
+//!
+//! The same seed gives a bit-identical [`SimResult`] whatever the number of
+//! threads. Runs are cut into fixed chunks of [`CHUNK_RUNS`]; chunk `k` draws
+//! from a xoshiro256++ generator seeded with
+//! [`seed_from_u64`](rand::SeedableRng::seed_from_u64)`(seed)` and then
+//! [`jump`](rand_xoshiro::Xoshiro256PlusPlus::jump)ed `k` times (2^128 draws
+//! apart, so streams never overlap). Within a chunk the root's runs come
+//! first, then each other node's runs in tree order, so the root's figures
+//! are also the same with and without `per_node`. Chunks run in parallel,
+//! and their sums are merged strictly in chunk order.
+//!
+//! Memory is O(threads × (nodes + time points)), independent of the number
+//! of runs: only counts and sums are kept, never samples.
+//!
+//! ```
+//! let tree = btrel::tree::parse_str(
+//!     "tree:\n  fallback:\n    children:\n      - action: {ps: 0.5, mu: 1.0, nu: 2.0}\n      - action: {ps: 0.5, mu: 1.0, nu: 2.0}\n",
+//!     "example.yaml",
+//! ).unwrap();
+//! let opts = btrel::sim::SimOptions { runs: 100_000, times: vec![1.0], ..Default::default() };
+//! let result = btrel::sim::simulate(&tree, &opts, None).unwrap();
+//! let root = &result.nodes[0];
+//! // ps = 1 − 0.5 · 0.5 = 0.75
+//! assert!((root.ps.mean - 0.75).abs() < 5.0 * root.ps.se);
+//! // MTTF = 1/nu + 1/nu = 1
+//! let mttf = root.mttf.unwrap();
+//! assert!((mttf.mean - 1.0).abs() < 5.0 * mttf.se);
+//! ```
+
+mod engine;
+mod stats;
+
+use rand::SeedableRng;
+use rand_xoshiro::Xoshiro256PlusPlus;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::tree::{NodeId, Tree};
+use engine::{Flat, Scratch};
+use stats::{proportion, Moments, Raw};
+
+/// Seed used when none is given: `0x5EED_B7E1` ("seed btrel"). Any `u64`
+/// works; results are reproducible for a given seed.
+pub const DEFAULT_SEED: u64 = 0x5EED_B7E1;
+
+/// Runs per chunk: the unit of random streams, parallel work, progress
+/// reports and merging. Fixed, so results do not depend on the thread count.
+pub const CHUNK_RUNS: u64 = 1 << 16;
+
+/// Largest accepted [`SimOptions::runs`] (10^12; hours of work for even a
+/// small tree).
+pub const MAX_RUNS: u64 = 1_000_000_000_000;
+
+/// The normal quantile of the 95 % confidence intervals.
+pub const Z95: f64 = 1.96;
+
+/// Trees deeper than this run on a dedicated thread pool with large stacks
+/// (episodes recurse once per level).
+const DEEP_TREE: usize = 1_000;
+
+/// What to simulate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimOptions {
+    /// Independent episodes of the root, and of every node with `per_node`
+    /// (1 ..= [`MAX_RUNS`]). Default 1,000,000.
+    pub runs: u64,
+    /// Seed of the random streams. Default [`DEFAULT_SEED`].
+    pub seed: u64,
+    /// Worker threads; 0 uses rayon's global pool (one per core). Does not
+    /// change the result.
+    pub threads: usize,
+    /// Time points of the root curve, in any order, each finite and ≥ 0.
+    /// Default none.
+    pub times: Vec<f64>,
+    /// Also simulate every other node's subtree on its own. Default `true`.
+    pub per_node: bool,
+}
+
+impl Default for SimOptions {
+    fn default() -> Self {
+        SimOptions {
+            runs: 1_000_000,
+            seed: DEFAULT_SEED,
+            threads: 0,
+            times: Vec::new(),
+            per_node: true,
+        }
+    }
+}
+
+/// A Monte Carlo estimate.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Estimate {
+    /// Sample mean (a proportion for probabilities).
+    pub mean: f64,
+    /// Standard error of the mean: `√(p(1−p)/n)` for a proportion, `s/√n`
+    /// for a mean duration (`s` the sample standard deviation; infinite
+    /// when only one run contributed).
+    pub se: f64,
+    /// Wald 95 % confidence interval, `mean ± 1.96·se` (not clamped).
+    pub ci95: (f64, f64),
+    /// Number of runs that contributed: all runs for a probability, the
+    /// successful (failed) runs for MTTS (MTTF).
+    pub count: u64,
+}
+
+/// Simulated figures of one node, its subtree run on its own.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct NodeEstimate {
+    /// The node.
+    pub node: NodeId,
+    /// Probability of Success.
+    pub ps: Estimate,
+    /// Probability of Failure (`1 − ps`: every run ends).
+    pub pf: Estimate,
+    /// Mean Time To Succeed, `E[T | Success]`; `None` if no run succeeded.
+    pub mtts: Option<Estimate>,
+    /// Mean Time To Fail, `E[T | Failure]`; `None` if no run failed.
+    pub mttf: Option<Estimate>,
+}
+
+/// The simulated root's state at one time point.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CurvePoint {
+    /// The time.
+    pub t: f64,
+    /// P(returned Success at a time ≤ t).
+    pub success: Estimate,
+    /// P(returned Failure at a time ≤ t).
+    pub failure: Estimate,
+    /// P(still running at t) = 1 − both.
+    pub running: Estimate,
+}
+
+/// Result of a simulation.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SimResult {
+    /// Runs per node.
+    pub runs: u64,
+    /// The seed used.
+    pub seed: u64,
+    /// The simulated root first, then (with `per_node`) every other node of
+    /// its subtree, in tree order.
+    pub nodes: Vec<NodeEstimate>,
+    /// The root curve, in the order of [`SimOptions::times`].
+    pub curve: Vec<CurvePoint>,
+}
+
+/// Invalid simulation options.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SimError {
+    /// `runs` is 0.
+    #[error("the number of runs must be at least 1")]
+    ZeroRuns,
+    /// `runs` is over [`MAX_RUNS`].
+    #[error("{0} runs is absurd: at most {MAX_RUNS} (10^12) are allowed")]
+    AbsurdRuns(u64),
+    /// A time point is negative, infinite or NaN.
+    #[error("time point #{index} is {value}: time points must be finite and >= 0")]
+    BadTime {
+        /// Position in [`SimOptions::times`].
+        index: usize,
+        /// The value given.
+        value: f64,
+    },
+    /// The node to simulate is not in the tree.
+    #[error("node {node} does not exist: the tree has {len} nodes")]
+    NoSuchNode {
+        /// The id given.
+        node: NodeId,
+        /// Number of nodes in the tree.
+        len: usize,
+    },
+    /// The worker thread pool could not be created.
+    #[error("cannot create the simulation thread pool: {0}")]
+    ThreadPool(String),
+}
+
+/// Simulates the whole tree: root curve and (with `per_node`) every node.
+///
+/// `progress`, if given, is called with the number of runs completed so far
+/// (per node), at most once per chunk of [`CHUNK_RUNS`], and finally with
+/// `opts.runs`.
+pub fn simulate(
+    tree: &Tree,
+    opts: &SimOptions,
+    progress: Option<&(dyn Fn(u64) + Sync)>,
+) -> Result<SimResult, SimError> {
+    simulate_node(tree, Tree::ROOT, opts, progress)
+}
+
+/// Simulates the subtree rooted at `node` as if it were the whole tree: its
+/// curve and (with `per_node`) the figures of every node of the subtree.
+/// `simulate_node(tree, Tree::ROOT, ..)` is [`simulate`].
+pub fn simulate_node(
+    tree: &Tree,
+    node: NodeId,
+    opts: &SimOptions,
+    progress: Option<&(dyn Fn(u64) + Sync)>,
+) -> Result<SimResult, SimError> {
+    if opts.runs == 0 {
+        return Err(SimError::ZeroRuns);
+    }
+    if opts.runs > MAX_RUNS {
+        return Err(SimError::AbsurdRuns(opts.runs));
+    }
+    if let Some((index, &value)) = opts
+        .times
+        .iter()
+        .enumerate()
+        .find(|(_, t)| !(t.is_finite() && **t >= 0.0))
+    {
+        return Err(SimError::BadTime { index, value });
+    }
+    if node >= tree.nodes.len() {
+        return Err(SimError::NoSuchNode {
+            node,
+            len: tree.nodes.len(),
+        });
+    }
+
+    let flat = Flat::new(tree);
+    let targets: Vec<usize> = if opts.per_node {
+        tree.subtree(node).collect()
+    } else {
+        vec![node]
+    };
+    // Time points sorted ascending; `order[i]` is the position in
+    // `opts.times` of the i-th smallest.
+    let mut order: Vec<usize> = (0..opts.times.len()).collect();
+    order.sort_by(|&a, &b| opts.times[a].total_cmp(&opts.times[b]));
+    let sorted: Vec<f64> = order.iter().map(|&i| opts.times[i]).collect();
+
+    let job = Job {
+        flat: &flat,
+        targets: &targets,
+        sorted: &sorted,
+    };
+    let run = || job.run_all(opts.runs, opts.seed, progress);
+    let deep = flat.max_depth > DEEP_TREE;
+    let total = if opts.threads > 0 || deep {
+        let mut builder = rayon::ThreadPoolBuilder::new().num_threads(opts.threads);
+        if deep {
+            builder = builder.stack_size((8 << 20) + flat.max_depth * 1024);
+        }
+        let pool = builder
+            .build()
+            .map_err(|e| SimError::ThreadPool(e.to_string()))?;
+        pool.install(run)
+    } else {
+        run()
+    };
+    Ok(total.finish(opts, &targets, &order, &sorted))
+}
+
+/// The fixed inputs of a simulation.
+struct Job<'a> {
+    flat: &'a Flat,
+    targets: &'a [usize],
+    sorted: &'a [f64],
+}
+
+/// Sums of one chunk.
+struct ChunkSums {
+    runs: u64,
+    /// Per target: (successful, failed) runs' durations.
+    nodes: Vec<(Raw, Raw)>,
+    /// Runs of the first target ending in Success (Failure) at a time in
+    /// `(sorted[j-1], sorted[j]]`, for `j` in `0..=sorted.len()`.
+    hist_s: Vec<u64>,
+    hist_f: Vec<u64>,
+}
+
+/// Sums of all chunks so far.
+struct Totals {
+    runs: u64,
+    nodes: Vec<(Moments, Moments)>,
+    hist_s: Vec<u64>,
+    hist_f: Vec<u64>,
+}
+
+impl Job<'_> {
+    /// Runs every chunk, in batches of a few chunks per thread, merging the
+    /// batch's sums in chunk order before starting the next batch.
+    fn run_all(
+        &self,
+        runs: u64,
+        seed: u64,
+        progress: Option<&(dyn Fn(u64) + Sync)>,
+    ) -> Totals {
+        let bins = self.sorted.len() + 1;
+        let mut totals = Totals {
+            runs: 0,
+            nodes: vec![Default::default(); self.targets.len()],
+            hist_s: vec![0; bins],
+            hist_f: vec![0; bins],
+        };
+        let chunks = runs.div_ceil(CHUNK_RUNS);
+        let batch = (4 * rayon::current_num_threads()).max(1) as u64;
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
+        let mut k = 0;
+        while k < chunks {
+            let jobs: Vec<(Xoshiro256PlusPlus, u64)> = (k..chunks.min(k + batch))
+                .map(|c| {
+                    let state = rng.clone();
+                    rng.jump();
+                    (state, CHUNK_RUNS.min(runs - c * CHUNK_RUNS))
+                })
+                .collect();
+            k += jobs.len() as u64;
+            let sums: Vec<ChunkSums> = jobs
+                .into_par_iter()
+                .map(|(mut rng, n)| self.chunk(&mut rng, n))
+                .collect();
+            for s in &sums {
+                totals.merge(s);
+            }
+            if let Some(p) = progress {
+                p(totals.runs);
+            }
+        }
+        totals
+    }
+
+    /// Runs `n` episodes of each target, the first target with its curve.
+    fn chunk(&self, rng: &mut Xoshiro256PlusPlus, n: u64) -> ChunkSums {
+        let bins = self.sorted.len() + 1;
+        let mut sums = ChunkSums {
+            runs: n,
+            nodes: vec![Default::default(); self.targets.len()],
+            hist_s: vec![0; bins],
+            hist_f: vec![0; bins],
+        };
+        let mut scratch = self.flat.scratch();
+        let (first, rest) = self.targets.split_first().expect("at least one target");
+        self.episodes_with_curve(*first, n, rng, &mut scratch, &mut sums);
+        for (i, &id) in rest.iter().enumerate() {
+            let (s, f) = &mut sums.nodes[i + 1];
+            for _ in 0..n {
+                let (ok, t) = self.flat.run(id, rng, &mut scratch);
+                if ok {
+                    s.push(t)
+                } else {
+                    f.push(t)
+                }
+            }
+        }
+        sums
+    }
+
+    fn episodes_with_curve(
+        &self,
+        id: usize,
+        n: u64,
+        rng: &mut Xoshiro256PlusPlus,
+        scratch: &mut Scratch,
+        sums: &mut ChunkSums,
+    ) {
+        let (s, f) = &mut sums.nodes[0];
+        let sorted = self.sorted;
+        for _ in 0..n {
+            let (ok, t) = self.flat.run(id, rng, scratch);
+            // The run counts at every time point >= t.
+            let bin = sorted.partition_point(|&x| x < t);
+            if ok {
+                s.push(t);
+                sums.hist_s[bin] += 1;
+            } else {
+                f.push(t);
+                sums.hist_f[bin] += 1;
+            }
+        }
+    }
+}
+
+impl Totals {
+    fn merge(&mut self, c: &ChunkSums) {
+        self.runs += c.runs;
+        for ((ms, mf), (rs, rf)) in self.nodes.iter_mut().zip(&c.nodes) {
+            ms.merge(rs);
+            mf.merge(rf);
+        }
+        for (a, b) in self.hist_s.iter_mut().zip(&c.hist_s) {
+            *a += b;
+        }
+        for (a, b) in self.hist_f.iter_mut().zip(&c.hist_f) {
+            *a += b;
+        }
+    }
+
+    fn finish(
+        self,
+        opts: &SimOptions,
+        targets: &[usize],
+        order: &[usize],
+        sorted: &[f64],
+    ) -> SimResult {
+        let n = self.runs;
+        let nodes = targets
+            .iter()
+            .zip(&self.nodes)
+            .map(|(&node, (s, f))| NodeEstimate {
+                node,
+                ps: proportion(s.n, n),
+                pf: proportion(f.n, n),
+                mtts: s.estimate(),
+                mttf: f.estimate(),
+            })
+            .collect();
+        let mut curve = vec![None; sorted.len()];
+        let (mut ks, mut kf) = (0, 0);
+        for (i, &t) in sorted.iter().enumerate() {
+            ks += self.hist_s[i];
+            kf += self.hist_f[i];
+            curve[order[i]] = Some(CurvePoint {
+                t,
+                success: proportion(ks, n),
+                failure: proportion(kf, n),
+                running: proportion(n - ks - kf, n),
+            });
+        }
+        SimResult {
+            runs: n,
+            seed: opts.seed,
+            nodes,
+            curve: curve.into_iter().map(|p| p.expect("every point")).collect(),
+        }
+    }
+}
