@@ -11,6 +11,8 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand, ValueEnum};
 
 use btrel::compile::{analyze, Method, Options, DEFAULT_MAX_STATES};
+use btrel::curve::{CurveOptions, Timing};
+use btrel::report::number::full;
 use btrel::report::{Format, Report};
 use btrel::tree::{parse_file, Tree};
 
@@ -20,6 +22,8 @@ Examples:
   btrel report trees/search-and-grasp.yaml --method book --format json
   btrel report trees/two-arm-parallel.yaml --format csv -o figures.csv
   btrel check trees/search-and-grasp.yaml
+  btrel curve trees/search-and-grasp.yaml --t-end 1000 --points 101 -o curve.csv
+  btrel curve trees/search-and-grasp.yaml --node search --node grasp --times 10,100,1000
 
 Exit codes: 0 ok, 2 invalid input or usage, 1 analysis not possible or internal error.";
 
@@ -43,6 +47,9 @@ enum Command {
     /// Analyse a tree and print every node's ps, pf, MTTS, MTTF, mu and nu.
     #[command(after_help = EXAMPLES)]
     Report(ReportArgs),
+    /// Probabilities of Success/Failure/Running over time, as CSV.
+    #[command(after_help = CURVE_EXAMPLES)]
+    Curve(CurveArgs),
     /// Validate a tree file without analysing it.
     #[command(after_help = "Example:\n  btrel check trees/search-and-grasp.yaml")]
     Check {
@@ -69,6 +76,58 @@ struct ReportArgs {
     #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_STATES)]
     max_states: usize,
 }
+
+const CURVE_EXAMPLES: &str = "\
+Examples:
+  btrel curve trees/search-and-grasp.yaml --t-end 1000 --points 101
+  btrel curve trees/search-and-grasp.yaml --times 10,100,1000 --method book
+  btrel curve trees/search-and-grasp.yaml --node search --t-end 500 --dt 5 -o search.csv
+  btrel curve trees/search-and-grasp.yaml --timing deterministic --t-end 1000 --points 1001
+
+Output: CSV with header node,t,success,failure,running; one row per node per time,
+in the order of the requested times; numbers at full precision.";
+
+#[derive(clap::Args)]
+struct CurveArgs {
+    /// The tree file (YAML).
+    tree: PathBuf,
+    /// Node to report, by name or path (repeatable); default: the root.
+    #[arg(long = "node", value_name = "NAME")]
+    nodes: Vec<String>,
+    /// Comma-separated times (s), e.g. 0,10,100.
+    #[arg(long, value_delimiter = ',', value_name = "T1,T2,...", conflicts_with_all = ["t_end", "points", "dt"], required_unless_present = "t_end")]
+    times: Vec<String>,
+    /// Last time (s) of an evenly spaced grid starting at 0.
+    #[arg(long, value_name = "T")]
+    t_end: Option<String>,
+    /// Number of grid points from 0 to T inclusive (default 101).
+    #[arg(long, value_name = "K", conflicts_with = "dt", requires = "t_end")]
+    points: Option<usize>,
+    /// Grid spacing (s), from 0 up to T.
+    #[arg(long, value_name = "D", requires = "t_end")]
+    dt: Option<String>,
+    /// exact (default): exact chain; book: the chapter's recursion.
+    #[arg(long, value_enum, default_value_t = MethodArg::Exact)]
+    method: MethodArg,
+    /// as-given, or deterministic: every exponential time replaced by 1/rate.
+    #[arg(long, value_enum, default_value_t = TimingArg::AsGiven)]
+    timing: TimingArg,
+    /// Write to this file (atomically) instead of standard output.
+    #[arg(short, long, value_name = "FILE")]
+    output: Option<PathBuf>,
+    /// Largest chain (number of states) an exact analysis may build.
+    #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_STATES)]
+    max_states: usize,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum TimingArg {
+    AsGiven,
+    Deterministic,
+}
+
+/// Most time points one request may ask for.
+const MAX_POINTS: usize = 10_000_000;
 
 #[derive(Clone, Copy, ValueEnum)]
 enum MethodArg {
@@ -115,6 +174,7 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Report(args) => report(args),
         Command::Check { tree } => check(&tree),
+        Command::Curve(args) => curve(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -145,10 +205,7 @@ fn check(path: &Path) -> Result<(), Failure> {
 fn report(args: ReportArgs) -> Result<(), Failure> {
     let tree = load(&args.tree)?;
     let options = Options {
-        method: match args.method {
-            MethodArg::Exact => Method::Exact,
-            MethodArg::Book => Method::Book,
-        },
+        method: method(args.method),
         max_states: args.max_states,
     };
     let analysis = analyze(&tree, &options).map_err(Failure::analysis)?;
@@ -160,6 +217,133 @@ fn report(args: ReportArgs) -> Result<(), Failure> {
     };
     let exporter = format.exporter();
     emit(args.output.as_deref(), |out| exporter.write(&report, out))
+}
+
+fn method(m: MethodArg) -> Method {
+    match m {
+        MethodArg::Exact => Method::Exact,
+        MethodArg::Book => Method::Book,
+    }
+}
+
+/// A time given on the command line: finite and ≥ 0.
+fn parse_time(what: &str, s: &str) -> Result<f64, Failure> {
+    let t: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| Failure::input(format!("{what}: '{s}' is not a number")))?;
+    if !t.is_finite() || t < 0.0 {
+        return Err(Failure::input(format!(
+            "{what}: {s} is not a valid time (times must be finite and >= 0)"
+        )));
+    }
+    Ok(t)
+}
+
+fn requested_times(args: &CurveArgs) -> Result<Vec<f64>, Failure> {
+    if !args.times.is_empty() {
+        let times = args
+            .times
+            .iter()
+            .map(|s| parse_time("--times", s))
+            .collect::<Result<Vec<_>, _>>()?;
+        if times.len() > MAX_POINTS {
+            return Err(Failure::input(format!(
+                "--times: at most {MAX_POINTS} times"
+            )));
+        }
+        return Ok(times);
+    }
+    let end = parse_time("--t-end", args.t_end.as_deref().unwrap_or("0"))?;
+    if let Some(dt) = &args.dt {
+        let dt = parse_time("--dt", dt)?;
+        if dt <= 0.0 {
+            return Err(Failure::input("--dt must be > 0"));
+        }
+        let count = (end / dt * (1.0 + 1e-12)).floor() + 1.0;
+        if count > MAX_POINTS as f64 {
+            return Err(Failure::input(format!(
+                "--t-end / --dt gives {count:.0} points, more than the limit of {MAX_POINTS}"
+            )));
+        }
+        return Ok((0..count as usize)
+            .map(|k| (k as f64 * dt).min(end))
+            .collect());
+    }
+    let points = args.points.unwrap_or(101);
+    if points == 0 || points > MAX_POINTS {
+        return Err(Failure::input(format!(
+            "--points must be between 1 and {MAX_POINTS}"
+        )));
+    }
+    if points == 1 {
+        return Ok(vec![end]);
+    }
+    Ok((0..points)
+        .map(|k| end * k as f64 / (points - 1) as f64)
+        .collect())
+}
+
+fn curve(args: CurveArgs) -> Result<(), Failure> {
+    let times = requested_times(&args)?;
+    let tree = load(&args.tree)?;
+    let nodes = if args.nodes.is_empty() {
+        vec![Tree::ROOT]
+    } else {
+        args.nodes
+            .iter()
+            .map(|n| {
+                tree.find(n).ok_or_else(|| {
+                    Failure::input(format!(
+                        "no node named '{n}' in {} (give a node name or a path such as 0.1)",
+                        args.tree.display()
+                    ))
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?
+    };
+    let options = CurveOptions {
+        method: method(args.method),
+        timing: match args.timing {
+            TimingArg::AsGiven => Timing::AsGiven,
+            TimingArg::Deterministic => Timing::Deterministic,
+        },
+        max_states: args.max_states,
+        ..CurveOptions::default()
+    };
+    let mut curves = Vec::with_capacity(nodes.len());
+    for &id in &nodes {
+        curves.push((
+            id,
+            btrel::curve::curve(&tree, id, &times, &options).map_err(Failure::analysis)?,
+        ));
+    }
+    emit(args.output.as_deref(), |out| {
+        writeln!(out, "node,t,success,failure,running")?;
+        for (id, points) in &curves {
+            let name = csv_field(&tree.node(*id).name);
+            for p in points {
+                writeln!(
+                    out,
+                    "{name},{},{},{},{}",
+                    full(p.t),
+                    full(p.success),
+                    full(p.failure),
+                    full(p.running)
+                )?;
+            }
+        }
+        Ok(())
+    })
+}
+
+/// Quotes a CSV field when needed.
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
 }
 
 /// Writes to a file atomically, or to standard output. A closed pipe on

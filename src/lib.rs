@@ -26,6 +26,7 @@
 //! ```
 
 pub mod compile;
+pub mod curve;
 pub mod generate;
 pub mod output;
 pub mod report;

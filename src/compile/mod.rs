@@ -17,6 +17,8 @@
 //!   over the MRG has probabilities (9.38)–(9.39) and the marking's mean
 //!   sojourn (9.40) as the duration of each transition.
 
+pub mod atoms;
+pub mod book_ctmc;
 pub mod mrg;
 pub mod phase;
 
@@ -131,6 +133,32 @@ pub enum AnalysisError {
         /// The budget.
         budget: usize,
     },
+    /// A subtree mixes deterministic (or hybrid) and stochastic times, which
+    /// has neither a finite phase chain nor finitely many atoms.
+    #[error(
+        "node '{node}' mixes deterministic or hybrid actions (e.g. '{leaf}') with stochastic \
+         ones; its exact π(t) is not supported: use `btrel simulate`, or --timing deterministic"
+    )]
+    MixedTiming {
+        /// The node analysed.
+        node: String,
+        /// A non-exponential leaf in it.
+        leaf: String,
+    },
+    /// Uniformization would need too much work (a stiff chain over a long horizon).
+    #[error(
+        "node '{node}' is too stiff for the transient solver over this horizon (max rate × \
+         horizon × chain size ≈ {work:.2e} operations, limit {limit:.2e}); shorten the horizon, \
+         use --method book, or `btrel simulate`"
+    )]
+    Stiff {
+        /// The node analysed.
+        node: String,
+        /// Estimated work.
+        work: f64,
+        /// The limit.
+        limit: f64,
+    },
     /// The linear algebra produced a non-finite or out-of-range number.
     #[error("numerical failure at node '{node}': {what}")]
     Numerical {
@@ -220,7 +248,20 @@ fn node_figures(
             mrg_chain(&Mrg::build(policy, children.len()), &child_figs, true)
         }
         (Policy::Parallel { .. }, Method::Exact) => {
-            phase::phase_chain(tree, id, options.max_states)?.jump_chain()
+            match phase::phase_chain(tree, id, options.max_states) {
+                Ok(chain) => chain.jump_chain(),
+                Err(AnalysisError::NotMarkovian { leaf }) => {
+                    // all-deterministic subtrees have finitely many atoms
+                    return match atoms::atoms(tree, id, options.max_states)? {
+                        Some(a) => Ok(atoms::figures(&a)),
+                        None => Err(AnalysisError::MixedTiming {
+                            node: node.name.clone(),
+                            leaf,
+                        }),
+                    };
+                }
+                Err(e) => return Err(e),
+            }
         }
     };
     let a = solve_absorbing(&chain).map_err(numerical)?;

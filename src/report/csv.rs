@@ -3,6 +3,7 @@
 
 use std::io::{self, Write};
 
+use super::number::full;
 use super::{Exporter, Report};
 
 /// Header `name,path,kind,depth,ps,pf,mtts,mttf,mu,nu`.
@@ -10,7 +11,7 @@ use super::{Exporter, Report};
 pub struct CsvExporter;
 
 fn cell(x: Option<f64>) -> String {
-    x.map_or_else(String::new, |v| v.to_string())
+    x.map_or_else(String::new, full)
 }
 
 impl Exporter for CsvExporter {
@@ -26,8 +27,8 @@ impl Exporter for CsvExporter {
                 n.path.clone(),
                 n.kind.to_string(),
                 n.depth.to_string(),
-                f.ps.to_string(),
-                f.pf.to_string(),
+                full(f.ps),
+                full(f.pf),
                 cell(f.mtts),
                 cell(f.mttf),
                 cell(f.mu()),

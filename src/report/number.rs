@@ -41,6 +41,17 @@ pub fn significant(x: f64, digits: usize) -> String {
     out
 }
 
+/// Full precision: the shortest text that reads back as the same `f64`, in
+/// scientific notation for very small or very large magnitudes.
+pub fn full(x: f64) -> String {
+    let a = x.abs();
+    if a != 0.0 && !(1e-5..1e16).contains(&a) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
+
 /// Formats an optional figure; undefined values are an em dash.
 pub fn significant_or_dash(x: Option<f64>, digits: usize) -> String {
     x.map_or_else(|| "—".to_string(), |v| significant(v, digits))
@@ -63,5 +74,10 @@ mod tests {
         assert_eq!(significant(100000.0, 3), "100000");
         assert_eq!(significant(0.00012345, 3), "0.000123");
         assert_eq!(significant_or_dash(None, 5), "—");
+        assert_eq!(full(1.1102230246251565e-16), "1.1102230246251565e-16");
+        assert_eq!(full(0.19773976596072151), "0.19773976596072151");
+        for x in [1e-300, 3.0e-6, 0.1, 123456.789, 1e20] {
+            assert_eq!(full(x).parse::<f64>().unwrap(), x);
+        }
     }
 }

@@ -21,6 +21,7 @@
 //! every result is checked to be finite.
 
 pub mod chain;
+pub mod transient;
 
 use chain::{AbsorbingChain, Target};
 use faer::sparse::linalg::triangular_solve::{

@@ -1,0 +1,258 @@
+//! Deterministic timing (Def. 9.8, Prop. 9.2): outcome distributions with
+//! finitely many atoms.
+//!
+//! When every action of a subtree has fixed times `tau_s`, `tau_f`, the
+//! subtree returns at one of finitely many instants — sums of τ's along the
+//! paths through its MRG — and `π(t)` is piecewise constant between them
+//! (the zero-order hold of Prop. 9.2). Instead of the book's common time
+//! step Δτ we keep the exact instants: each node's outcome distribution is a
+//! list of atoms `(time, outcome, probability)`.
+//!
+//! * Sequence/Fallback: the start-time distribution of each child is the
+//!   "continue" atoms of the previous ones, shifted (a discrete convolution).
+//! * Parallel: every combination of the children's atoms is resolved by
+//!   replaying the children's returns in time order (ties in child order, as
+//!   a tick visits them) until a threshold is met.
+//!
+//! Instants that agree to 1e-12 (relative) are merged: they are the same sum
+//! of τ's added in a different order.
+
+use super::mrg::{Outcome, Policy, Status};
+use super::{AnalysisError, Figures};
+use crate::tree::{Duration, NodeId, NodeKind, Tree};
+
+/// Relative tolerance under which two instants are the same.
+pub const TIME_TOLERANCE: f64 = 1e-12;
+
+/// One possible return of a node: at `time`, with `outcome`, with probability `prob`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Atom {
+    /// When the node returns (s).
+    pub time: f64,
+    /// What it returns.
+    pub outcome: Outcome,
+    /// Probability of this return.
+    pub prob: f64,
+}
+
+fn same_time(a: f64, b: f64) -> bool {
+    (a - b).abs() <= TIME_TOLERANCE * a.abs().max(b.abs()).max(1.0)
+}
+
+/// Sorts atoms by (outcome, time) and merges equal instants.
+fn normalise(mut atoms: Vec<Atom>) -> Vec<Atom> {
+    atoms.retain(|a| a.prob > 0.0);
+    atoms.sort_by(|a, b| {
+        (a.outcome == Outcome::Failure)
+            .cmp(&(b.outcome == Outcome::Failure))
+            .then(a.time.total_cmp(&b.time))
+    });
+    let mut out: Vec<Atom> = Vec::with_capacity(atoms.len());
+    for a in atoms {
+        match out.last_mut() {
+            Some(l) if l.outcome == a.outcome && same_time(l.time, a.time) => l.prob += a.prob,
+            _ => out.push(a),
+        }
+    }
+    out
+}
+
+/// Outcome atoms of the subtree at `id`, or `None` if some action in it is
+/// not deterministic. Fails if more than `max_atoms` combinations would be
+/// needed.
+pub fn atoms(
+    tree: &Tree,
+    id: NodeId,
+    max_atoms: usize,
+) -> Result<Option<Vec<Atom>>, AnalysisError> {
+    let node = tree.node(id);
+    let budget = |n: f64| AnalysisError::StateBudget {
+        node: node.name.clone(),
+        states: n,
+        budget: max_atoms,
+    };
+    match &node.kind {
+        NodeKind::Action(a) => {
+            let mut out = Vec::new();
+            for (p, d, o) in [
+                (a.ps, a.success, Outcome::Success),
+                (a.pf, a.failure, Outcome::Failure),
+            ] {
+                if p <= 0.0 {
+                    continue;
+                }
+                match d {
+                    Some(Duration::Fixed { time }) => out.push(Atom {
+                        time,
+                        outcome: o,
+                        prob: p,
+                    }),
+                    _ => return Ok(None),
+                }
+            }
+            Ok(Some(normalise(out)))
+        }
+        NodeKind::Condition { ps } => Ok(Some(normalise(vec![
+            Atom {
+                time: 0.0,
+                outcome: Outcome::Success,
+                prob: *ps,
+            },
+            Atom {
+                time: 0.0,
+                outcome: Outcome::Failure,
+                prob: 1.0 - ps,
+            },
+        ]))),
+        NodeKind::Sequence { children } | NodeKind::Fallback { children } => {
+            let cont = if matches!(node.kind, NodeKind::Sequence { .. }) {
+                Outcome::Success
+            } else {
+                Outcome::Failure
+            };
+            let mut running = vec![(0.0f64, 1.0f64)];
+            let mut out = Vec::new();
+            for &c in children {
+                let Some(child) = atoms(tree, c, max_atoms)? else {
+                    return Ok(None);
+                };
+                let mut next = Vec::new();
+                for &(t0, p0) in &running {
+                    for a in &child {
+                        let atom = Atom {
+                            time: t0 + a.time,
+                            outcome: a.outcome,
+                            prob: p0 * a.prob,
+                        };
+                        if a.outcome == cont {
+                            next.push(atom);
+                        } else {
+                            out.push(atom);
+                        }
+                    }
+                }
+                if next.len() + out.len() > max_atoms {
+                    return Err(budget((next.len() + out.len()) as f64));
+                }
+                running = normalise(next).iter().map(|a| (a.time, a.prob)).collect();
+                out = normalise(out);
+            }
+            out.extend(running.into_iter().map(|(time, prob)| Atom {
+                time,
+                outcome: cont,
+                prob,
+            }));
+            Ok(Some(normalise(out)))
+        }
+        NodeKind::Parallel {
+            success_threshold,
+            children,
+        } => {
+            let mut per_child = Vec::with_capacity(children.len());
+            for &c in children {
+                match atoms(tree, c, max_atoms)? {
+                    Some(a) => per_child.push(a),
+                    None => return Ok(None),
+                }
+            }
+            let combos: f64 = per_child.iter().map(|a| a.len() as f64).product();
+            if combos > max_atoms as f64 {
+                return Err(budget(combos));
+            }
+            let policy = Policy::Parallel {
+                success_threshold: *success_threshold,
+            };
+            let n = children.len();
+            let mut out = Vec::new();
+            let mut pick = vec![0usize; n];
+            let mut events: Vec<(f64, usize, Outcome)> = Vec::with_capacity(n);
+            loop {
+                let prob: f64 = pick
+                    .iter()
+                    .zip(&per_child)
+                    .map(|(&i, a)| a[i].prob)
+                    .product();
+                events.clear();
+                events.extend(
+                    pick.iter()
+                        .zip(&per_child)
+                        .enumerate()
+                        .map(|(h, (&i, a))| (a[i].time, h, a[i].outcome)),
+                );
+                events.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                let (mut s, mut f) = (0, 0);
+                for &(t, _, o) in &events {
+                    match o {
+                        Outcome::Success => s += 1,
+                        Outcome::Failure => f += 1,
+                    }
+                    match policy.status(n, s, f) {
+                        Status::Running => continue,
+                        Status::Success => out.push(Atom {
+                            time: t,
+                            outcome: Outcome::Success,
+                            prob,
+                        }),
+                        Status::Failure => out.push(Atom {
+                            time: t,
+                            outcome: Outcome::Failure,
+                            prob,
+                        }),
+                    }
+                    break;
+                }
+                // next combination (odometer)
+                let mut h = 0;
+                loop {
+                    if h == n {
+                        return Ok(Some(normalise(out)));
+                    }
+                    pick[h] += 1;
+                    if pick[h] < per_child[h].len() {
+                        break;
+                    }
+                    pick[h] = 0;
+                    h += 1;
+                }
+            }
+        }
+    }
+}
+
+/// ps, pf, MTTS and MTTF from a node's atoms.
+pub fn figures(atoms: &[Atom]) -> Figures {
+    let (mut ps, mut pf, mut ts, mut tf) = (0.0, 0.0, 0.0, 0.0);
+    for a in atoms {
+        match a.outcome {
+            Outcome::Success => {
+                ps += a.prob;
+                ts += a.prob * a.time;
+            }
+            Outcome::Failure => {
+                pf += a.prob;
+                tf += a.prob * a.time;
+            }
+        }
+    }
+    Figures {
+        ps,
+        pf,
+        mtts: (ps > 0.0).then(|| ts / ps),
+        mttf: (pf > 0.0).then(|| tf / pf),
+    }
+}
+
+/// P(returned Success by t) and P(returned Failure by t): right-continuous
+/// step functions (an atom at `t` counts at `t`).
+pub fn cumulative(atoms: &[Atom], t: f64) -> (f64, f64) {
+    let (mut s, mut f) = (0.0, 0.0);
+    for a in atoms {
+        if a.time <= t || same_time(a.time, t) {
+            match a.outcome {
+                Outcome::Success => s += a.prob,
+                Outcome::Failure => f += a.prob,
+            }
+        }
+    }
+    (s, f)
+}

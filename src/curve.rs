@@ -1,0 +1,180 @@
+//! Probabilities over time: `π(t)` of any node, by three methods.
+//!
+//! * **exact** (default): the node's exact phase chain ([`compile::phase`])
+//!   solved by uniformization ([`solve::transient`]) with a rigorous
+//!   truncation bound; for subtrees whose actions all have deterministic
+//!   times, the exact finitely many return instants ([`compile::atoms`],
+//!   Prop. 9.2's zero-order hold without rounding to a grid).
+//! * **book**: the chapter's recursion: the node's CTMC over its MRG with
+//!   every child replaced by an exponential ([`compile::book_ctmc`]).
+//! * **`Timing::Deterministic`**: every exponential time becomes a fixed
+//!   time `τ = 1/rate` first (the book's Figs. 9.20–9.21 comparison).
+
+use crate::compile::mrg::{Mrg, Policy};
+use crate::compile::{self, analyze, atoms, book_ctmc, phase, AnalysisError, Method};
+use crate::solve::chain::PhaseChain;
+use crate::solve::transient::{self, uniformization_work};
+use crate::tree::{Duration, NodeId, NodeKind, Tree};
+
+pub use crate::solve::transient::CurvePoint;
+
+/// How action times are taken.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Timing {
+    /// As written in the tree file.
+    #[default]
+    AsGiven,
+    /// Every exponential time replaced by a fixed time `1/rate`.
+    Deterministic,
+}
+
+/// Default limit on uniformization work (vector operations × nonzeros).
+pub const DEFAULT_MAX_WORK: f64 = 2e10;
+
+/// Options of a curve computation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CurveOptions {
+    /// exact or book.
+    pub method: Method,
+    /// Times as given or made deterministic.
+    pub timing: Timing,
+    /// Largest chain or number of atoms.
+    pub max_states: usize,
+    /// Bound on the absolute error of the truncated series.
+    pub tolerance: f64,
+    /// Largest uniformization effort before refusing.
+    pub max_work: f64,
+}
+
+impl Default for CurveOptions {
+    fn default() -> Self {
+        CurveOptions {
+            method: Method::Exact,
+            timing: Timing::AsGiven,
+            max_states: compile::DEFAULT_MAX_STATES,
+            tolerance: transient::DEFAULT_TOLERANCE,
+            max_work: DEFAULT_MAX_WORK,
+        }
+    }
+}
+
+/// The tree with every exponential time replaced by its mean (`τ = 1/rate`).
+pub fn deterministic_version(tree: &Tree) -> Tree {
+    let mut t = tree.clone();
+    let fix = |d: Option<Duration>| {
+        d.map(|d| match d {
+            Duration::Exponential { rate } | Duration::TruncatedExponential { rate, .. } => {
+                Duration::Fixed { time: 1.0 / rate }
+            }
+            fixed => fixed,
+        })
+    };
+    for n in &mut t.nodes {
+        if let NodeKind::Action(a) = &mut n.kind {
+            a.success = fix(a.success);
+            a.failure = fix(a.failure);
+        }
+    }
+    t
+}
+
+/// `π(t)` of node `id` at `times` (finite, ≥ 0; any order), in the order given.
+pub fn curve(
+    tree: &Tree,
+    id: NodeId,
+    times: &[f64],
+    options: &CurveOptions,
+) -> Result<Vec<CurvePoint>, AnalysisError> {
+    if options.timing == Timing::Deterministic {
+        let det = deterministic_version(tree);
+        let opts = CurveOptions {
+            timing: Timing::AsGiven,
+            ..*options
+        };
+        return curve(&det, id, times, &opts);
+    }
+    let node = tree.node(id);
+    let is_control = Policy::of(&node.kind).is_some();
+    // deterministic subtrees: exact atoms (both methods agree on a leaf)
+    if options.method == Method::Exact || !is_control {
+        if let Some(a) = atoms::atoms(tree, id, options.max_states)? {
+            return Ok(times
+                .iter()
+                .map(|&t| {
+                    let (s, f) = atoms::cumulative(&a, t);
+                    CurvePoint {
+                        t,
+                        success: s,
+                        failure: f,
+                        running: (1.0 - s - f).max(0.0),
+                    }
+                })
+                .collect());
+        }
+    }
+    let chain = match (options.method, is_control) {
+        (Method::Book, true) => {
+            let analysis = analyze(
+                tree,
+                &compile::Options {
+                    method: Method::Book,
+                    max_states: options.max_states,
+                },
+            )?;
+            let children = node.kind.children();
+            let figs: Vec<_> = children.iter().map(|&c| analysis.nodes[c]).collect();
+            let policy = Policy::of(&node.kind).expect("control node");
+            if let Policy::Parallel { success_threshold } = policy {
+                let est = compile::mrg::parallel_marking_count(children.len(), success_threshold);
+                if est > options.max_states as f64 {
+                    return Err(AnalysisError::StateBudget {
+                        node: node.name.clone(),
+                        states: est,
+                        budget: options.max_states,
+                    });
+                }
+            }
+            book_ctmc::book_ctmc(&Mrg::build(policy, children.len()), &figs)
+        }
+        _ => match phase::phase_chain(tree, id, options.max_states) {
+            Ok(c) => c,
+            Err(AnalysisError::NotMarkovian { leaf }) => {
+                return Err(AnalysisError::MixedTiming {
+                    node: node.name.clone(),
+                    leaf,
+                })
+            }
+            Err(e) => return Err(e),
+        },
+    };
+    solve_chain(&chain, times, options, &node.name)
+}
+
+fn solve_chain(
+    chain: &PhaseChain,
+    times: &[f64],
+    options: &CurveOptions,
+    name: &str,
+) -> Result<Vec<CurvePoint>, AnalysisError> {
+    let work = uniformization_work(chain, times);
+    if work > options.max_work {
+        return Err(AnalysisError::Stiff {
+            node: name.to_string(),
+            work,
+            limit: options.max_work,
+        });
+    }
+    let points = transient::transient(chain, times, options.tolerance);
+    for p in &points {
+        if ![p.success, p.failure, p.running]
+            .iter()
+            .all(|x| x.is_finite())
+        {
+            return Err(AnalysisError::Numerical {
+                node: name.to_string(),
+                what: format!("non-finite probability at t = {}", p.t),
+            });
+        }
+    }
+    Ok(points)
+}
