@@ -43,10 +43,22 @@ impl Shape {
 pub fn random_tree_yaml(shape: &Shape, seed: u64) -> String {
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
     let mut out = String::with_capacity(shape.leaves * 64);
-    let _ = writeln!(out, "name: random tree ({} leaves, seed {seed})", shape.leaves);
+    let _ = writeln!(
+        out,
+        "name: random tree ({} leaves, seed {seed})",
+        shape.leaves
+    );
     out.push_str("tree:\n");
     let mut counter = 0usize;
-    node(&mut out, &mut rng, shape, shape.leaves.max(1), "  ", 1, &mut counter);
+    node(
+        &mut out,
+        &mut rng,
+        shape,
+        shape.leaves.max(1),
+        "  ",
+        1,
+        &mut counter,
+    );
     out
 }
 
