@@ -2,7 +2,9 @@
 //!
 //! * **exact** (default): the node's exact phase chain ([`compile::phase`])
 //!   solved by uniformization ([`solve::transient`]) with a rigorous
-//!   truncation bound; for subtrees whose actions all have deterministic
+//!   truncation bound, or, when that would take too many steps (a stiff
+//!   chain over a long horizon) and the chain is small, by dense
+//!   exponentials in double-double ([`solve::expm`]); for subtrees whose actions all have deterministic
 //!   times, the exact finitely many return instants ([`compile::atoms`],
 //!   Prop. 9.2's zero-order hold without rounding to a grid).
 //! * **book**: the chapter's recursion: the node's CTMC over its MRG with
@@ -13,6 +15,7 @@
 use crate::compile::mrg::{Mrg, Policy};
 use crate::compile::{self, analyze, atoms, book_ctmc, phase, AnalysisError, Method};
 use crate::solve::chain::PhaseChain;
+use crate::solve::expm;
 use crate::solve::transient::{self, uniformization_work};
 use crate::tree::{Duration, NodeId, NodeKind, Tree};
 
@@ -27,6 +30,9 @@ pub enum Timing {
     /// Every exponential time replaced by a fixed time `1/rate`.
     Deterministic,
 }
+
+/// Error bound accepted from the dense stiff solver.
+pub const DENSE_TOLERANCE: f64 = 1e-10;
 
 /// Default limit on uniformization work (vector operations × nonzeros).
 pub const DEFAULT_MAX_WORK: f64 = 2e10;
@@ -157,14 +163,25 @@ fn solve_chain(
     name: &str,
 ) -> Result<Vec<CurvePoint>, AnalysisError> {
     let work = uniformization_work(chain, times);
-    if work > options.max_work {
+    let points = if work <= options.max_work {
+        transient::transient(chain, times, options.tolerance)
+    } else if chain.len() + 2 <= expm::MAX_DENSE_STATES {
+        // stiff but small: dense exponentials with a rigorous bound
+        let (points, bound) = expm::transient_dense(chain, times);
+        if bound > options.tolerance.max(DENSE_TOLERANCE) {
+            return Err(AnalysisError::Numerical {
+                node: name.to_string(),
+                what: format!("the error bound {bound:.1e} of the stiff solver is too large"),
+            });
+        }
+        points
+    } else {
         return Err(AnalysisError::Stiff {
             node: name.to_string(),
             work,
             limit: options.max_work,
         });
-    }
-    let points = transient::transient(chain, times, options.tolerance);
+    };
     for p in &points {
         if ![p.success, p.failure, p.running]
             .iter()

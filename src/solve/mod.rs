@@ -21,6 +21,8 @@
 //! every result is checked to be finite.
 
 pub mod chain;
+pub mod dd;
+pub mod expm;
 pub mod transient;
 
 use chain::{AbsorbingChain, Target};
