@@ -95,16 +95,16 @@ struct CurveArgs {
     #[arg(long = "node", value_name = "NAME")]
     nodes: Vec<String>,
     /// Comma-separated times (s), e.g. 0,10,100.
-    #[arg(long, value_delimiter = ',', value_name = "T1,T2,...", conflicts_with_all = ["t_end", "points", "dt"], required_unless_present = "t_end")]
+    #[arg(long, value_delimiter = ',', value_name = "T1,T2,...", allow_hyphen_values = true, conflicts_with_all = ["t_end", "points", "dt"])]
     times: Vec<String>,
     /// Last time (s) of an evenly spaced grid starting at 0.
-    #[arg(long, value_name = "T")]
+    #[arg(long, value_name = "T", allow_hyphen_values = true)]
     t_end: Option<String>,
     /// Number of grid points from 0 to T inclusive (default 101).
     #[arg(long, value_name = "K", conflicts_with = "dt", requires = "t_end")]
     points: Option<usize>,
     /// Grid spacing (s), from 0 up to T.
-    #[arg(long, value_name = "D", requires = "t_end")]
+    #[arg(long, value_name = "D", requires = "t_end", allow_hyphen_values = true)]
     dt: Option<String>,
     /// exact (default): exact chain; book: the chapter's recursion.
     #[arg(long, value_enum, default_value_t = MethodArg::Exact)]
@@ -254,7 +254,12 @@ fn requested_times(args: &CurveArgs) -> Result<Vec<f64>, Failure> {
         }
         return Ok(times);
     }
-    let end = parse_time("--t-end", args.t_end.as_deref().unwrap_or("0"))?;
+    let Some(end) = args.t_end.as_deref() else {
+        return Err(Failure::input(
+            "which times? give --times T1,T2,... or --t-end T [--points K | --dt D]",
+        ));
+    };
+    let end = parse_time("--t-end", end)?;
     if let Some(dt) = &args.dt {
         let dt = parse_time("--dt", dt)?;
         if dt <= 0.0 {
