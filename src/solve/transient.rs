@@ -173,6 +173,21 @@ pub fn transient(chain: &PhaseChain, times: &[f64], tolerance: f64) -> Vec<Curve
     ];
     let mut next = vec![0.0; n];
     let mut acc = vec![0.0; n];
+    // the uniformized chain P = I + Q/Λ in compressed rows
+    let stay: Vec<f64> = (0..n).map(|i| 1.0 - chain.total_rate(i) / lambda).collect();
+    let exit_s: Vec<f64> = chain.exit_success.iter().map(|r| r / lambda).collect();
+    let exit_f: Vec<f64> = chain.exit_failure.iter().map(|r| r / lambda).collect();
+    let mut row_start = Vec::with_capacity(n + 1);
+    let mut cols = Vec::new();
+    let mut vals = Vec::new();
+    row_start.push(0);
+    for row in &chain.transitions {
+        for &(j, r) in row {
+            cols.push(j);
+            vals.push(r / lambda);
+        }
+        row_start.push(cols.len());
+    }
     for &idx in &order {
         let t = times[idx];
         let dt = t - now;
@@ -195,17 +210,18 @@ pub fn transient(chain: &PhaseChain, times: &[f64], tolerance: f64) -> Vec<Curve
                 if k + 1 == last {
                     break;
                 }
-                // one step of P = I + Q/Λ
-                for (i, v) in state.iter().enumerate() {
-                    next[i] += v * (1.0 - chain.total_rate(i) / lambda);
-                    if *v == 0.0 {
+                // one step of P
+                for i in 0..n {
+                    let v = state[i];
+                    if v == 0.0 {
                         continue;
                     }
-                    for &(j, r) in &chain.transitions[i] {
-                        next[j] += v * r / lambda;
+                    next[i] += v * stay[i];
+                    for e in row_start[i]..row_start[i + 1] {
+                        next[cols[e]] += v * vals[e];
                     }
-                    s_k += v * chain.exit_success[i] / lambda;
-                    f_k += v * chain.exit_failure[i] / lambda;
+                    s_k += v * exit_s[i];
+                    f_k += v * exit_f[i];
                 }
                 std::mem::swap(&mut state, &mut next);
                 next.iter_mut().for_each(|x| *x = 0.0);

@@ -1,0 +1,52 @@
+//! `curve` goals: 1,000 time points of search-and-grasp; 1,000 points of a
+//! 10k-leaf tree; a stiff tree (rates 1e-4..1e5) over a 1e7 s horizon.
+//!
+//! Run: `cargo bench --bench curve`
+
+use std::path::Path;
+
+use criterion::{criterion_group, criterion_main, Criterion};
+
+use btrel::curve::{curve, CurveOptions};
+use btrel::generate::{random_tree_yaml, Shape};
+use btrel::tree::{parse_file, parse_str};
+
+fn grid(end: f64, points: usize) -> Vec<f64> {
+    (0..points)
+        .map(|k| end * k as f64 / (points - 1) as f64)
+        .collect()
+}
+
+fn curves(c: &mut Criterion) {
+    let mut group = c.benchmark_group("curve");
+    group.sample_size(10);
+    let sg = parse_file(Path::new("trees/search-and-grasp.yaml")).expect("tree");
+    let times = grid(1000.0, 1000);
+    group.bench_function("search_and_grasp_1000_points", |b| {
+        b.iter(|| curve(&sg, 0, &times, &CurveOptions::default()).expect("curve"))
+    });
+
+    let big = parse_str(
+        &random_tree_yaml(&Shape::sequence_fallback(10_000), 1),
+        "10k.yaml",
+    )
+    .expect("tree");
+    let times = grid(1000.0, 1000);
+    group.bench_function("10k_leaves_1000_points", |b| {
+        b.iter(|| curve(&big, 0, &times, &CurveOptions::default()).expect("curve"))
+    });
+
+    let stiff = parse_str(
+        "tree:\n  sequence:\n    children:\n      - action: {ps: 0.9, mu: 1e5, nu: 1e4}\n      - action: {ps: 0.99, mu: 1e-4, nu: 2e-4}\n      - fallback:\n          children:\n            - action: {ps: 0.5, mu: 10, nu: 1}\n            - action: {ps: 0.5, mu: 1e-3, nu: 1e-2}\n",
+        "stiff.yaml",
+    )
+    .expect("tree");
+    let times = grid(1e7, 1000);
+    group.bench_function("stiff_horizon_1e7_1000_points", |b| {
+        b.iter(|| curve(&stiff, 0, &times, &CurveOptions::default()).expect("curve"))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, curves);
+criterion_main!(benches);
