@@ -50,6 +50,9 @@ enum Command {
     /// Probabilities of Success/Failure/Running over time, as CSV.
     #[command(after_help = CURVE_EXAMPLES)]
     Curve(CurveArgs),
+    /// Rank the orderings of Fallback children (equivalent trees, Def. 9.10).
+    #[command(after_help = COMPARE_EXAMPLES)]
+    Compare(CompareArgs),
     /// Validate a tree file without analysing it.
     #[command(after_help = "Example:\n  btrel check trees/search-and-grasp.yaml")]
     Check {
@@ -126,6 +129,59 @@ enum TimingArg {
     Deterministic,
 }
 
+const COMPARE_EXAMPLES: &str = "\
+Examples:
+  btrel compare trees/search-and-grasp.yaml --node search --deadline 100
+  btrel compare trees/search-and-grasp.yaml --by mean-time --format json
+  btrel compare trees/search-and-grasp.yaml --node search --deadline 100 --top 3 --curves top3.csv
+
+Without --node every Fallback is reordered (the product of their permutations).
+Default objective: success-by with --deadline, else mean-time.";
+
+#[derive(clap::Args)]
+struct CompareArgs {
+    /// The tree file (YAML).
+    tree: PathBuf,
+    /// Fallback node whose children are permuted, by name or path (repeatable); default: all.
+    #[arg(long = "node", value_name = "NAME")]
+    nodes: Vec<String>,
+    /// Objective: mean-time (E[T]), mtts, mttf, or success-by (P(success by --deadline)).
+    #[arg(long, value_enum)]
+    by: Option<ObjectiveArg>,
+    /// Deadline T (s) for success-by.
+    #[arg(long, value_name = "T", allow_hyphen_values = true)]
+    deadline: Option<String>,
+    /// How many orderings to show (the given one is always shown in the table).
+    #[arg(long, value_name = "K", default_value_t = 10)]
+    top: usize,
+    /// exact (default) or book.
+    #[arg(long, value_enum, default_value_t = MethodArg::Exact)]
+    method: MethodArg,
+    /// Output format.
+    #[arg(long, value_enum, default_value_t = FormatArg::Table)]
+    format: FormatArg,
+    /// Also write the root's π(t) of the top K orderings to this CSV file.
+    #[arg(long, value_name = "FILE")]
+    curves: Option<PathBuf>,
+    /// Horizon (s) of --curves (default: 3 × the largest mean time shown).
+    #[arg(long, value_name = "T", allow_hyphen_values = true)]
+    t_end: Option<String>,
+    /// Largest number of orderings enumerated exhaustively.
+    #[arg(long, value_name = "N", default_value_t = btrel::compare::DEFAULT_MAX_CANDIDATES)]
+    max_candidates: usize,
+    /// Write to this file (atomically) instead of standard output.
+    #[arg(short, long, value_name = "FILE")]
+    output: Option<PathBuf>,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum ObjectiveArg {
+    MeanTime,
+    Mtts,
+    Mttf,
+    SuccessBy,
+}
+
 /// Most time points one request may ask for.
 const MAX_POINTS: usize = 10_000_000;
 
@@ -175,6 +231,7 @@ pub fn main() -> ExitCode {
         Command::Report(args) => report(args),
         Command::Check { tree } => check(&tree),
         Command::Curve(args) => curve(args),
+        Command::Compare(args) => compare(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -295,17 +352,7 @@ fn curve(args: CurveArgs) -> Result<(), Failure> {
     let nodes = if args.nodes.is_empty() {
         vec![Tree::ROOT]
     } else {
-        args.nodes
-            .iter()
-            .map(|n| {
-                tree.find(n).ok_or_else(|| {
-                    Failure::input(format!(
-                        "no node named '{n}' in {} (give a node name or a path such as 0.1)",
-                        args.tree.display()
-                    ))
-                })
-            })
-            .collect::<Result<Vec<_>, _>>()?
+        find_nodes(&tree, &args.nodes, &args.tree)?
     };
     let options = CurveOptions {
         method: method(args.method),
@@ -339,6 +386,108 @@ fn curve(args: CurveArgs) -> Result<(), Failure> {
             }
         }
         Ok(())
+    })
+}
+
+fn find_nodes(tree: &Tree, names: &[String], file: &Path) -> Result<Vec<usize>, Failure> {
+    names
+        .iter()
+        .map(|n| {
+            tree.find(n).ok_or_else(|| {
+                Failure::input(format!(
+                    "no node named '{n}' in {} (give a node name or a path such as 0.1)",
+                    file.display()
+                ))
+            })
+        })
+        .collect()
+}
+
+fn compare(args: CompareArgs) -> Result<(), Failure> {
+    use btrel::compare::{CompareError, CompareOptions, Objective};
+    use btrel::report::ranking;
+    let deadline = args
+        .deadline
+        .as_deref()
+        .map(|d| parse_time("--deadline", d))
+        .transpose()?;
+    let t_end = args
+        .t_end
+        .as_deref()
+        .map(|d| parse_time("--t-end", d))
+        .transpose()?;
+    if args.top == 0 {
+        return Err(Failure::input("--top must be at least 1"));
+    }
+    let tree = load(&args.tree)?;
+    let nodes = find_nodes(&tree, &args.nodes, &args.tree)?;
+    let options = CompareOptions {
+        nodes,
+        objective: args.by.map(|b| match b {
+            ObjectiveArg::MeanTime => Objective::MeanTime,
+            ObjectiveArg::Mtts => Objective::Mtts,
+            ObjectiveArg::Mttf => Objective::Mttf,
+            ObjectiveArg::SuccessBy => Objective::SuccessBy,
+        }),
+        deadline,
+        method: method(args.method),
+        max_candidates: args.max_candidates,
+        ..CompareOptions::default()
+    };
+    let cmp = btrel::compare::compare(&tree, &options).map_err(|e| match e {
+        CompareError::Analysis(a) => Failure::analysis(a),
+        other => Failure::input(other),
+    })?;
+    if let Some(path) = &args.curves {
+        let top: Vec<_> = cmp.candidates.iter().take(args.top).collect();
+        let end = t_end.unwrap_or_else(|| {
+            3.0 * top
+                .iter()
+                .map(|c| c.root.mean_time())
+                .fold(0.0, f64::max)
+                .max(1e-9)
+        });
+        let times: Vec<f64> = (0..=200).map(|k| end * k as f64 / 200.0).collect();
+        let curve_options = CurveOptions {
+            method: options.method,
+            ..CurveOptions::default()
+        };
+        let mut rows = Vec::new();
+        for c in &top {
+            let mut t = tree.clone();
+            for (&n, o) in cmp.nodes.iter().zip(&c.orders) {
+                if let btrel::tree::NodeKind::Fallback { children } = &mut t.nodes[n].kind {
+                    children.clone_from(o);
+                }
+            }
+            let points = btrel::curve::curve(&t, Tree::ROOT, &times, &curve_options)
+                .map_err(Failure::analysis)?;
+            rows.push((ranking::label(&tree, &cmp, c), points));
+        }
+        let root = csv_field(&tree.node(Tree::ROOT).name);
+        btrel::output::write_atomic(path, |out| {
+            writeln!(out, "ordering,node,t,success,failure,running")?;
+            for (label, points) in &rows {
+                let label = csv_field(label);
+                for p in points {
+                    writeln!(
+                        out,
+                        "{label},{root},{},{},{},{}",
+                        full(p.t),
+                        full(p.success),
+                        full(p.failure),
+                        full(p.running)
+                    )?;
+                }
+            }
+            Ok(())
+        })
+        .map_err(|e| Failure::input(format!("cannot write {}: {e}", path.display())))?;
+    }
+    emit(args.output.as_deref(), |out| match args.format {
+        FormatArg::Table => ranking::write_table(&tree, &cmp, args.top, out),
+        FormatArg::Json => ranking::write_json(&tree, &cmp, args.top, out),
+        FormatArg::Csv => ranking::write_csv(&tree, &cmp, args.top, out),
     })
 }
 

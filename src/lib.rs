@@ -25,6 +25,7 @@
 //! assert!((root.mttf.unwrap() - 1.0).abs() < 1e-12);
 //! ```
 
+pub mod compare;
 pub mod compile;
 pub mod curve;
 pub mod generate;

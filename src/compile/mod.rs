@@ -183,7 +183,12 @@ pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError
     let mut figures: Vec<Option<Figures>> = vec![None; tree.nodes.len()];
     // pre-order: children come after their parent, so reverse order is bottom-up
     for id in (0..tree.nodes.len()).rev() {
-        let f = node_figures(tree, id, &figures, options)?;
+        let f = node_figures(
+            tree,
+            id,
+            &|c| figures[c].expect("children are analysed first"),
+            options,
+        )?;
         check(&f, &tree.node(id).name)?;
         figures[id] = Some(f);
     }
@@ -191,6 +196,34 @@ pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError
         method: options.method,
         nodes: figures.into_iter().flatten().collect(),
     })
+}
+
+/// Updates `analysis` after the children of the nodes in `changed` were
+/// reordered: recomputes those nodes and their ancestors, bottom-up, and
+/// reuses every other node's figures. `analysis` must be of the same tree
+/// shape (same node ids) and `options.method` must match.
+pub fn reanalyze(
+    tree: &Tree,
+    analysis: &mut Analysis,
+    changed: &[NodeId],
+    options: &Options,
+) -> Result<(), AnalysisError> {
+    let mut dirty: Vec<NodeId> = Vec::new();
+    for &c in changed {
+        let mut n = Some(c);
+        while let Some(id) = n {
+            dirty.push(id);
+            n = tree.node(id).parent;
+        }
+    }
+    dirty.sort_unstable();
+    dirty.dedup();
+    for &id in dirty.iter().rev() {
+        let f = node_figures(tree, id, &|c| analysis.nodes[c], options)?;
+        check(&f, &tree.node(id).name)?;
+        analysis.nodes[id] = f;
+    }
+    Ok(())
 }
 
 /// Figures of an action, identical under both methods.
@@ -215,7 +248,7 @@ pub fn leaf_figures(kind: &NodeKind) -> Option<Figures> {
 fn node_figures(
     tree: &Tree,
     id: NodeId,
-    done: &[Option<Figures>],
+    done: &dyn Fn(NodeId) -> Figures,
     options: &Options,
 ) -> Result<Figures, AnalysisError> {
     let node = tree.node(id);
@@ -224,10 +257,7 @@ fn node_figures(
     }
     let children = node.kind.children();
     let policy = Policy::of(&node.kind).expect("control node");
-    let child_figs: Vec<Figures> = children
-        .iter()
-        .map(|&c| done[c].expect("children are analysed first"))
-        .collect();
+    let child_figs: Vec<Figures> = children.iter().map(|&c| done(c)).collect();
     let numerical = |what: String| AnalysisError::Numerical {
         node: node.name.clone(),
         what,

@@ -7,6 +7,7 @@
 pub mod csv;
 pub mod json;
 pub mod number;
+pub mod ranking;
 pub mod table;
 
 use std::io::{self, Write};
