@@ -8,17 +8,18 @@
 //! ```
 //!
 //! The series is truncated at both ends around the mode of the Poisson
-//! weights (the idea of Fox and Glynn, 1988). The truncation bounds are
-//! rigorous: for `k > Λt` the weights fall at least geometrically with ratio
-//! `Λt/(k+1)`, so the right tail beyond `R` is at most
-//! `w_R · (R+2)/(R+2−Λt)`; symmetrically the left tail below `L` is at most
-//! `w_L · Λt/(Λt−L)`... (see [`poisson_window`]). Since `P^k` is stochastic,
-//! dropping a tail of mass `δ` changes every probability by at most `δ`.
+//! weights (the idea of Fox and Glynn, 1988), with rigorous bounds on the
+//! mass dropped: beyond `k > Λt` successive weights fall at least by the
+//! ratio `Λt/(k+2)`, so the right tail after index `R` is at most
+//! `w_{R+1} / (1 − Λt/(R+2))`; below the mode the ratio `k/Λt` bounds the
+//! left tail in the same way ([`poisson_window`]). `P^k` is stochastic, so
+//! dropping Poisson mass `δ` changes every probability by at most `δ`; the
+//! kept weights are renormalised.
 //!
-//! Time points are processed in increasing order, each interval from the
-//! previous point, so the absolute error at the j-th point is at most the
-//! sum of the per-interval tails plus rounding: we give each interval
-//! `ε / (number of intervals)`, and `ε = 1e-12` by default.
+//! [`transient`] needs one pass to the horizon for all requested times
+//! (each time point's error is bounded separately, by `tolerance`, default
+//! 1e-13); [`transient_by_intervals`] restarts on each interval and splits
+//! the budget, for horizons too long to keep the per-step absorbed masses.
 
 use super::chain::PhaseChain;
 
@@ -36,7 +37,7 @@ pub struct CurvePoint {
 }
 
 /// Error budget of the truncated Poisson sums, in total.
-pub const DEFAULT_TOLERANCE: f64 = 1e-12;
+pub const DEFAULT_TOLERANCE: f64 = 1e-13;
 
 /// A window of Poisson(λ) weights with a rigorous bound on the mass outside.
 #[derive(Debug, Clone, PartialEq)]
@@ -146,10 +147,139 @@ fn max_rate(chain: &PhaseChain) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// Longest run of the single-pass method (steps); beyond it the interval
+/// method keeps memory bounded.
+pub const MAX_SINGLE_PASS_STEPS: usize = 20_000_000;
+
 /// π(t) of a phase chain at the given times (any order, finite, ≥ 0),
 /// returned in the order given. The absolute error of every probability is
 /// at most `tolerance` plus rounding.
+///
+/// Only the absorbed probabilities are needed (`running = 1 − S − F`), so
+/// one pass computes the scalars `s_k`, `f_k` (mass absorbed in Success and
+/// Failure after k steps of the uniformized chain) up to the largest
+/// truncation point, and every time point is a Poisson-weighted sum of them:
+/// `S(t) = Σ_k Pois(k; Λt) s_k`. Each point's truncation error is bounded
+/// on its own (at most `tolerance`), and the work is that of one
+/// uniformization to the horizon, whatever the number of points.
 pub fn transient(chain: &PhaseChain, times: &[f64], tolerance: f64) -> Vec<CurvePoint> {
+    let lambda = max_rate(chain);
+    let horizon = times.iter().copied().fold(0.0, f64::max);
+    if chain.is_empty() || lambda == 0.0 || horizon == 0.0 {
+        return transient_by_intervals(chain, times, tolerance);
+    }
+    let windows: Vec<PoissonWindow> = times
+        .iter()
+        .map(|&t| poisson_window(lambda * t, tolerance))
+        .collect();
+    let steps = windows
+        .iter()
+        .map(|w| w.left + w.weights.len())
+        .max()
+        .unwrap_or(0);
+    if steps > MAX_SINGLE_PASS_STEPS {
+        return transient_by_intervals(chain, times, tolerance);
+    }
+    let p = Uniformized::new(chain, lambda);
+    let n = chain.len();
+    let mut state = vec![0.0; n];
+    for &(i, q) in &chain.initial {
+        state[i] += q;
+    }
+    let mut next = vec![0.0; n];
+    let mut absorbed = Vec::with_capacity(steps);
+    let (mut s, mut f) = (0.0, 0.0);
+    absorbed.push((s, f));
+    for _ in 1..steps {
+        let (ds, df) = p.step(&state, &mut next);
+        s += ds;
+        f += df;
+        absorbed.push((s, f));
+        std::mem::swap(&mut state, &mut next);
+        next.iter_mut().for_each(|x| *x = 0.0);
+    }
+    times
+        .iter()
+        .zip(&windows)
+        .map(|(&t, w)| {
+            let total: f64 = w.weights.iter().sum();
+            let (mut ps, mut pf) = (0.0, 0.0);
+            for (j, &wk) in w.weights.iter().enumerate() {
+                let (sk, fk) = absorbed[w.left + j];
+                ps += wk * sk;
+                pf += wk * fk;
+            }
+            let success = (chain.initial_success + ps / total).clamp(0.0, 1.0);
+            let failure = (chain.initial_failure + pf / total).clamp(0.0, 1.0);
+            CurvePoint {
+                t,
+                success,
+                failure,
+                running: (1.0 - success - failure).max(0.0),
+            }
+        })
+        .collect()
+}
+
+/// `P = I + Q/Λ` in compressed rows.
+struct Uniformized {
+    stay: Vec<f64>,
+    exit_s: Vec<f64>,
+    exit_f: Vec<f64>,
+    row_start: Vec<usize>,
+    cols: Vec<usize>,
+    vals: Vec<f64>,
+}
+
+impl Uniformized {
+    fn new(chain: &PhaseChain, lambda: f64) -> Uniformized {
+        let n = chain.len();
+        let mut u = Uniformized {
+            stay: (0..n).map(|i| 1.0 - chain.total_rate(i) / lambda).collect(),
+            exit_s: chain.exit_success.iter().map(|r| r / lambda).collect(),
+            exit_f: chain.exit_failure.iter().map(|r| r / lambda).collect(),
+            row_start: Vec::with_capacity(n + 1),
+            cols: Vec::new(),
+            vals: Vec::new(),
+        };
+        u.row_start.push(0);
+        for row in &chain.transitions {
+            for &(j, r) in row {
+                u.cols.push(j);
+                u.vals.push(r / lambda);
+            }
+            u.row_start.push(u.cols.len());
+        }
+        u
+    }
+
+    /// `next += state · P` on the transient part; returns the mass absorbed
+    /// into Success and Failure by this step.
+    fn step(&self, state: &[f64], next: &mut [f64]) -> (f64, f64) {
+        let (mut s, mut f) = (0.0, 0.0);
+        for (i, &v) in state.iter().enumerate() {
+            if v == 0.0 {
+                continue;
+            }
+            next[i] += v * self.stay[i];
+            for e in self.row_start[i]..self.row_start[i + 1] {
+                next[self.cols[e]] += v * self.vals[e];
+            }
+            s += v * self.exit_s[i];
+            f += v * self.exit_f[i];
+        }
+        (s, f)
+    }
+}
+
+/// The same by restarting uniformization on each interval between
+/// consecutive times (bounded memory for very long horizons); the error
+/// budget is split over the intervals.
+pub fn transient_by_intervals(
+    chain: &PhaseChain,
+    times: &[f64],
+    tolerance: f64,
+) -> Vec<CurvePoint> {
     let mut order: Vec<usize> = (0..times.len()).collect();
     order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
     let n = chain.len();
@@ -173,21 +303,7 @@ pub fn transient(chain: &PhaseChain, times: &[f64], tolerance: f64) -> Vec<Curve
     ];
     let mut next = vec![0.0; n];
     let mut acc = vec![0.0; n];
-    // the uniformized chain P = I + Q/Λ in compressed rows
-    let stay: Vec<f64> = (0..n).map(|i| 1.0 - chain.total_rate(i) / lambda).collect();
-    let exit_s: Vec<f64> = chain.exit_success.iter().map(|r| r / lambda).collect();
-    let exit_f: Vec<f64> = chain.exit_failure.iter().map(|r| r / lambda).collect();
-    let mut row_start = Vec::with_capacity(n + 1);
-    let mut cols = Vec::new();
-    let mut vals = Vec::new();
-    row_start.push(0);
-    for row in &chain.transitions {
-        for &(j, r) in row {
-            cols.push(j);
-            vals.push(r / lambda);
-        }
-        row_start.push(cols.len());
-    }
+    let p = Uniformized::new(chain, lambda.max(f64::MIN_POSITIVE));
     for &idx in &order {
         let t = times[idx];
         let dt = t - now;
@@ -211,18 +327,9 @@ pub fn transient(chain: &PhaseChain, times: &[f64], tolerance: f64) -> Vec<Curve
                     break;
                 }
                 // one step of P
-                for i in 0..n {
-                    let v = state[i];
-                    if v == 0.0 {
-                        continue;
-                    }
-                    next[i] += v * stay[i];
-                    for e in row_start[i]..row_start[i + 1] {
-                        next[cols[e]] += v * vals[e];
-                    }
-                    s_k += v * exit_s[i];
-                    f_k += v * exit_f[i];
-                }
+                let (ds, df) = p.step(&state, &mut next);
+                s_k += ds;
+                f_k += df;
                 std::mem::swap(&mut state, &mut next);
                 next.iter_mut().for_each(|x| *x = 0.0);
             }
