@@ -12,7 +12,8 @@ const RUNS: u64 = 1 << 23;
 
 fn bench(c: &mut Criterion) {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/trees/search-and-grasp.yaml");
-    let tree = btrel::tree::parse_file(std::path::Path::new(path)).expect("search-and-grasp parses");
+    let tree =
+        btrel::tree::parse_file(std::path::Path::new(path)).expect("search-and-grasp parses");
     let mut group = c.benchmark_group("simulate");
     group
         .sample_size(10)

@@ -49,9 +49,9 @@ pub fn book_ctmc(g: &Mrg, children: &[Figures]) -> PhaseChain {
     // phases: running markings that are not vanishing, in marking order
     let mut phase_of = vec![usize::MAX; g.len()];
     let mut chain = PhaseChain::default();
-    for m in 0..g.len() {
+    for (m, phase) in phase_of.iter_mut().enumerate() {
         if g.status[m] == Status::Running && vanishing_child(m).is_none() {
-            phase_of[m] = chain.push_phase();
+            *phase = chain.push_phase();
         }
     }
     // entries, from the last marking back (events go forward)
@@ -88,8 +88,7 @@ pub fn book_ctmc(g: &Mrg, children: &[Figures]) -> PhaseChain {
             },
         };
     }
-    for m in 0..g.len() {
-        let i = phase_of[m];
+    for (m, &i) in phase_of.iter().enumerate() {
         if i == usize::MAX {
             continue;
         }

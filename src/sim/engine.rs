@@ -1,77 +1,93 @@
-//! The episode engine: a flattened copy of the tree and one run of a subtree.
+//! The episode engine: a subtree compiled into a compact program, and one
+//! run of it.
 //!
-//! [`Flat`] is built once per simulation. Each node becomes one small,
-//! `Copy` [`Op`] in an array indexed by [`NodeId`] (the tree's own indices),
-//! children live in one shared index array, and an episode is a tight
-//! recursive function over those indices: no allocation, no dynamic
-//! dispatch. Parallel nodes use a [`Scratch`] stack whose capacity is
-//! reserved up front, so it never grows during a simulation.
+//! A [`Program`] is built once per simulated node. Each node becomes one
+//! small `Copy` [`Op`]; children live in one index array and leaves in one
+//! parameter array, so an episode is a tight recursive function over indices:
+//! no allocation, no dynamic dispatch. Parallel nodes use a [`Scratch`] stack
+//! whose capacity is reserved up front, so it never grows.
+//!
+//! While compiling, a few rewrites that change neither the outcome nor the
+//! duration of any run (nor the random draws made) shorten episodes:
+//!
+//! * a condition with `ps = 0` in a Fallback, or `ps = 1` in a Sequence,
+//!   is dropped (it returns the "keep going" outcome at once). It would
+//!   draw one number; dropping it only shifts the stream;
+//! * a Sequence child of a Sequence (a Fallback child of a Fallback) is
+//!   spliced into its parent: `Seq[a, Seq[b, c], d] = Seq[a, b, c, d]`;
+//! * a Sequence or Fallback left with one child is that child; one left with
+//!   none returns Success (Sequence) or Failure (Fallback) at time 0;
+//! * a Sequence or Fallback whose children are all leaves becomes one loop
+//!   over a contiguous run of leaf parameters ([`Op::SeqLeaves`],
+//!   [`Op::FbLeaves`]).
+//!
+//! A leaf is evaluated without branching on its outcome: its duration is
+//! `min(E·a + b, c)` with `E ~ Exp(1)` and `(a, b, c)` picked by the outcome:
+//! `(1/rate, 0, ∞)` for an exponential time, `(0, time, ∞)` for a fixed one,
+//! `(1/rate, 0, cap)` for a truncated exponential.
 
 use rand::Rng;
 use rand_distr::{Distribution, Exp1};
 
 use crate::tree::{Duration, NodeId, NodeKind, Tree};
 
-/// Outcome threshold meaning "always Success" (ps = 1): no random draw.
-const ALWAYS: u64 = u64::MAX;
-/// Outcome threshold meaning "always Failure" (ps = 0): no random draw.
-const NEVER: u64 = 0;
-/// Outcomes compare the top 53 bits of a `u64` draw with `ps · 2^53`.
+/// Outcomes compare the top 53 bits of a `u64` draw with `round(ps · 2^53)`.
 const ONE53: f64 = (1u64 << 53) as f64;
 
-/// How long one outcome of a leaf takes, ready to sample.
+/// A leaf, ready to sample. Index 0 of each pair is Failure, 1 Success.
 #[derive(Debug, Clone, Copy, PartialEq)]
-enum Time {
-    /// Exactly this long (also a condition's zero duration).
-    Fixed(f64),
-    /// `Exp1 · inv_rate`.
-    Exp { inv_rate: f64 },
-    /// `min(Exp1 · inv_rate, cap)`.
-    Trunc { inv_rate: f64, cap: f64 },
+struct Leaf {
+    /// Success iff `draw >> 11 < thr` (`thr = 2^53` always succeeds).
+    thr: u64,
+    /// Whether either duration needs an `Exp(1)` draw.
+    random: bool,
+    a: [f64; 2],
+    b: [f64; 2],
+    c: [f64; 2],
 }
 
-impl Time {
-    fn new(d: Option<Duration>) -> Time {
-        match d {
-            // Unreachable outcome (probability 0): never sampled.
-            None => Time::Fixed(0.0),
-            Some(Duration::Fixed { time }) => Time::Fixed(time),
-            Some(Duration::Exponential { rate }) => Time::Exp {
-                inv_rate: 1.0 / rate,
-            },
-            Some(Duration::TruncatedExponential { rate, cap }) => Time::Trunc {
-                inv_rate: 1.0 / rate,
-                cap,
-            },
+impl Leaf {
+    fn new(ps: f64, success: Option<Duration>, failure: Option<Duration>) -> Leaf {
+        // (a, b, c) of one outcome; an impossible outcome gets zeros.
+        let abc = |d: Option<Duration>| match d {
+            None => (0.0, 0.0, f64::INFINITY),
+            Some(Duration::Fixed { time }) => (0.0, time, f64::INFINITY),
+            Some(Duration::Exponential { rate }) => (1.0 / rate, 0.0, f64::INFINITY),
+            Some(Duration::TruncatedExponential { rate, cap }) => (1.0 / rate, 0.0, cap),
+        };
+        let (f, s) = (abc(failure), abc(success));
+        Leaf {
+            thr: (ps * ONE53).round().clamp(0.0, ONE53) as u64,
+            random: f.0 != 0.0 || s.0 != 0.0,
+            a: [f.0, s.0],
+            b: [f.1, s.1],
+            c: [f.2, s.2],
         }
+    }
+
+    /// A leaf that returns `ok` at time 0.
+    fn constant(ok: bool) -> Leaf {
+        Leaf::new(if ok { 1.0 } else { 0.0 }, None, None)
     }
 
     #[inline(always)]
-    fn sample<R: Rng>(self, rng: &mut R) -> f64 {
-        match self {
-            Time::Fixed(t) => t,
-            Time::Exp { inv_rate } => {
-                let e: f64 = Exp1.sample(rng);
-                e * inv_rate
-            }
-            Time::Trunc { inv_rate, cap } => {
-                let e: f64 = Exp1.sample(rng);
-                (e * inv_rate).min(cap)
-            }
-        }
+    fn run<R: Rng>(&self, rng: &mut R) -> (bool, f64) {
+        let ok = (rng.next_u64() >> 11) < self.thr;
+        let e: f64 = if self.random { Exp1.sample(rng) } else { 0.0 };
+        let i = ok as usize;
+        let (t, cap) = (e * self.a[i] + self.b[i], self.c[i]);
+        // Not `f64::min`: no NaN can occur, and this compiles to one `minsd`.
+        (ok, if t < cap { t } else { cap })
     }
 }
 
-/// One node, flattened. Children are `kids[first..end]`.
+/// One compiled node. `first..end` index [`Program::kids`] for control
+/// nodes, [`Program::leaves`] for the `*Leaves` forms.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Op {
-    /// An action or a condition (a condition has two zero [`Time::Fixed`]s).
-    Leaf {
-        /// Success iff `draw >> 11 < thr`; [`ALWAYS`] and [`NEVER`] draw nothing.
-        thr: u64,
-        success: Time,
-        failure: Time,
-    },
+    Leaf(u32),
+    SeqLeaves { first: u32, end: u32 },
+    FbLeaves { first: u32, end: u32 },
     Sequence { first: u32, end: u32 },
     Fallback { first: u32, end: u32 },
     Parallel { first: u32, end: u32, m: u32 },
@@ -84,84 +100,116 @@ pub(crate) struct Scratch {
     fail: Vec<f64>,
 }
 
-/// The tree flattened for fast episodes.
+/// A subtree compiled for fast episodes; its root is `ops[root]`.
 #[derive(Debug, Clone)]
-pub(crate) struct Flat {
+pub(crate) struct Program {
     ops: Vec<Op>,
     kids: Vec<u32>,
+    leaves: Vec<Leaf>,
+    root: u32,
     /// Total number of children of Parallel nodes (bounds the scratch stacks).
     parallel_kids: usize,
-    /// Deepest node depth (root 0).
-    pub(crate) max_depth: usize,
 }
 
-/// Probability → outcome threshold.
-fn threshold(ps: f64) -> u64 {
-    let thr = (ps * ONE53).round();
-    if thr >= ONE53 {
-        ALWAYS
-    } else if thr <= 0.0 {
-        NEVER
-    } else {
-        thr as u64
-    }
+/// The kind of control node a child may be spliced into.
+#[derive(Clone, Copy, PartialEq)]
+enum Chain {
+    Sequence,
+    Fallback,
 }
 
-impl Flat {
-    /// Flattens `tree`. Node ids are preserved.
-    pub(crate) fn new(tree: &Tree) -> Flat {
-        let mut kids = Vec::with_capacity(tree.nodes.len());
-        let mut parallel_kids = 0;
-        let mut span = |children: &[NodeId]| {
-            let first = kids.len() as u32;
-            kids.extend(children.iter().map(|&c| c as u32));
-            (first, kids.len() as u32)
+impl Program {
+    /// Compiles the subtree of `tree` rooted at `id`.
+    pub(crate) fn new(tree: &Tree, id: NodeId) -> Program {
+        let mut p = Program {
+            ops: Vec::new(),
+            kids: Vec::new(),
+            leaves: Vec::new(),
+            root: 0,
+            parallel_kids: 0,
         };
-        let ops = tree
-            .nodes
-            .iter()
-            .map(|node| match &node.kind {
-                NodeKind::Action(a) => Op::Leaf {
-                    thr: threshold(a.ps),
-                    success: Time::new(a.success),
-                    failure: Time::new(a.failure),
-                },
-                NodeKind::Condition { ps } => Op::Leaf {
-                    thr: threshold(*ps),
-                    success: Time::Fixed(0.0),
-                    failure: Time::Fixed(0.0),
-                },
-                NodeKind::Sequence { children } => {
-                    let (first, end) = span(children);
-                    Op::Sequence { first, end }
+        p.root = p.compile(tree, id);
+        p
+    }
+
+    fn push(&mut self, op: Op) -> u32 {
+        self.ops.push(op);
+        (self.ops.len() - 1) as u32
+    }
+
+    fn push_leaf(&mut self, leaf: Leaf) -> u32 {
+        self.leaves.push(leaf);
+        let i = (self.leaves.len() - 1) as u32;
+        self.push(Op::Leaf(i))
+    }
+
+    /// Children of a Sequence/Fallback after dropping neutral conditions and
+    /// splicing same-kind children, in execution order.
+    fn chain_children(tree: &Tree, chain: Chain, children: &[NodeId], out: &mut Vec<NodeId>) {
+        for &c in children {
+            match (&tree.nodes[c].kind, chain) {
+                (NodeKind::Condition { ps }, Chain::Sequence) if *ps == 1.0 => {}
+                (NodeKind::Condition { ps }, Chain::Fallback) if *ps == 0.0 => {}
+                (NodeKind::Sequence { children }, Chain::Sequence)
+                | (NodeKind::Fallback { children }, Chain::Fallback) => {
+                    Self::chain_children(tree, chain, children, out)
                 }
-                NodeKind::Fallback { children } => {
-                    let (first, end) = span(children);
-                    Op::Fallback { first, end }
-                }
-                NodeKind::Parallel {
-                    success_threshold,
-                    children,
-                } => {
-                    parallel_kids += children.len();
-                    let (first, end) = span(children);
-                    Op::Parallel {
-                        first,
-                        end,
-                        m: *success_threshold as u32,
-                    }
-                }
-            })
-            .collect();
-        Flat {
-            ops,
-            kids,
-            parallel_kids,
-            max_depth: tree.nodes.iter().map(|n| n.depth).max().unwrap_or(0),
+                _ => out.push(c),
+            }
         }
     }
 
-    /// A scratch space big enough for any episode of this tree.
+    fn compile(&mut self, tree: &Tree, id: NodeId) -> u32 {
+        let (chain, children) = match &tree.nodes[id].kind {
+            NodeKind::Action(a) => return self.push_leaf(Leaf::new(a.ps, a.success, a.failure)),
+            NodeKind::Condition { ps } => return self.push_leaf(Leaf::new(*ps, None, None)),
+            NodeKind::Parallel {
+                success_threshold,
+                children,
+            } => {
+                let ids: Vec<u32> = children.iter().map(|&c| self.compile(tree, c)).collect();
+                self.parallel_kids += ids.len();
+                let first = self.kids.len() as u32;
+                self.kids.extend(ids);
+                let end = self.kids.len() as u32;
+                let m = *success_threshold as u32;
+                return self.push(Op::Parallel { first, end, m });
+            }
+            NodeKind::Sequence { children } => (Chain::Sequence, children),
+            NodeKind::Fallback { children } => (Chain::Fallback, children),
+        };
+        let mut list = Vec::new();
+        Self::chain_children(tree, chain, children, &mut list);
+        match list[..] {
+            [] => return self.push_leaf(Leaf::constant(chain == Chain::Sequence)),
+            [only] => return self.compile(tree, only),
+            _ => {}
+        }
+        let leaf = |c: &NodeId| match &tree.nodes[*c].kind {
+            NodeKind::Action(a) => Some(Leaf::new(a.ps, a.success, a.failure)),
+            NodeKind::Condition { ps } => Some(Leaf::new(*ps, None, None)),
+            _ => None,
+        };
+        if let Some(leaves) = list.iter().map(leaf).collect::<Option<Vec<Leaf>>>() {
+            let first = self.leaves.len() as u32;
+            self.leaves.extend(leaves);
+            let end = self.leaves.len() as u32;
+            return self.push(match chain {
+                Chain::Sequence => Op::SeqLeaves { first, end },
+                Chain::Fallback => Op::FbLeaves { first, end },
+            });
+        }
+        let ids: Vec<u32> = list.iter().map(|&c| self.compile(tree, c)).collect();
+        let first = self.kids.len() as u32;
+        self.kids.extend(ids);
+        let end = self.kids.len() as u32;
+        self.push(match chain {
+            Chain::Sequence => Op::Sequence { first, end },
+            Chain::Fallback => Op::Fallback { first, end },
+        })
+    }
+
+    /// A scratch space big enough for any episode of this program.
     pub(crate) fn scratch(&self) -> Scratch {
         Scratch {
             succ: Vec::with_capacity(self.parallel_kids),
@@ -169,32 +217,42 @@ impl Flat {
         }
     }
 
-    /// Runs the subtree rooted at `id` once, from time 0.
-    ///
-    /// Returns (`true` for Success, duration).
+    /// Runs the subtree once, from time 0. Returns (`true` for Success,
+    /// duration).
     #[inline]
-    pub(crate) fn run<R: Rng>(&self, id: usize, rng: &mut R, scratch: &mut Scratch) -> (bool, f64) {
-        match self.ops[id] {
-            Op::Leaf {
-                thr,
-                success,
-                failure,
-            } => {
-                let ok = match thr {
-                    ALWAYS => true,
-                    NEVER => false,
-                    _ => (rng.next_u64() >> 11) < thr,
-                };
-                if ok {
-                    (true, success.sample(rng))
-                } else {
-                    (false, failure.sample(rng))
+    pub(crate) fn episode<R: Rng>(&self, rng: &mut R, scratch: &mut Scratch) -> (bool, f64) {
+        self.run(self.root, rng, scratch)
+    }
+
+    fn run<R: Rng>(&self, op: u32, rng: &mut R, scratch: &mut Scratch) -> (bool, f64) {
+        match self.ops[op as usize] {
+            Op::Leaf(i) => self.leaves[i as usize].run(rng),
+            Op::SeqLeaves { first, end } => {
+                let mut t = 0.0;
+                for leaf in &self.leaves[first as usize..end as usize] {
+                    let (ok, d) = leaf.run(rng);
+                    t += d;
+                    if !ok {
+                        return (false, t);
+                    }
                 }
+                (true, t)
+            }
+            Op::FbLeaves { first, end } => {
+                let mut t = 0.0;
+                for leaf in &self.leaves[first as usize..end as usize] {
+                    let (ok, d) = leaf.run(rng);
+                    t += d;
+                    if ok {
+                        return (true, t);
+                    }
+                }
+                (false, t)
             }
             Op::Sequence { first, end } => {
                 let mut t = 0.0;
                 for &c in &self.kids[first as usize..end as usize] {
-                    let (ok, d) = self.run(c as usize, rng, scratch);
+                    let (ok, d) = self.run(c, rng, scratch);
                     t += d;
                     if !ok {
                         return (false, t);
@@ -205,7 +263,7 @@ impl Flat {
             Op::Fallback { first, end } => {
                 let mut t = 0.0;
                 for &c in &self.kids[first as usize..end as usize] {
-                    let (ok, d) = self.run(c as usize, rng, scratch);
+                    let (ok, d) = self.run(c, rng, scratch);
                     t += d;
                     if ok {
                         return (true, t);
@@ -235,7 +293,7 @@ impl Flat {
     ) -> (bool, f64) {
         let (s0, f0) = (scratch.succ.len(), scratch.fail.len());
         for &c in &self.kids[first as usize..end as usize] {
-            let (ok, d) = self.run(c as usize, rng, scratch);
+            let (ok, d) = self.run(c, rng, scratch);
             if ok {
                 scratch.succ.push(d);
             } else {
@@ -278,9 +336,9 @@ mod tests {
 
     #[test]
     fn thresholds() {
-        assert_eq!(threshold(0.0), NEVER);
-        assert_eq!(threshold(1.0), ALWAYS);
-        assert_eq!(threshold(0.5), 1 << 52);
+        assert_eq!(Leaf::constant(false).thr, 0);
+        assert_eq!(Leaf::constant(true).thr, 1 << 53);
+        assert_eq!(Leaf::new(0.5, None, None).thr, 1 << 52);
     }
 
     #[test]
@@ -290,5 +348,29 @@ mod tests {
         assert_eq!(kth_smallest(&mut [2.0, 1.0], 0), 1.0);
         assert_eq!(kth_smallest(&mut [2.0, 1.0], 1), 2.0);
         assert_eq!(kth_smallest(&mut [7.0], 0), 7.0);
+    }
+
+    fn compiled(yaml: &str) -> Program {
+        let tree = crate::tree::parse_str(yaml, "t.yaml").unwrap();
+        Program::new(&tree, 0)
+    }
+
+    #[test]
+    fn rewrites() {
+        // Fallback[cond ps 0, Fallback[a, b]] is one leaf loop over a, b.
+        let p = compiled(
+            "tree: {fallback: {children: [{condition: {ps: 0}}, {fallback: {children: [\
+             {action: {ps: .5, mu: 1, nu: 1}}, {action: {ps: .5, mu: 1, nu: 1}}]}}]}}",
+        );
+        assert_eq!(p.ops[p.root as usize], Op::FbLeaves { first: 0, end: 2 });
+        // Sequence[cond ps 1] returns Success at 0.
+        let p = compiled("tree: {sequence: {children: [{condition: {ps: 1}}]}}");
+        assert_eq!(p.leaves, vec![Leaf::constant(true)]);
+        // A Fallback in a Sequence stays.
+        let p = compiled(
+            "tree: {sequence: {children: [{condition: {ps: .5}}, {fallback: {children: [\
+             {action: {ps: .5, mu: 1, nu: 1}}, {condition: {ps: .2}}]}}]}}",
+        );
+        assert!(matches!(p.ops[p.root as usize], Op::Sequence { .. }));
     }
 }

@@ -68,7 +68,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::tree::{NodeId, Tree};
-use engine::{Flat, Scratch};
+use engine::{Program, Scratch};
 use stats::{proportion, Moments, Raw};
 
 /// Seed used when none is given: `0x5EED_B7E1` ("seed btrel"). Any `u64`
@@ -86,8 +86,8 @@ pub const MAX_RUNS: u64 = 1_000_000_000_000;
 /// The normal quantile of the 95 % confidence intervals.
 pub const Z95: f64 = 1.96;
 
-/// Trees deeper than this run on a dedicated thread pool with large stacks
-/// (episodes recurse once per level).
+/// Subtrees deeper than this are compiled and run on a dedicated thread pool
+/// with large stacks (compiling and episodes recurse once per level).
 const DEEP_TREE: usize = 1_000;
 
 /// What to simulate.
@@ -251,7 +251,6 @@ pub fn simulate_node(
         });
     }
 
-    let flat = Flat::new(tree);
     let targets: Vec<usize> = if opts.per_node {
         tree.subtree(node).collect()
     } else {
@@ -263,17 +262,22 @@ pub fn simulate_node(
     order.sort_by(|&a, &b| opts.times[a].total_cmp(&opts.times[b]));
     let sorted: Vec<f64> = order.iter().map(|&i| opts.times[i]).collect();
 
-    let job = Job {
-        flat: &flat,
-        targets: &targets,
-        sorted: &sorted,
+    // Compiling recurses too, so it runs on the pool as well.
+    let run = || {
+        let programs: Vec<Program> = targets.iter().map(|&id| Program::new(tree, id)).collect();
+        let job = Job {
+            programs: &programs,
+            sorted: &sorted,
+        };
+        job.run_all(opts.runs, opts.seed, progress)
     };
-    let run = || job.run_all(opts.runs, opts.seed, progress);
-    let deep = flat.max_depth > DEEP_TREE;
+    let max_depth = tree.subtree(node).map(|i| tree.nodes[i].depth).max();
+    let depth = max_depth.unwrap_or(0) - tree.nodes[node].depth;
+    let deep = depth > DEEP_TREE;
     let total = if opts.threads > 0 || deep {
         let mut builder = rayon::ThreadPoolBuilder::new().num_threads(opts.threads);
         if deep {
-            builder = builder.stack_size((8 << 20) + flat.max_depth * 1024);
+            builder = builder.stack_size((8 << 20) + depth * 4096);
         }
         let pool = builder
             .build()
@@ -287,45 +291,40 @@ pub fn simulate_node(
 
 /// The fixed inputs of a simulation.
 struct Job<'a> {
-    flat: &'a Flat,
-    targets: &'a [usize],
+    /// One per simulated node; the first has the curve.
+    programs: &'a [Program],
+    /// Curve time points, ascending.
     sorted: &'a [f64],
 }
 
-/// Sums of one chunk.
+/// Sums of one chunk. Pairs are indexed by outcome: 0 Failure, 1 Success.
 struct ChunkSums {
     runs: u64,
-    /// Per target: (successful, failed) runs' durations.
-    nodes: Vec<(Raw, Raw)>,
-    /// Runs of the first target ending in Success (Failure) at a time in
+    /// Per program: durations of the failed and of the successful runs.
+    nodes: Vec<[Raw; 2]>,
+    /// Runs of the first program ending at a time in
     /// `(sorted[j-1], sorted[j]]`, for `j` in `0..=sorted.len()`.
-    hist_s: Vec<u64>,
-    hist_f: Vec<u64>,
+    hist: Vec<[u64; 2]>,
 }
 
 /// Sums of all chunks so far.
 struct Totals {
     runs: u64,
-    nodes: Vec<(Moments, Moments)>,
-    hist_s: Vec<u64>,
-    hist_f: Vec<u64>,
+    nodes: Vec<[Moments; 2]>,
+    hist: Vec<[u64; 2]>,
 }
+
+/// Time points up to this many are searched linearly (branch-free).
+const LINEAR_SEARCH: usize = 32;
 
 impl Job<'_> {
     /// Runs every chunk, in batches of a few chunks per thread, merging the
     /// batch's sums in chunk order before starting the next batch.
-    fn run_all(
-        &self,
-        runs: u64,
-        seed: u64,
-        progress: Option<&(dyn Fn(u64) + Sync)>,
-    ) -> Totals {
-        let bins = self.sorted.len() + 1;
+    fn run_all(&self, runs: u64, seed: u64, progress: Option<&(dyn Fn(u64) + Sync)>) -> Totals {
         let mut totals = Totals {
             runs: 0,
-            nodes: vec![Default::default(); self.targets.len()],
-            hist_s: vec![0; bins],
-            hist_f: vec![0; bins],
+            nodes: vec![Default::default(); self.programs.len()],
+            hist: vec![[0; 2]; self.sorted.len() + 1],
         };
         let chunks = runs.div_ceil(CHUNK_RUNS);
         let batch = (4 * rayon::current_num_threads()).max(1) as u64;
@@ -354,53 +353,51 @@ impl Job<'_> {
         totals
     }
 
-    /// Runs `n` episodes of each target, the first target with its curve.
+    /// Runs `n` episodes of each program in turn, the first with its curve.
     fn chunk(&self, rng: &mut Xoshiro256PlusPlus, n: u64) -> ChunkSums {
-        let bins = self.sorted.len() + 1;
         let mut sums = ChunkSums {
             runs: n,
-            nodes: vec![Default::default(); self.targets.len()],
-            hist_s: vec![0; bins],
-            hist_f: vec![0; bins],
+            nodes: vec![Default::default(); self.programs.len()],
+            hist: vec![[0; 2]; self.sorted.len() + 1],
         };
-        let mut scratch = self.flat.scratch();
-        let (first, rest) = self.targets.split_first().expect("at least one target");
-        self.episodes_with_curve(*first, n, rng, &mut scratch, &mut sums);
-        for (i, &id) in rest.iter().enumerate() {
-            let (s, f) = &mut sums.nodes[i + 1];
+        let (first, rest) = self.programs.split_first().expect("at least one node");
+        let mut scratch = first.scratch();
+        if self.sorted.len() <= LINEAR_SEARCH {
+            self.episodes_with_curve(first, n, rng, &mut scratch, &mut sums, |t, times| {
+                times.iter().filter(|&&x| x < t).count()
+            });
+        } else {
+            self.episodes_with_curve(first, n, rng, &mut scratch, &mut sums, |t, times| {
+                times.partition_point(|&x| x < t)
+            });
+        }
+        for (program, raw) in rest.iter().zip(&mut sums.nodes[1..]) {
+            let mut scratch = program.scratch();
             for _ in 0..n {
-                let (ok, t) = self.flat.run(id, rng, &mut scratch);
-                if ok {
-                    s.push(t)
-                } else {
-                    f.push(t)
-                }
+                let (ok, t) = program.episode(rng, &mut scratch);
+                raw[ok as usize].push(t);
             }
         }
         sums
     }
 
+    /// `bin(t, sorted)` is the number of time points before `t`.
+    #[inline(always)]
     fn episodes_with_curve(
         &self,
-        id: usize,
+        program: &Program,
         n: u64,
         rng: &mut Xoshiro256PlusPlus,
         scratch: &mut Scratch,
         sums: &mut ChunkSums,
+        bin: impl Fn(f64, &[f64]) -> usize,
     ) {
-        let (s, f) = &mut sums.nodes[0];
-        let sorted = self.sorted;
+        let raw = &mut sums.nodes[0];
         for _ in 0..n {
-            let (ok, t) = self.flat.run(id, rng, scratch);
+            let (ok, t) = program.episode(rng, scratch);
+            raw[ok as usize].push(t);
             // The run counts at every time point >= t.
-            let bin = sorted.partition_point(|&x| x < t);
-            if ok {
-                s.push(t);
-                sums.hist_s[bin] += 1;
-            } else {
-                f.push(t);
-                sums.hist_f[bin] += 1;
-            }
+            sums.hist[bin(t, self.sorted)][ok as usize] += 1;
         }
     }
 }
@@ -408,15 +405,13 @@ impl Job<'_> {
 impl Totals {
     fn merge(&mut self, c: &ChunkSums) {
         self.runs += c.runs;
-        for ((ms, mf), (rs, rf)) in self.nodes.iter_mut().zip(&c.nodes) {
-            ms.merge(rs);
-            mf.merge(rf);
+        for (m, r) in self.nodes.iter_mut().zip(&c.nodes) {
+            m[0].merge(&r[0]);
+            m[1].merge(&r[1]);
         }
-        for (a, b) in self.hist_s.iter_mut().zip(&c.hist_s) {
-            *a += b;
-        }
-        for (a, b) in self.hist_f.iter_mut().zip(&c.hist_f) {
-            *a += b;
+        for (a, b) in self.hist.iter_mut().zip(&c.hist) {
+            a[0] += b[0];
+            a[1] += b[1];
         }
     }
 
@@ -431,7 +426,7 @@ impl Totals {
         let nodes = targets
             .iter()
             .zip(&self.nodes)
-            .map(|(&node, (s, f))| NodeEstimate {
+            .map(|(&node, [f, s])| NodeEstimate {
                 node,
                 ps: proportion(s.n, n),
                 pf: proportion(f.n, n),
@@ -442,8 +437,8 @@ impl Totals {
         let mut curve = vec![None; sorted.len()];
         let (mut ks, mut kf) = (0, 0);
         for (i, &t) in sorted.iter().enumerate() {
-            ks += self.hist_s[i];
-            kf += self.hist_f[i];
+            kf += self.hist[i][0];
+            ks += self.hist[i][1];
             curve[order[i]] = Some(CurvePoint {
                 t,
                 success: proportion(ks, n),

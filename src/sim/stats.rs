@@ -107,7 +107,9 @@ mod tests {
 
     #[test]
     fn chan_merge_matches_two_pass() {
-        let xs: Vec<f64> = (0..1000).map(|i| 1e6 + ((i * 37) % 101) as f64 * 0.01).collect();
+        let xs: Vec<f64> = (0..1000)
+            .map(|i| 1e6 + ((i * 37) % 101) as f64 * 0.01)
+            .collect();
         let mut m = Moments::default();
         for chunk in xs.chunks(77) {
             let mut r = Raw::default();

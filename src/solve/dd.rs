@@ -92,11 +92,11 @@ impl Dd {
                 break;
             }
         }
-        Dd::ONE.div(sum)
+        Dd::ONE.div_dd(sum)
     }
 
     /// Division by a double-double.
-    pub fn div(self, b: Dd) -> Dd {
+    pub fn div_dd(self, b: Dd) -> Dd {
         let q1 = self.hi / b.hi;
         let r = self + (b * Dd::from_f64(-q1));
         let q2 = r.hi / b.hi;
