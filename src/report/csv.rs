@@ -14,8 +14,23 @@ fn cell(x: Option<f64>) -> String {
     x.map_or_else(String::new, full)
 }
 
+/// A CSV error as the I/O error it wraps (so a closed pipe stays a
+/// `BrokenPipe`), or as a generic I/O error.
+pub fn io_error(e: csv::Error) -> io::Error {
+    match e.into_kind() {
+        csv::ErrorKind::Io(e) => e,
+        other => io::Error::other(format!("{other:?}")),
+    }
+}
+
 impl Exporter for CsvExporter {
     fn write(&self, report: &Report, out: &mut dyn Write) -> io::Result<()> {
+        self.write_csv(report, out).map_err(io_error)
+    }
+}
+
+impl CsvExporter {
+    fn write_csv(&self, report: &Report, out: &mut dyn Write) -> csv::Result<()> {
         let mut w = csv::Writer::from_writer(out);
         w.write_record([
             "name", "path", "kind", "depth", "ps", "pf", "mtts", "mttf", "mu", "nu",
@@ -35,6 +50,7 @@ impl Exporter for CsvExporter {
                 cell(f.nu()),
             ])?;
         }
-        w.flush()
+        w.flush()?;
+        Ok(())
     }
 }

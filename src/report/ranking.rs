@@ -185,6 +185,15 @@ pub fn write_json(tree: &Tree, cmp: &Comparison, k: usize, out: &mut dyn Write) 
 
 /// CSV: `rank,ordering,given,ps,mtts,mttf,mean_time,success_by_deadline`.
 pub fn write_csv(tree: &Tree, cmp: &Comparison, k: usize, out: &mut dyn Write) -> io::Result<()> {
+    write_csv_inner(tree, cmp, k, out).map_err(super::csv::io_error)
+}
+
+fn write_csv_inner(
+    tree: &Tree,
+    cmp: &Comparison,
+    k: usize,
+    out: &mut dyn Write,
+) -> csv::Result<()> {
     let mut w = csv::Writer::from_writer(out);
     w.write_record([
         "rank",
@@ -209,7 +218,8 @@ pub fn write_csv(tree: &Tree, cmp: &Comparison, k: usize, out: &mut dyn Write) -
             opt(c.success_by_deadline),
         ])?;
     }
-    w.flush()
+    w.flush()?;
+    Ok(())
 }
 
 /// The ordering's label used in the `ordering` column of `--curves`.

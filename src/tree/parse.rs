@@ -211,13 +211,17 @@ fn parse_on_this_thread(source: &str, file: &str, limits: ParseLimits) -> Result
             max_nodes: limits.max_yaml_nodes,
             max_events: 4 * limits.max_yaml_nodes,
             max_total_scalar_bytes: limits.max_bytes,
+            flow_nesting_limit: 3 * limits.max_depth + 4,
         },
         alias_limits: serde_saphyr::alias_limits! {
             max_total_replayed_events: 4 * limits.max_yaml_nodes,
         },
         with_snippet: false,
     };
-    if source.trim().is_empty() {
+    let only_comments = source
+        .lines()
+        .all(|l| l.trim().is_empty() || l.trim_start().starts_with('#'));
+    if only_comments {
         return Err(
             TreeError::at(file, source, (1, 1), "the file is empty").with_help(
                 "a tree file needs a `tree:` key, e.g. `tree: {action: {ps: 0.5, mu: 1, nu: 1}}`",
@@ -274,6 +278,12 @@ fn yaml_error(
             (format!("unknown node kind `{variant}`"), Some(hint))
         }
         E::SerdeMissingField { field, .. } => {
+            // serde reports the mapping's last key; point at the node instead
+            if let Some(at) = enclosing_node(source, loc) {
+                let mut err = TreeError::at(file, source, at, format!("missing key `{field}`"));
+                err.help = Some(missing_help(field));
+                return err;
+            }
             let hint = match *field {
                 "ps" => {
                     "every action and condition needs `ps`, its probability of success in [0, 1]"
@@ -327,6 +337,58 @@ fn yaml_error(
     let mut err = TreeError::at(file, source, loc, message);
     err.help = help;
     err
+}
+
+fn missing_help(field: &str) -> String {
+    match field {
+        "ps" => "every action and condition needs `ps`, its probability of success in [0, 1]",
+        "children" => "a control node needs `children:`, a list of at least one node",
+        "tree" => "a tree file needs a `tree:` key holding the root node",
+        _ => "add the missing key",
+    }
+    .to_string()
+}
+
+/// The location of the node keyword (`action:`, `sequence:`, ...) that
+/// encloses `(line, column)`: the nearest one before it in the text.
+fn enclosing_node(source: &str, (line, column): (usize, usize)) -> Option<(usize, usize)> {
+    if line == 0 {
+        return None;
+    }
+    let lines: Vec<&str> = source.lines().collect();
+    for l in (0..line.min(lines.len())).rev() {
+        let text = lines[l];
+        let limit = if l + 1 == line {
+            text.char_indices()
+                .nth(column.saturating_sub(1))
+                .map_or(text.len(), |(i, _)| i)
+        } else {
+            text.len()
+        };
+        let head = &text[..limit];
+        let mut best: Option<usize> = None;
+        for kind in NODE_KINDS {
+            let mut from = 0;
+            while let Some(pos) = head[from..].find(kind) {
+                let start = from + pos;
+                let end = start + kind.len();
+                let before_ok = start == 0
+                    || !head[..start]
+                        .chars()
+                        .next_back()
+                        .is_some_and(|c| c.is_alphanumeric() || c == '_');
+                let after = head[end..].trim_start();
+                if before_ok && after.starts_with(':') {
+                    best = Some(best.map_or(start, |b: usize| b.max(start)));
+                }
+                from = end;
+            }
+        }
+        if let Some(b) = best {
+            return Some((l + 1, head[..b].chars().count() + 1));
+        }
+    }
+    None
 }
 
 /// serde-saphyr appends " at line L, column C"; the location is shown separately.
