@@ -53,6 +53,9 @@ enum Command {
     /// Rank the orderings of Fallback children (equivalent trees, Def. 9.10).
     #[command(after_help = COMPARE_EXAMPLES)]
     Compare(CompareArgs),
+    /// Monte Carlo simulation of the tree's tick semantics (cross-checks every figure).
+    #[command(after_help = SIMULATE_EXAMPLES)]
+    Simulate(SimulateArgs),
     /// Validate a tree file without analysing it.
     #[command(after_help = "Example:\n  btrel check trees/search-and-grasp.yaml")]
     Check {
@@ -78,6 +81,11 @@ struct ReportArgs {
     /// Largest chain (number of states) an exact analysis may build.
     #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_STATES)]
     max_states: usize,
+    /// Also simulate N runs per node and compare (Table 9.1 style).
+    #[arg(long, value_name = "N")]
+    mc: Option<String>,
+    #[command(flatten)]
+    sim: SimArgs,
 }
 
 const CURVE_EXAMPLES: &str = "\
@@ -115,6 +123,11 @@ struct CurveArgs {
     /// as-given, or deterministic: every exponential time replaced by 1/rate.
     #[arg(long, value_enum, default_value_t = TimingArg::AsGiven)]
     timing: TimingArg,
+    /// Also simulate N runs and add mc_success, mc_failure, mc_running columns.
+    #[arg(long, value_name = "N")]
+    mc: Option<String>,
+    #[command(flatten)]
+    sim: SimArgs,
     /// Write to this file (atomically) instead of standard output.
     #[arg(short, long, value_name = "FILE")]
     output: Option<PathBuf>,
@@ -182,6 +195,59 @@ enum ObjectiveArg {
     SuccessBy,
 }
 
+const SIMULATE_EXAMPLES: &str = "\
+Examples:
+  btrel simulate trees/search-and-grasp.yaml --runs 1e6
+  btrel simulate trees/search-and-grasp.yaml --runs 1e6 --times 10,100,1000 --format json
+  btrel report trees/search-and-grasp.yaml --mc 1e6        # Table 9.1-style check
+  btrel curve trees/search-and-grasp.yaml --t-end 1000 --mc 1e5
+
+The same seed gives bit-identical output whatever --threads is (default seed 0x5EEDB7E1).
+For a simulated curve as CSV use `btrel curve --mc N`.";
+
+/// Monte Carlo options shared by `simulate`, `report --mc` and `curve --mc`.
+#[derive(clap::Args)]
+struct SimArgs {
+    /// Seed of the random streams (decimal or 0x hex; default 0x5EEDB7E1).
+    #[arg(long, value_name = "S", allow_hyphen_values = true)]
+    seed: Option<String>,
+    /// Worker threads (default: one per core); the result does not depend on it.
+    #[arg(long, value_name = "K", default_value_t = 0)]
+    threads: usize,
+}
+
+#[derive(clap::Args)]
+struct SimulateArgs {
+    /// The tree file (YAML).
+    tree: PathBuf,
+    /// Runs per node (e.g. 1000000 or 1e6).
+    #[arg(long, value_name = "N", default_value = "1000000")]
+    runs: String,
+    #[command(flatten)]
+    sim: SimArgs,
+    /// Simulate this node's subtree instead of the whole tree (name or path).
+    #[arg(long, value_name = "NAME")]
+    node: Option<String>,
+    /// Comma-separated times (s) for the curve of the simulated node.
+    #[arg(long, value_delimiter = ',', value_name = "T1,T2,...", allow_hyphen_values = true, conflicts_with_all = ["t_end", "points", "dt"])]
+    times: Vec<String>,
+    /// Last time (s) of an evenly spaced curve grid from 0.
+    #[arg(long, value_name = "T", allow_hyphen_values = true)]
+    t_end: Option<String>,
+    /// Number of grid points (default 101).
+    #[arg(long, value_name = "K", conflicts_with = "dt", requires = "t_end")]
+    points: Option<usize>,
+    /// Grid spacing (s).
+    #[arg(long, value_name = "D", requires = "t_end", allow_hyphen_values = true)]
+    dt: Option<String>,
+    /// Output format.
+    #[arg(long, value_enum, default_value_t = FormatArg::Table)]
+    format: FormatArg,
+    /// Write to this file (atomically) instead of standard output.
+    #[arg(short, long, value_name = "FILE")]
+    output: Option<PathBuf>,
+}
+
 /// Most time points one request may ask for.
 const MAX_POINTS: usize = 10_000_000;
 
@@ -232,6 +298,7 @@ pub fn main() -> ExitCode {
         Command::Check { tree } => check(&tree),
         Command::Curve(args) => curve(args),
         Command::Compare(args) => compare(args),
+        Command::Simulate(args) => simulate(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -265,15 +332,45 @@ fn report(args: ReportArgs) -> Result<(), Failure> {
         method: method(args.method),
         max_states: args.max_states,
     };
+    let mc = args
+        .mc
+        .as_deref()
+        .map(|n| parse_count("--mc", n))
+        .transpose()?;
+    let sim = mc
+        .map(|runs| sim_options(&args.sim, runs, Vec::new(), true))
+        .transpose()?;
     let analysis = analyze(&tree, &options).map_err(Failure::analysis)?;
     let report = Report::new(&tree, &analysis);
+    let simulated = match &sim {
+        Some(o) => Some(run_simulation(&tree, Tree::ROOT, o)?),
+        None => None,
+    };
     let format = match args.format {
         FormatArg::Table => Format::Table,
         FormatArg::Json => Format::Json,
         FormatArg::Csv => Format::Csv,
     };
+    if simulated.is_some() && format == Format::Csv {
+        return Err(Failure::input(
+            "--mc works with --format table or json; `btrel simulate --format csv` gives the simulated figures as CSV",
+        ));
+    }
     let exporter = format.exporter();
-    emit(args.output.as_deref(), |out| exporter.write(&report, out))
+    emit(args.output.as_deref(), |out| match (&simulated, format) {
+        (None, _) => exporter.write(&report, out),
+        (Some(r), Format::Json) => {
+            serde_json::to_writer_pretty(
+                &mut *out,
+                &btrel::report::simulation::report_json_with_mc(&report, r),
+            )?;
+            writeln!(out)
+        }
+        (Some(r), _) => {
+            exporter.write(&report, out)?;
+            btrel::report::simulation::write_check_table(&report, r, out)
+        }
+    })
 }
 
 fn method(m: MethodArg) -> Method {
@@ -298,9 +395,27 @@ fn parse_time(what: &str, s: &str) -> Result<f64, Failure> {
 }
 
 fn requested_times(args: &CurveArgs) -> Result<Vec<f64>, Failure> {
-    if !args.times.is_empty() {
-        let times = args
-            .times
+    grid_times(
+        &args.times,
+        args.t_end.as_deref(),
+        args.points,
+        args.dt.as_deref(),
+    )?
+    .ok_or_else(|| {
+        Failure::input("which times? give --times T1,T2,... or --t-end T [--points K | --dt D]")
+    })
+}
+
+/// Times from `--times`, or from `--t-end` with `--points`/`--dt`; `None`
+/// when neither is given.
+fn grid_times(
+    list: &[String],
+    t_end: Option<&str>,
+    points: Option<usize>,
+    dt: Option<&str>,
+) -> Result<Option<Vec<f64>>, Failure> {
+    if !list.is_empty() {
+        let times = list
             .iter()
             .map(|s| parse_time("--times", s))
             .collect::<Result<Vec<_>, _>>()?;
@@ -309,15 +424,13 @@ fn requested_times(args: &CurveArgs) -> Result<Vec<f64>, Failure> {
                 "--times: at most {MAX_POINTS} times"
             )));
         }
-        return Ok(times);
+        return Ok(Some(times));
     }
-    let Some(end) = args.t_end.as_deref() else {
-        return Err(Failure::input(
-            "which times? give --times T1,T2,... or --t-end T [--points K | --dt D]",
-        ));
+    let Some(end) = t_end else {
+        return Ok(None);
     };
     let end = parse_time("--t-end", end)?;
-    if let Some(dt) = &args.dt {
+    if let Some(dt) = dt {
         let dt = parse_time("--dt", dt)?;
         if dt <= 0.0 {
             return Err(Failure::input("--dt must be > 0"));
@@ -328,22 +441,140 @@ fn requested_times(args: &CurveArgs) -> Result<Vec<f64>, Failure> {
                 "--t-end / --dt gives {count:.0} points, more than the limit of {MAX_POINTS}"
             )));
         }
-        return Ok((0..count as usize)
-            .map(|k| (k as f64 * dt).min(end))
-            .collect());
+        return Ok(Some(
+            (0..count as usize)
+                .map(|k| (k as f64 * dt).min(end))
+                .collect(),
+        ));
     }
-    let points = args.points.unwrap_or(101);
+    let points = points.unwrap_or(101);
     if points == 0 || points > MAX_POINTS {
         return Err(Failure::input(format!(
             "--points must be between 1 and {MAX_POINTS}"
         )));
     }
     if points == 1 {
-        return Ok(vec![end]);
+        return Ok(Some(vec![end]));
     }
-    Ok((0..points)
-        .map(|k| end * k as f64 / (points - 1) as f64)
-        .collect())
+    Ok(Some(
+        (0..points)
+            .map(|k| end * k as f64 / (points - 1) as f64)
+            .collect(),
+    ))
+}
+
+/// A count such as `1000000`, `1_000_000` or `1e6`.
+fn parse_count(what: &str, s: &str) -> Result<u64, Failure> {
+    let clean = s.trim().replace('_', "");
+    if let Ok(n) = clean.parse::<u64>() {
+        return Ok(n);
+    }
+    match clean.parse::<f64>() {
+        Ok(x) if x.is_finite() && x >= 0.0 && x.fract() == 0.0 && x < 1.8e19 => Ok(x as u64),
+        _ => Err(Failure::input(format!(
+            "{what}: '{s}' is not a whole number of runs (e.g. 100000 or 1e5)"
+        ))),
+    }
+}
+
+fn sim_options(
+    args: &SimArgs,
+    runs: u64,
+    times: Vec<f64>,
+    per_node: bool,
+) -> Result<btrel::sim::SimOptions, Failure> {
+    let seed = match args.seed.as_deref() {
+        None => btrel::sim::DEFAULT_SEED,
+        Some(s) => {
+            let t = s.trim();
+            let parsed = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
+                Some(hex) => u64::from_str_radix(&hex.replace('_', ""), 16),
+                None => t.replace('_', "").parse::<u64>(),
+            };
+            parsed.map_err(|_| {
+                Failure::input(format!(
+                    "--seed: '{s}' is not a seed (a whole number from 0 to 2^64-1, decimal or 0x hex)"
+                ))
+            })?
+        }
+    };
+    Ok(btrel::sim::SimOptions {
+        runs,
+        seed,
+        threads: args.threads,
+        times,
+        per_node,
+    })
+}
+
+/// Runs a simulation with a progress bar on a terminal.
+fn run_simulation(
+    tree: &Tree,
+    node: usize,
+    options: &btrel::sim::SimOptions,
+) -> Result<btrel::sim::SimResult, Failure> {
+    use std::io::IsTerminal;
+    let nodes = if options.per_node {
+        tree.subtree(node).len() as u64
+    } else {
+        1
+    };
+    let show = io::stderr().is_terminal() && options.runs.saturating_mul(nodes) >= 20_000_000;
+    let bar = show.then(|| {
+        let b = indicatif::ProgressBar::new(options.runs);
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "simulating {bar:40} {pos}/{len} runs ({eta} left)",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        b
+    });
+    let callback = |done: u64| {
+        if let Some(b) = &bar {
+            b.set_position(done);
+        }
+    };
+    let result = btrel::sim::simulate_node(
+        tree,
+        node,
+        options,
+        bar.as_ref().map(|_| &callback as &(dyn Fn(u64) + Sync)),
+    )
+    .map_err(Failure::input);
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    result
+}
+
+fn simulate(args: SimulateArgs) -> Result<(), Failure> {
+    use btrel::report::simulation;
+    let runs = parse_count("--runs", &args.runs)?;
+    let times = grid_times(
+        &args.times,
+        args.t_end.as_deref(),
+        args.points,
+        args.dt.as_deref(),
+    )?
+    .unwrap_or_default();
+    if matches!(args.format, FormatArg::Csv) && !times.is_empty() {
+        return Err(Failure::input(
+            "--format csv prints the per-node figures; for a simulated curve as CSV use `btrel curve --mc N`",
+        ));
+    }
+    let options = sim_options(&args.sim, runs, times, true)?;
+    let tree = load(&args.tree)?;
+    let node = match &args.node {
+        Some(n) => find_nodes(&tree, std::slice::from_ref(n), &args.tree)?[0],
+        None => Tree::ROOT,
+    };
+    let result = run_simulation(&tree, node, &options)?;
+    emit(args.output.as_deref(), |out| match args.format {
+        FormatArg::Table => simulation::write_table(&tree, &result, out),
+        FormatArg::Json => simulation::write_json(&tree, &result, out),
+        FormatArg::Csv => simulation::write_csv(&tree, &result, out),
+    })
 }
 
 fn curve(args: CurveArgs) -> Result<(), Failure> {
@@ -363,19 +594,33 @@ fn curve(args: CurveArgs) -> Result<(), Failure> {
         max_states: args.max_states,
         ..CurveOptions::default()
     };
+    let mc = args
+        .mc
+        .as_deref()
+        .map(|n| parse_count("--mc", n))
+        .transpose()?;
+    let sim = mc
+        .map(|runs| sim_options(&args.sim, runs, times.clone(), false))
+        .transpose()?;
     let mut curves = Vec::with_capacity(nodes.len());
     for &id in &nodes {
-        curves.push((
-            id,
-            btrel::curve::curve(&tree, id, &times, &options).map_err(Failure::analysis)?,
-        ));
+        let points = btrel::curve::curve(&tree, id, &times, &options).map_err(Failure::analysis)?;
+        let simulated = match &sim {
+            Some(o) => Some(run_simulation(&tree, id, o)?.curve),
+            None => None,
+        };
+        curves.push((id, points, simulated));
     }
     emit(args.output.as_deref(), |out| {
-        writeln!(out, "node,t,success,failure,running")?;
-        for (id, points) in &curves {
+        write!(out, "node,t,success,failure,running")?;
+        if sim.is_some() {
+            write!(out, ",mc_success,mc_failure,mc_running")?;
+        }
+        writeln!(out)?;
+        for (id, points, simulated) in &curves {
             let name = csv_field(&tree.node(*id).name);
-            for p in points {
-                writeln!(
+            for (k, p) in points.iter().enumerate() {
+                write!(
                     out,
                     "{name},{},{},{},{}",
                     full(p.t),
@@ -383,6 +628,17 @@ fn curve(args: CurveArgs) -> Result<(), Failure> {
                     full(p.failure),
                     full(p.running)
                 )?;
+                if let Some(s) = simulated {
+                    let m = &s[k];
+                    write!(
+                        out,
+                        ",{},{},{}",
+                        full(m.success.mean),
+                        full(m.failure.mean),
+                        full(m.running.mean)
+                    )?;
+                }
+                writeln!(out)?;
             }
         }
         Ok(())

@@ -8,6 +8,7 @@ pub mod csv;
 pub mod json;
 pub mod number;
 pub mod ranking;
+pub mod simulation;
 pub mod table;
 
 use std::io::{self, Write};
