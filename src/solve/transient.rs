@@ -53,6 +53,19 @@ pub struct PoissonWindow {
 
 /// Poisson(λ) weights truncated so that the mass outside is at most `eps`.
 pub fn poisson_window(lambda: f64, eps: f64) -> PoissonWindow {
+    poisson_window_with(lambda, eps, &[])
+}
+
+/// Reciprocals `1/k` for `k < len` (index 0 unused), to avoid divisions in
+/// the weight recurrences.
+fn reciprocals(len: usize) -> Vec<f64> {
+    (0..len).map(|k| 1.0 / k.max(1) as f64).collect()
+}
+
+/// [`poisson_window`] with a table of reciprocals `inv[k] = 1/k`.
+fn poisson_window_with(lambda: f64, eps: f64, inv: &[f64]) -> PoissonWindow {
+    let recip = |k: usize| -> f64 { inv.get(k).copied().unwrap_or_else(|| 1.0 / k as f64) };
+    let inv_lambda = 1.0 / lambda.max(f64::MIN_POSITIVE);
     assert!(lambda >= 0.0 && lambda.is_finite());
     if lambda == 0.0 {
         return PoissonWindow {
@@ -66,41 +79,37 @@ pub fn poisson_window(lambda: f64, eps: f64) -> PoissonWindow {
     let log_wm = mode as f64 * lambda.ln() - lambda - ln_factorial(mode);
     let wm = log_wm.exp();
     let half = eps / 2.0;
-    // right side: w_{k+1} = w_k λ/(k+1)
-    let mut right = vec![wm];
+    // right side: w_{k+1} = w_k λ/(k+1). Once k+1 > λ every later ratio is
+    // at most r = λ/(k+2), so Σ_{j>k} w_j ≤ w_{k+1}/(1−r); the test below is
+    // that bound ≤ half, multiplied out to avoid divisions.
+    let expected_right = (lambda + 8.0 * lambda.sqrt() + 16.0) as usize;
+    let mut weights = Vec::with_capacity(2 * expected_right.saturating_sub(mode) + 2);
+    weights.push(wm);
     let mut k = mode;
+    let mut w = wm;
+    let right_tail;
     loop {
-        let w = *right.last().expect("non-empty");
-        // tail beyond k (exclusive): Σ_{j>k} w_j ≤ w_k · r/(1−r), r = λ/(k+2) bounds
-        // every later ratio once k+1 > λ
-        let r = lambda / (k as f64 + 2.0);
-        let next = w * lambda / (k as f64 + 1.0);
-        if k as f64 + 1.0 > lambda && r < 1.0 {
-            let tail = next / (1.0 - r);
-            if tail <= half {
-                break;
-            }
+        let k1 = k as f64 + 1.0;
+        let next = w * lambda * recip(k + 1);
+        if k1 > lambda && next * (k1 + 1.0) <= half * (k1 + 1.0 - lambda) {
+            right_tail = next * (k1 + 1.0) / (k1 + 1.0 - lambda);
+            break;
         }
-        right.push(next);
+        weights.push(next);
+        w = next;
         k += 1;
     }
-    let right_tail = {
-        let w = *right.last().expect("non-empty");
-        let r = lambda / (k as f64 + 2.0);
-        w * lambda / (k as f64 + 1.0) / (1.0 - r)
-    };
-    // left side: w_{k-1} = w_k k/λ
+    // left side: w_{k-1} = w_k k/λ; every earlier ratio is at most (k−1)/λ,
+    // so Σ_{j≤k−1} w_j ≤ w_{k−1}/(1 − (k−1)/λ)
     let mut left_w = Vec::new();
     let mut k = mode;
     let mut left_tail = 0.0;
     let mut w = wm;
     while k > 0 {
-        let prev = w * k as f64 / lambda;
-        // tail at and below k-1: Σ_{j≤k-1} w_j ≤ prev / (1 − (k−1)/λ)
-        let r = (k as f64 - 1.0) / lambda;
-        let tail = prev / (1.0 - r);
-        if tail <= half {
-            left_tail = tail;
+        let prev = w * k as f64 * inv_lambda;
+        let km1 = k as f64 - 1.0;
+        if prev * lambda <= half * (lambda - km1) {
+            left_tail = prev * lambda / (lambda - km1);
             break;
         }
         left_w.push(prev);
@@ -109,7 +118,7 @@ pub fn poisson_window(lambda: f64, eps: f64) -> PoissonWindow {
     }
     let left = mode - left_w.len();
     left_w.reverse();
-    left_w.extend(right);
+    left_w.extend(weights);
     PoissonWindow {
         left,
         weights: left_w,
@@ -168,9 +177,11 @@ pub fn transient(chain: &PhaseChain, times: &[f64], tolerance: f64) -> Vec<Curve
     if chain.is_empty() || lambda == 0.0 || horizon == 0.0 {
         return transient_by_intervals(chain, times, tolerance);
     }
+    let max_lt = lambda * horizon;
+    let inv = reciprocals((max_lt + 10.0 * max_lt.sqrt() + 64.0).min(1e8) as usize);
     let windows: Vec<PoissonWindow> = times
         .iter()
-        .map(|&t| poisson_window(lambda * t, tolerance))
+        .map(|&t| poisson_window_with(lambda * t, tolerance, &inv))
         .collect();
     let steps = windows
         .iter()
