@@ -100,7 +100,7 @@ pub fn curve(
         return curve(&det, id, times, &opts);
     }
     let node = tree.node(id);
-    let is_control = Policy::of(&node.kind).is_some();
+    let is_control = !node.kind.children().is_empty();
     // deterministic subtrees: exact atoms (both methods agree on a leaf)
     if options.method == Method::Exact || !is_control {
         if let Some(a) = atoms::atoms(tree, id, options.max_states)? {
@@ -129,18 +129,30 @@ pub fn curve(
             )?;
             let children = node.kind.children();
             let figs: Vec<_> = children.iter().map(|&c| analysis.nodes[c]).collect();
-            let policy = Policy::of(&node.kind).expect("control node");
-            if let Policy::Parallel { success_threshold } = policy {
-                let est = compile::mrg::parallel_marking_count(children.len(), success_threshold);
-                if est > options.max_states as f64 {
-                    return Err(AnalysisError::StateBudget {
-                        node: node.name.clone(),
-                        states: est,
-                        budget: options.max_states,
-                    });
+            if let NodeKind::Decorator { decorator, .. } = node.kind {
+                book_ctmc::book_decorator(decorator, figs[0])
+            } else {
+                let policy = Policy::of(&node.kind).expect("control node");
+                if let Policy::Parallel {
+                    success_threshold,
+                    failure_threshold,
+                } = policy
+                {
+                    let est = compile::mrg::parallel_marking_count(
+                        children.len(),
+                        success_threshold,
+                        failure_threshold,
+                    );
+                    if est > options.max_states as f64 {
+                        return Err(AnalysisError::StateBudget {
+                            node: node.name.clone(),
+                            states: est,
+                            budget: options.max_states,
+                        });
+                    }
                 }
+                book_ctmc::book_ctmc(&Mrg::build(policy, children.len()), &figs)
             }
-            book_ctmc::book_ctmc(&Mrg::build(policy, children.len()), &figs)
         }
         _ => match phase::phase_chain(tree, id, options.max_states) {
             Ok(c) => c,

@@ -19,6 +19,7 @@
 
 use super::mrg::{Outcome, Policy, Status};
 use super::{AnalysisError, Figures};
+use crate::tree::Decorator;
 use crate::tree::{Duration, NodeId, NodeKind, Tree};
 
 /// Relative tolerance under which two instants are the same.
@@ -110,44 +111,51 @@ pub fn atoms(
             } else {
                 Outcome::Failure
             };
-            let mut running = vec![(0.0f64, 1.0f64)];
-            let mut out = Vec::new();
+            let mut lists = Vec::with_capacity(children.len());
             for &c in children {
-                let Some(child) = atoms(tree, c, max_atoms)? else {
-                    return Ok(None);
-                };
-                let mut next = Vec::new();
-                for &(t0, p0) in &running {
-                    for a in &child {
-                        let atom = Atom {
-                            time: t0 + a.time,
-                            outcome: a.outcome,
-                            prob: p0 * a.prob,
-                        };
-                        if a.outcome == cont {
-                            next.push(atom);
-                        } else {
-                            out.push(atom);
-                        }
-                    }
+                match atoms(tree, c, max_atoms)? {
+                    Some(a) => lists.push(a),
+                    None => return Ok(None),
                 }
-                if next.len() + out.len() > max_atoms {
-                    return Err(budget((next.len() + out.len()) as f64));
-                }
-                running = normalise(next).iter().map(|a| (a.time, a.prob)).collect();
-                out = normalise(out);
             }
-            out.extend(running.into_iter().map(|(time, prob)| Atom {
-                time,
-                outcome: cont,
-                prob,
-            }));
-            Ok(Some(normalise(out)))
+            chain(lists.iter(), cont, max_atoms)
+                .map_err(budget)
+                .map(Some)
         }
-        NodeKind::Parallel {
-            success_threshold,
-            children,
-        } => {
+        NodeKind::Decorator { decorator, child } => {
+            let Some(c) = atoms(tree, *child, max_atoms)? else {
+                return Ok(None);
+            };
+            let map = |f: &dyn Fn(Outcome) -> Outcome| {
+                normalise(
+                    c.iter()
+                        .map(|a| Atom {
+                            outcome: f(a.outcome),
+                            ..*a
+                        })
+                        .collect(),
+                )
+            };
+            Ok(Some(match *decorator {
+                Decorator::Inverter => map(&|o| match o {
+                    Outcome::Success => Outcome::Failure,
+                    Outcome::Failure => Outcome::Success,
+                }),
+                Decorator::ForceSuccess => map(&|_| Outcome::Success),
+                Decorator::ForceFailure => map(&|_| Outcome::Failure),
+                Decorator::Retry { attempts } => chain(
+                    std::iter::repeat_n(&c, attempts),
+                    Outcome::Failure,
+                    max_atoms,
+                )
+                .map_err(budget)?,
+                Decorator::Repeat { times } => {
+                    chain(std::iter::repeat_n(&c, times), Outcome::Success, max_atoms)
+                        .map_err(budget)?
+                }
+            }))
+        }
+        NodeKind::Parallel { children, .. } => {
             let mut per_child = Vec::with_capacity(children.len());
             for &c in children {
                 match atoms(tree, c, max_atoms)? {
@@ -159,9 +167,7 @@ pub fn atoms(
             if combos > max_atoms as f64 {
                 return Err(budget(combos));
             }
-            let policy = Policy::Parallel {
-                success_threshold: *success_threshold,
-            };
+            let policy = Policy::of(&node.kind).expect("a Parallel has a policy");
             let n = children.len();
             let mut out = Vec::new();
             let mut pick = vec![0usize; n];
@@ -217,6 +223,46 @@ pub fn atoms(
             }
         }
     }
+}
+
+/// Runs children (given by their atoms) one after the other while they
+/// return `cont` (Success for a Sequence, Failure for a Fallback). Fails with
+/// the number of atoms if it would exceed `max_atoms`.
+fn chain<'a>(
+    children: impl Iterator<Item = &'a Vec<Atom>>,
+    cont: Outcome,
+    max_atoms: usize,
+) -> Result<Vec<Atom>, f64> {
+    let mut running = vec![(0.0f64, 1.0f64)];
+    let mut out = Vec::new();
+    for child in children {
+        let mut next = Vec::new();
+        for &(t0, p0) in &running {
+            for a in child {
+                let atom = Atom {
+                    time: t0 + a.time,
+                    outcome: a.outcome,
+                    prob: p0 * a.prob,
+                };
+                if a.outcome == cont {
+                    next.push(atom);
+                } else {
+                    out.push(atom);
+                }
+            }
+        }
+        if next.len() + out.len() > max_atoms {
+            return Err((next.len() + out.len()) as f64);
+        }
+        running = normalise(next).iter().map(|a| (a.time, a.prob)).collect();
+        out = normalise(out);
+    }
+    out.extend(running.into_iter().map(|(time, prob)| Atom {
+        time,
+        outcome: cont,
+        prob,
+    }));
+    Ok(normalise(out))
 }
 
 /// ps, pf, MTTS and MTTF from a node's atoms.

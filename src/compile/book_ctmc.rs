@@ -12,9 +12,10 @@
 //! would have infinite rates: markings where one is feasible are vanishing,
 //! and are eliminated by routing their probability straight on.
 
-use super::mrg::{Mrg, Outcome, Status};
+use super::mrg::{Mrg, Outcome, Policy, Status};
 use super::Figures;
 use crate::solve::chain::PhaseChain;
+use crate::tree::Decorator;
 
 #[derive(Clone, Default)]
 struct Entry {
@@ -30,6 +31,39 @@ impl Entry {
         self.success += other.success * w;
         self.failure += other.failure * w;
     }
+}
+
+/// The book's CTMC of a decorator whose child is summarised by `child`:
+/// retry and repeat are a Fallback and a Sequence of fresh copies; an
+/// inverter or a force decorator maps the child's one exponential phase
+/// (rate 1/SJ) to its outcomes.
+pub fn book_decorator(decorator: Decorator, child: Figures) -> PhaseChain {
+    let (policy, n) = match decorator {
+        Decorator::Retry { attempts } => (Policy::Fallback, attempts),
+        Decorator::Repeat { times } => (Policy::Sequence, times),
+        _ => {
+            let (s, f) = match decorator {
+                Decorator::Inverter => (child.pf, child.ps),
+                Decorator::ForceSuccess => (1.0, 0.0),
+                _ => (0.0, 1.0),
+            };
+            let sj = child.mean_time();
+            if sj == 0.0 {
+                return PhaseChain {
+                    initial_success: s,
+                    initial_failure: f,
+                    ..PhaseChain::default()
+                };
+            }
+            let mut c = PhaseChain::default();
+            let i = c.push_phase();
+            c.exit_success[i] = s / sj;
+            c.exit_failure[i] = f / sj;
+            c.initial.push((i, 1.0));
+            return c;
+        }
+    };
+    book_ctmc(&Mrg::build(policy, n), &vec![child; n])
 }
 
 /// The book's CTMC over `g` with children summarised by `children`.

@@ -24,7 +24,7 @@ pub mod phase;
 
 use crate::solve::chain::{AbsorbingChain, Edge, Target};
 use crate::solve::{solve_absorbing, Absorption};
-use crate::tree::{Duration, NodeId, NodeKind, Tree};
+use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
 use mrg::{Mrg, Outcome, Policy, Status};
 
 /// Which analysis to run.
@@ -256,8 +256,15 @@ fn node_figures(
         return Ok(f);
     }
     let children = node.kind.children();
-    let policy = Policy::of(&node.kind).expect("control node");
     let child_figs: Vec<Figures> = children.iter().map(|&c| done(c)).collect();
+    let numerical = |what: String| AnalysisError::Numerical {
+        node: node.name.clone(),
+        what,
+    };
+    if let NodeKind::Decorator { decorator, .. } = node.kind {
+        return decorator_figures(decorator, child_figs[0]).map_err(numerical);
+    }
+    let policy = Policy::of(&node.kind).expect("control node");
     let numerical = |what: String| AnalysisError::Numerical {
         node: node.name.clone(),
         what,
@@ -266,8 +273,15 @@ fn node_figures(
         (Policy::Sequence | Policy::Fallback, _) => {
             mrg_chain(&Mrg::build(policy, children.len()), &child_figs, false)
         }
-        (Policy::Parallel { success_threshold }, Method::Book) => {
-            let est = mrg::parallel_marking_count(children.len(), success_threshold);
+        (
+            Policy::Parallel {
+                success_threshold,
+                failure_threshold,
+            },
+            Method::Book,
+        ) => {
+            let est =
+                mrg::parallel_marking_count(children.len(), success_threshold, failure_threshold);
             if est > options.max_states as f64 {
                 return Err(AnalysisError::StateBudget {
                     node: node.name.clone(),
@@ -296,6 +310,45 @@ fn node_figures(
     };
     let a = solve_absorbing(&chain).map_err(numerical)?;
     Ok(Figures::from_absorption(&a))
+}
+
+/// Figures of a decorator from its child's (exact under both methods: the
+/// means of repeated runs add along paths).
+///
+/// * inverter: outcomes swapped; force_success/force_failure: one outcome
+///   with the child's mean time E[T];
+/// * retry N: a Fallback of N fresh copies; repeat N: a Sequence of N copies,
+///   solved over their MRG like any Fallback/Sequence.
+pub fn decorator_figures(decorator: Decorator, child: Figures) -> Result<Figures, String> {
+    Ok(match decorator {
+        Decorator::Inverter => Figures {
+            ps: child.pf,
+            pf: child.ps,
+            mtts: child.mttf,
+            mttf: child.mtts,
+        },
+        Decorator::ForceSuccess => Figures {
+            ps: 1.0,
+            pf: 0.0,
+            mtts: Some(child.mean_time()),
+            mttf: None,
+        },
+        Decorator::ForceFailure => Figures {
+            ps: 0.0,
+            pf: 1.0,
+            mtts: None,
+            mttf: Some(child.mean_time()),
+        },
+        Decorator::Retry { attempts: n } | Decorator::Repeat { times: n } => {
+            let policy = if matches!(decorator, Decorator::Retry { .. }) {
+                Policy::Fallback
+            } else {
+                Policy::Sequence
+            };
+            let chain = mrg_chain(&Mrg::build(policy, n), &vec![child; n], false);
+            Figures::from_absorption(&solve_absorbing(&chain)?)
+        }
+    })
 }
 
 /// The DTMC over an MRG with children summarised by their figures.

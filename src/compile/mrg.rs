@@ -40,10 +40,13 @@ pub enum Policy {
     Sequence,
     /// Fallback (?).
     Fallback,
-    /// Parallel (⇒) with success threshold M.
+    /// Parallel (⇒) with success threshold M and failure threshold F.
     Parallel {
-        /// M: Success at ≥ M successes, Failure at > N − M failures.
+        /// M: Success at ≥ M successes.
         success_threshold: usize,
+        /// F: Failure at ≥ F failures (or once M successes are impossible,
+        /// i.e. more than N − M failures; the book's F is N − M + 1).
+        failure_threshold: usize,
     },
 }
 
@@ -54,9 +57,12 @@ impl Policy {
             NodeKind::Sequence { .. } => Some(Policy::Sequence),
             NodeKind::Fallback { .. } => Some(Policy::Fallback),
             NodeKind::Parallel {
-                success_threshold, ..
+                success_threshold,
+                failure_threshold,
+                ..
             } => Some(Policy::Parallel {
                 success_threshold: *success_threshold,
+                failure_threshold: *failure_threshold,
             }),
             _ => None,
         }
@@ -70,10 +76,13 @@ impl Policy {
             Policy::Sequence if successes == n => Status::Success,
             Policy::Fallback if successes > 0 => Status::Success,
             Policy::Fallback if failures == n => Status::Failure,
-            Policy::Parallel { success_threshold } if successes >= success_threshold => {
-                Status::Success
-            }
-            Policy::Parallel { success_threshold } if failures > n - success_threshold => {
+            Policy::Parallel {
+                success_threshold, ..
+            } if successes >= success_threshold => Status::Success,
+            Policy::Parallel {
+                success_threshold,
+                failure_threshold,
+            } if failures >= failure_threshold || failures > n - success_threshold => {
                 Status::Failure
             }
             _ => Status::Running,
@@ -259,16 +268,17 @@ impl Mrg {
     }
 }
 
-/// Number of markings of a Parallel MRG with `n` children and threshold `m`,
-/// as a float (it can exceed any integer type): the running markings have
-/// fewer than M successes and at most N − M failures, and each absorbing
-/// marking is reached from a running one by one event.
-pub fn parallel_marking_count(n: usize, m: usize) -> f64 {
+/// Number of markings of a Parallel MRG with `n` children and thresholds
+/// `m`, `f`, as a float (it can exceed any integer type): the running
+/// markings have fewer than M successes and at most min(F − 1, N − M)
+/// failures, and each absorbing marking is reached from a running one by
+/// one event.
+pub fn parallel_marking_count(n: usize, m: usize, f: usize) -> f64 {
     // multinomial(n; s, f, n-s-f) computed in log space to avoid overflow
     let ln_fact = |k: usize| -> f64 { (1..=k).map(|x| (x as f64).ln()).sum() };
     let lf: Vec<f64> = (0..=n).map(ln_fact).collect();
     let mut total = 0.0;
-    let max_f = n - m; // failures allowed while running
+    let max_f = (n - m).min(f.saturating_sub(1)); // failures allowed while running
     for s in 0..=m.min(n) {
         for f in 0..=(max_f + 1).min(n - s) {
             let running = s < m && f <= max_f;
@@ -317,6 +327,7 @@ mod tests {
         let g = Mrg::build(
             Policy::Parallel {
                 success_threshold: 2,
+                failure_threshold: 1,
             },
             2,
         );
@@ -336,7 +347,7 @@ mod tests {
             .filter(|(_, s)| *s == Status::Failure)
             .count();
         assert_eq!((running, success, failure), (3, 1, 4));
-        assert_eq!(parallel_marking_count(2, 2), 8.0);
+        assert_eq!(parallel_marking_count(2, 2, 1), 8.0);
         // events always go to a later marking
         assert!(g.events.iter().all(|e| e.to > e.from));
     }
@@ -345,18 +356,21 @@ mod tests {
     fn parallel_count_matches_enumeration() {
         for n in 1..=6 {
             for m in 1..=n {
-                let g = Mrg::build(
-                    Policy::Parallel {
-                        success_threshold: m,
-                    },
-                    n,
-                );
-                let c = parallel_marking_count(n, m);
-                assert!(
-                    (c - g.len() as f64).abs() < 1e-6,
-                    "n={n} m={m}: {c} vs {}",
-                    g.len()
-                );
+                for f in 1..=n {
+                    let g = Mrg::build(
+                        Policy::Parallel {
+                            success_threshold: m,
+                            failure_threshold: f,
+                        },
+                        n,
+                    );
+                    let c = parallel_marking_count(n, m, f);
+                    assert!(
+                        (c - g.len() as f64).abs() < 1e-6,
+                        "n={n} m={m} f={f}: {c} vs {}",
+                        g.len()
+                    );
+                }
             }
         }
     }

@@ -22,7 +22,7 @@ use std::collections::HashMap;
 use super::mrg::{Policy, Status};
 use super::AnalysisError;
 use crate::solve::chain::PhaseChain;
-use crate::tree::{Duration, NodeId, NodeKind, Tree};
+use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
 
 /// A distribution over "where a run goes next": transient phases, or an
 /// instantaneous Success or Failure.
@@ -90,17 +90,46 @@ pub fn phase_chain(
             let sequence = matches!(node.kind, NodeKind::Sequence { .. });
             Ok(concatenate(chains, sequence))
         }
-        NodeKind::Parallel {
-            success_threshold,
-            children,
-        } => {
+        NodeKind::Decorator { decorator, child } => {
+            let mut c = phase_chain(tree, *child, max_states)?;
+            let copies = match *decorator {
+                Decorator::Inverter => {
+                    std::mem::swap(&mut c.exit_success, &mut c.exit_failure);
+                    std::mem::swap(&mut c.initial_success, &mut c.initial_failure);
+                    return Ok(c);
+                }
+                Decorator::ForceSuccess | Decorator::ForceFailure => {
+                    let success = *decorator == Decorator::ForceSuccess;
+                    for i in 0..c.len() {
+                        let total = c.exit_success[i] + c.exit_failure[i];
+                        (c.exit_success[i], c.exit_failure[i]) =
+                            if success { (total, 0.0) } else { (0.0, total) };
+                    }
+                    let total = c.initial_success + c.initial_failure;
+                    (c.initial_success, c.initial_failure) =
+                        if success { (total, 0.0) } else { (0.0, total) };
+                    return Ok(c);
+                }
+                Decorator::Retry { attempts } => attempts,
+                Decorator::Repeat { times } => times,
+            };
+            let total = c.len() as f64 * copies as f64;
+            if total > max_states as f64 {
+                return Err(AnalysisError::StateBudget {
+                    node: node.name.clone(),
+                    states: total,
+                    budget: max_states,
+                });
+            }
+            let sequence = matches!(decorator, Decorator::Repeat { .. });
+            Ok(concatenate(vec![c; copies], sequence))
+        }
+        NodeKind::Parallel { children, .. } => {
             let chains = children
                 .iter()
                 .map(|&c| phase_chain(tree, c, max_states))
                 .collect::<Result<Vec<_>, _>>()?;
-            let policy = Policy::Parallel {
-                success_threshold: *success_threshold,
-            };
+            let policy = Policy::of(&node.kind).expect("a Parallel has a policy");
             product(&chains, policy, max_states).ok_or_else(|| AnalysisError::StateBudget {
                 node: node.name.clone(),
                 states: chains.iter().map(|c| (c.len() + 2) as f64).product(),

@@ -29,7 +29,7 @@
 use rand::Rng;
 use rand_distr::{Distribution, Exp1};
 
-use crate::tree::{Duration, NodeId, NodeKind, Tree};
+use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
 
 /// Outcomes compare the top 53 bits of a `u64` draw with `round(ps · 2^53)`.
 const ONE53: f64 = (1u64 << 53) as f64;
@@ -86,11 +86,42 @@ impl Leaf {
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Op {
     Leaf(u32),
-    SeqLeaves { first: u32, end: u32 },
-    FbLeaves { first: u32, end: u32 },
-    Sequence { first: u32, end: u32 },
-    Fallback { first: u32, end: u32 },
-    Parallel { first: u32, end: u32, m: u32 },
+    SeqLeaves {
+        first: u32,
+        end: u32,
+    },
+    FbLeaves {
+        first: u32,
+        end: u32,
+    },
+    Sequence {
+        first: u32,
+        end: u32,
+    },
+    Fallback {
+        first: u32,
+        end: u32,
+    },
+    Parallel {
+        first: u32,
+        end: u32,
+        m: u32,
+        f: u32,
+    },
+    Decorator {
+        child: u32,
+        kind: DecoratorOp,
+        n: u32,
+    },
+}
+
+/// What a decorator does with its child's runs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum DecoratorOp {
+    Invert,
+    Force(bool),
+    Retry,
+    Repeat,
 }
 
 /// Per-thread work space for Parallel nodes: stacks of child finishing times.
@@ -165,6 +196,7 @@ impl Program {
             NodeKind::Condition { ps } => return self.push_leaf(Leaf::new(*ps, None, None)),
             NodeKind::Parallel {
                 success_threshold,
+                failure_threshold,
                 children,
             } => {
                 let ids: Vec<u32> = children.iter().map(|&c| self.compile(tree, c)).collect();
@@ -173,7 +205,19 @@ impl Program {
                 self.kids.extend(ids);
                 let end = self.kids.len() as u32;
                 let m = *success_threshold as u32;
-                return self.push(Op::Parallel { first, end, m });
+                let f = *failure_threshold as u32;
+                return self.push(Op::Parallel { first, end, m, f });
+            }
+            NodeKind::Decorator { decorator, child } => {
+                let child = self.compile(tree, *child);
+                let (kind, n) = match *decorator {
+                    Decorator::Inverter => (DecoratorOp::Invert, 1),
+                    Decorator::ForceSuccess => (DecoratorOp::Force(true), 1),
+                    Decorator::ForceFailure => (DecoratorOp::Force(false), 1),
+                    Decorator::Retry { attempts } => (DecoratorOp::Retry, attempts as u32),
+                    Decorator::Repeat { times } => (DecoratorOp::Repeat, times as u32),
+                };
+                return self.push(Op::Decorator { child, kind, n });
             }
             NodeKind::Sequence { children } => (Chain::Sequence, children),
             NodeKind::Fallback { children } => (Chain::Fallback, children),
@@ -271,23 +315,44 @@ impl Program {
                 }
                 (false, t)
             }
-            Op::Parallel { first, end, m } => self.parallel(first, end, m, rng, scratch),
+            Op::Parallel { first, end, m, f } => self.parallel(first, end, m, f, rng, scratch),
+            Op::Decorator { child, kind, n } => match kind {
+                DecoratorOp::Invert => {
+                    let (ok, d) = self.run(child, rng, scratch);
+                    (!ok, d)
+                }
+                DecoratorOp::Force(outcome) => (outcome, self.run(child, rng, scratch).1),
+                DecoratorOp::Retry | DecoratorOp::Repeat => {
+                    // retry stops at the first Success, repeat at the first Failure
+                    let stop = kind == DecoratorOp::Retry;
+                    let mut t = 0.0;
+                    for _ in 0..n {
+                        let (ok, d) = self.run(child, rng, scratch);
+                        t += d;
+                        if ok == stop {
+                            return (ok, t);
+                        }
+                    }
+                    (!stop, t)
+                }
+            },
         }
     }
 
-    /// A Parallel node. All children start at 0 and run independently. The
-    /// outcome vector alone decides the result: with at least M successes the
-    /// node succeeds at the M-th success time (the failure threshold N−M+1
-    /// can then never be reached), otherwise it fails at the (N−M+1)-th
-    /// failure time. So the halted children may as well be run to the end
-    /// (their outcomes do not matter), and ties between children finishing
-    /// at the same time cannot change the result.
+    /// A Parallel node. All children start at 0 and run independently, so
+    /// halted children may as well be run to the end. The node fails at the
+    /// F'-th failure, F' = min(F, N − M + 1) (F failures, or success no
+    /// longer possible), and succeeds at the M-th success if that comes
+    /// first. With the book's F = N − M + 1 the outcome vector alone decides
+    /// (both thresholds cannot be met); with a smaller F the two times are
+    /// compared, a tie going to Success.
     #[inline(never)]
     fn parallel<R: Rng>(
         &self,
         first: u32,
         end: u32,
         m: u32,
+        f: u32,
         rng: &mut R,
         scratch: &mut Scratch,
     ) -> (bool, f64) {
@@ -302,10 +367,16 @@ impl Program {
         }
         let n = (end - first) as usize;
         let m = m as usize;
-        let result = if scratch.succ.len() - s0 >= m {
-            (true, kth_smallest(&mut scratch.succ[s0..], m - 1))
-        } else {
-            (false, kth_smallest(&mut scratch.fail[f0..], n - m))
+        let f = (f as usize).min(n - m + 1);
+        let successes = scratch.succ.len() - s0;
+        let failures = scratch.fail.len() - f0;
+        let t_success = (successes >= m).then(|| kth_smallest(&mut scratch.succ[s0..], m - 1));
+        let t_failure = (failures >= f).then(|| kth_smallest(&mut scratch.fail[f0..], f - 1));
+        let result = match (t_success, t_failure) {
+            (Some(ts), Some(tf)) if tf < ts => (false, tf),
+            (Some(ts), _) => (true, ts),
+            (None, Some(tf)) => (false, tf),
+            (None, None) => unreachable!("a Parallel always reaches a threshold"),
         };
         scratch.succ.truncate(s0);
         scratch.fail.truncate(f0);

@@ -61,14 +61,61 @@ pub enum NodeKind {
         /// Children, in order (at least one).
         children: Vec<NodeId>,
     },
-    /// Runs all children at once; Success when `success_threshold` (M) children
-    /// have succeeded, Failure when more than N − M have failed.
+    /// Runs all children at once; Success when `success_threshold` (M)
+    /// children have succeeded; Failure when `failure_threshold` (F) have
+    /// failed or success has become impossible (more than N − M failed). The
+    /// book's Parallel has F = N − M + 1 (the default).
     Parallel {
         /// M, in `1..=children.len()`.
         success_threshold: usize,
+        /// F, in `1..=children.len()`.
+        failure_threshold: usize,
         /// Children (at least one).
         children: Vec<NodeId>,
     },
+    /// A node with one child that changes its outcome or repeats it.
+    Decorator {
+        /// Which decorator.
+        decorator: Decorator,
+        /// The child.
+        child: NodeId,
+    },
+}
+
+/// Decorators (BehaviorTree.CPP semantics under the SBT assumptions).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Decorator {
+    /// Success ↔ Failure.
+    Inverter,
+    /// Always Success, after the child returns.
+    ForceSuccess,
+    /// Always Failure, after the child returns.
+    ForceFailure,
+    /// RetryUntilSuccessful: run a fresh child until it succeeds, at most
+    /// `attempts` times (Failure if every attempt fails).
+    Retry {
+        /// Most attempts (≥ 1).
+        attempts: usize,
+    },
+    /// Repeat: run a fresh child until it has succeeded `times` times in a
+    /// row (Failure at the first failure).
+    Repeat {
+        /// Successes needed (≥ 1).
+        times: usize,
+    },
+}
+
+impl Decorator {
+    /// The keyword in the YAML format.
+    pub fn keyword(&self) -> &'static str {
+        match self {
+            Decorator::Inverter => "inverter",
+            Decorator::ForceSuccess => "force_success",
+            Decorator::ForceFailure => "force_failure",
+            Decorator::Retry { .. } => "retry",
+            Decorator::Repeat { .. } => "repeat",
+        }
+    }
 }
 
 impl NodeKind {
@@ -80,6 +127,7 @@ impl NodeKind {
             NodeKind::Sequence { .. } => "sequence",
             NodeKind::Fallback { .. } => "fallback",
             NodeKind::Parallel { .. } => "parallel",
+            NodeKind::Decorator { decorator, .. } => decorator.keyword(),
         }
     }
 
@@ -89,6 +137,7 @@ impl NodeKind {
             NodeKind::Sequence { children }
             | NodeKind::Fallback { children }
             | NodeKind::Parallel { children, .. } => children,
+            NodeKind::Decorator { child, .. } => std::slice::from_ref(child),
             NodeKind::Action(_) | NodeKind::Condition { .. } => &[],
         }
     }

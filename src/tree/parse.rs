@@ -21,7 +21,7 @@ use serde::Deserialize;
 use serde_saphyr::Spanned;
 
 use super::error::{nearest, TreeError};
-use super::{Action, Duration, Node, NodeKind, Tree};
+use super::{Action, Decorator, Duration, Node, NodeKind, Tree};
 
 /// Bounds on what the parser accepts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -47,12 +47,18 @@ impl Default for ParseLimits {
 /// Tolerance on `ps + pf = 1`.
 pub const PROBABILITY_SUM_TOLERANCE: f64 = 1e-9;
 
-const NODE_KINDS: &[&str] = &["sequence", "fallback", "parallel", "action", "condition"];
-const ACTION_KEYS: &[&str] = &["name", "ps", "pf", "mu", "nu", "tau_s", "tau_f"];
-const CONDITION_KEYS: &[&str] = &["name", "ps"];
-const CONTROL_KEYS: &[&str] = &["name", "children"];
-const PARALLEL_KEYS: &[&str] = &["name", "success_threshold", "children"];
-const FILE_KEYS: &[&str] = &["name", "tree"];
+const NODE_KINDS: &[&str] = &[
+    "sequence",
+    "fallback",
+    "parallel",
+    "action",
+    "condition",
+    "inverter",
+    "force_success",
+    "force_failure",
+    "retry",
+    "repeat",
+];
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -70,6 +76,37 @@ enum NodeDef {
     Parallel(ParallelDef),
     Action(Box<ActionDef>),
     Condition(ConditionDef),
+    Inverter(Box<DecoratorDef>),
+    ForceSuccess(Box<DecoratorDef>),
+    ForceFailure(Box<DecoratorDef>),
+    Retry(Box<RetryDef>),
+    Repeat(Box<RepeatDef>),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DecoratorDef {
+    #[serde(default)]
+    name: Option<Spanned<String>>,
+    child: Spanned<NodeDef>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RetryDef {
+    #[serde(default)]
+    name: Option<Spanned<String>>,
+    attempts: Spanned<f64>,
+    child: Spanned<NodeDef>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RepeatDef {
+    #[serde(default)]
+    name: Option<Spanned<String>>,
+    times: Spanned<f64>,
+    child: Spanned<NodeDef>,
 }
 
 #[derive(Deserialize)]
@@ -87,6 +124,8 @@ struct ParallelDef {
     name: Option<Spanned<String>>,
     #[serde(default)]
     success_threshold: Option<Spanned<f64>>,
+    #[serde(default)]
+    failure_threshold: Option<Spanned<f64>>,
     children: Spanned<Vec<Spanned<NodeDef>>>,
 }
 
@@ -260,11 +299,8 @@ fn yaml_error(
         E::SerdeUnknownField {
             field, expected, ..
         } => {
-            let keys: &[&str] = match expected.first().copied() {
-                Some("success_threshold") | None => PARALLEL_KEYS,
-                _ => keys_for(expected),
-            };
-            let hint = match nearest(field, keys) {
+            let keys: Vec<&str> = expected.to_vec();
+            let hint = match nearest(field, &keys) {
                 Some(k) => format!("did you mean `{k}`? accepted keys: {}", keys.join(", ")),
                 None => format!("accepted keys: {}", keys.join(", ")),
             };
@@ -399,21 +435,6 @@ fn strip_location(s: &str) -> String {
     }
 }
 
-fn keys_for(expected: &[&str]) -> &'static [&'static str] {
-    for keys in [
-        ACTION_KEYS,
-        PARALLEL_KEYS,
-        CONTROL_KEYS,
-        CONDITION_KEYS,
-        FILE_KEYS,
-    ] {
-        if keys.len() == expected.len() && keys.iter().zip(expected).all(|(a, b)| a == b) {
-            return keys;
-        }
-    }
-    ACTION_KEYS
-}
-
 struct Builder<'a> {
     source: &'a str,
     file: &'a str,
@@ -448,6 +469,26 @@ impl Builder<'_> {
                 )));
         }
         let id = self.nodes.len();
+        if let Some((name, decorator, child)) = self.decorator(&def.value)? {
+            let name = self.node_name(name, decorator.keyword(), &path)?;
+            self.nodes.push(Node {
+                name,
+                path: path.clone(),
+                depth,
+                parent,
+                kind: NodeKind::Decorator {
+                    decorator,
+                    child: 0,
+                },
+                location: Some(at),
+            });
+            self.locations.push(name_location(def).unwrap_or(at));
+            let c = self.node(child, Some(id), depth + 1, format!("{path}.0"))?;
+            if let NodeKind::Decorator { child, .. } = &mut self.nodes[id].kind {
+                *child = c;
+            }
+            return Ok(id);
+        }
         let (name, kind, children) = match &def.value {
             NodeDef::Action(a) => (&a.name, NodeKind::Action(self.action(a)?), None),
             NodeDef::Condition(c) => {
@@ -472,20 +513,14 @@ impl Builder<'_> {
                 &p.name,
                 NodeKind::Parallel {
                     success_threshold: 0,
+                    failure_threshold: 0,
                     children: Vec::new(),
                 },
                 Some(&p.children),
             ),
+            _ => unreachable!("decorators are handled above"),
         };
-        let name = match name {
-            Some(n) if n.value.trim().is_empty() => {
-                return Err(self
-                    .err(loc(n), "a node name must not be empty")
-                    .with_help("omit `name` to get a generated one"))
-            }
-            Some(n) => n.value.clone(),
-            None => format!("{}@{}", kind.keyword(), path),
-        };
+        let name = self.node_name(name, kind.keyword(), &path)?;
         self.nodes.push(Node {
             name,
             path: path.clone(),
@@ -506,8 +541,8 @@ impl Builder<'_> {
             for (i, child) in list.value.iter().enumerate() {
                 ids.push(self.node(child, Some(id), depth + 1, format!("{path}.{i}"))?);
             }
-            let threshold = match &def.value {
-                NodeDef::Parallel(p) => Some(self.threshold(p, ids.len())?),
+            let thresholds = match &def.value {
+                NodeDef::Parallel(p) => Some(self.thresholds(p, ids.len())?),
                 _ => None,
             };
             match &mut self.nodes[id].kind {
@@ -517,9 +552,10 @@ impl Builder<'_> {
                 NodeKind::Parallel {
                     children,
                     success_threshold,
+                    failure_threshold,
                 } => {
                     *children = ids;
-                    *success_threshold = threshold.unwrap_or(0);
+                    (*success_threshold, *failure_threshold) = thresholds.unwrap_or((0, 0));
                 }
                 _ => unreachable!("only control nodes have children"),
             }
@@ -527,23 +563,81 @@ impl Builder<'_> {
         Ok(id)
     }
 
-    fn threshold(&self, p: &ParallelDef, n: usize) -> Result<usize, TreeError> {
-        let Some(t) = &p.success_threshold else {
-            return Ok(n);
-        };
-        let v = t.value;
-        if !(v.is_finite() && v.fract() == 0.0 && v >= 1.0 && v <= n as f64) {
-            return Err(self
-                .err(
-                    loc(t),
-                    format!("success_threshold = {v} is not valid for {n} children"),
-                )
-                .with_help(format!(
-                    "success_threshold (M) must be a whole number from 1 to {n}: Success at >= M \
-                     successes, Failure at > N - M failures"
-                )));
+    fn node_name(
+        &self,
+        name: &Option<Spanned<String>>,
+        keyword: &str,
+        path: &str,
+    ) -> Result<String, TreeError> {
+        match name {
+            Some(n) if n.value.trim().is_empty() => Err(self
+                .err(loc(n), "a node name must not be empty")
+                .with_help("omit `name` to get a generated one")),
+            Some(n) => Ok(n.value.clone()),
+            None => Ok(format!("{keyword}@{path}")),
         }
-        Ok(v as usize)
+    }
+
+    #[allow(clippy::type_complexity)]
+    fn decorator<'d>(
+        &self,
+        def: &'d NodeDef,
+    ) -> Result<Option<(&'d Option<Spanned<String>>, Decorator, &'d Spanned<NodeDef>)>, TreeError>
+    {
+        Ok(Some(match def {
+            NodeDef::Inverter(d) => (&d.name, Decorator::Inverter, &d.child),
+            NodeDef::ForceSuccess(d) => (&d.name, Decorator::ForceSuccess, &d.child),
+            NodeDef::ForceFailure(d) => (&d.name, Decorator::ForceFailure, &d.child),
+            NodeDef::Retry(d) => (
+                &d.name,
+                Decorator::Retry {
+                    attempts: self.count("attempts", &d.attempts)?,
+                },
+                &d.child,
+            ),
+            NodeDef::Repeat(d) => (
+                &d.name,
+                Decorator::Repeat {
+                    times: self.count("times", &d.times)?,
+                },
+                &d.child,
+            ),
+            _ => return Ok(None),
+        }))
+    }
+
+    /// A repetition count: a whole number from 1 to 1,000,000.
+    fn count(&self, key: &str, v: &Spanned<f64>) -> Result<usize, TreeError> {
+        let x = v.value;
+        if !(x.is_finite() && x.fract() == 0.0 && (1.0..=1e6).contains(&x)) {
+            return Err(self
+                .err(loc(v), format!("{key} = {x} is not a valid count"))
+                .with_help(format!("{key} must be a whole number from 1 to 1000000")));
+        }
+        Ok(x as usize)
+    }
+
+    fn thresholds(&self, p: &ParallelDef, n: usize) -> Result<(usize, usize), TreeError> {
+        let check = |t: &Spanned<f64>, key: &str, meaning: &str| -> Result<usize, TreeError> {
+            let v = t.value;
+            if !(v.is_finite() && v.fract() == 0.0 && v >= 1.0 && v <= n as f64) {
+                return Err(self
+                    .err(loc(t), format!("{key} = {v} is not valid for {n} children"))
+                    .with_help(format!(
+                        "{key} must be a whole number from 1 to {n}: {meaning}"
+                    )));
+            }
+            Ok(v as usize)
+        };
+        let m = match &p.success_threshold {
+            Some(t) => check(t, "success_threshold", "Success at >= M successes")?,
+            None => n,
+        };
+        let f = match &p.failure_threshold {
+            Some(t) => check(t, "failure_threshold", "Failure at >= F failures")?,
+            None => n - m + 1,
+        };
+        Ok((m, f))
     }
 
     fn probability(&self, key: &str, v: &Spanned<f64>) -> Result<f64, TreeError> {
@@ -695,6 +789,9 @@ fn name_location(def: &Spanned<NodeDef>) -> Option<(usize, usize)> {
         NodeDef::Condition(c) => &c.name,
         NodeDef::Sequence(c) | NodeDef::Fallback(c) => &c.name,
         NodeDef::Parallel(p) => &p.name,
+        NodeDef::Inverter(d) | NodeDef::ForceSuccess(d) | NodeDef::ForceFailure(d) => &d.name,
+        NodeDef::Retry(d) => &d.name,
+        NodeDef::Repeat(d) => &d.name,
     };
     name.as_ref().map(loc)
 }
