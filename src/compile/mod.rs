@@ -122,8 +122,9 @@ pub enum AnalysisError {
     },
     /// A chain would exceed the state budget.
     #[error(
-        "node '{node}' needs a chain of about {states:.3e} states, more than the budget of \
-         {budget}; use --method book (approximate) or raise the budget with --max-states"
+        "node '{node}' needs a chain of up to {states:.3e} states, more than the budget of \
+         {budget}; use --method book (approximate), `btrel simulate`, or raise the budget with \
+         --max-states"
     )]
     StateBudget {
         /// The node whose chain is too large.

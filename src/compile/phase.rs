@@ -224,6 +224,12 @@ const FAILED: u32 = u32::MAX;
 /// `max_states` phases would be needed.
 fn product(chains: &[PhaseChain], policy: Policy, max_states: usize) -> Option<PhaseChain> {
     let n = chains.len();
+    // refuse before allocating when even a generous share of the upper
+    // bound Π(len_h + 2) cannot fit
+    let bound: f64 = chains.iter().map(|c| (c.len() + 2) as f64).product();
+    if bound > 16.0 * max_states as f64 {
+        return None;
+    }
     let status_of = |key: &[u32]| {
         let s = key.iter().filter(|&&x| x == SUCCEEDED).count();
         let f = key.iter().filter(|&&x| x == FAILED).count();
