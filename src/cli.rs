@@ -105,18 +105,8 @@ struct CurveArgs {
     /// Node to report, by name or path (repeatable); default: the root.
     #[arg(long = "node", value_name = "NAME")]
     nodes: Vec<String>,
-    /// Comma-separated times (s), e.g. 0,10,100.
-    #[arg(long, value_delimiter = ',', value_name = "T1,T2,...", allow_hyphen_values = true, conflicts_with_all = ["t_end", "points", "dt"])]
-    times: Vec<String>,
-    /// Last time (s) of an evenly spaced grid starting at 0.
-    #[arg(long, value_name = "T", allow_hyphen_values = true)]
-    t_end: Option<String>,
-    /// Number of grid points from 0 to T inclusive (default 101).
-    #[arg(long, value_name = "K", conflicts_with = "dt", requires = "t_end")]
-    points: Option<usize>,
-    /// Grid spacing (s), from 0 up to T.
-    #[arg(long, value_name = "D", requires = "t_end", allow_hyphen_values = true)]
-    dt: Option<String>,
+    #[command(flatten)]
+    grid: TimeArgs,
     /// exact (default): exact chain; book: the chapter's recursion.
     #[arg(long, value_enum, default_value_t = MethodArg::Exact)]
     method: MethodArg,
@@ -205,6 +195,23 @@ Examples:
 The same seed gives bit-identical output whatever --threads is (default seed 0x5EEDB7E1).
 For a simulated curve as CSV use `btrel curve --mc N`.";
 
+/// Time points: a list, or an evenly spaced grid from 0.
+#[derive(clap::Args)]
+struct TimeArgs {
+    /// Comma-separated times (s), e.g. 0,10,100.
+    #[arg(long, value_delimiter = ',', value_name = "T1,T2,...", allow_hyphen_values = true, conflicts_with_all = ["t_end", "points", "dt"])]
+    times: Vec<String>,
+    /// Last time (s) of an evenly spaced grid starting at 0.
+    #[arg(long, value_name = "T", allow_hyphen_values = true)]
+    t_end: Option<String>,
+    /// Number of grid points from 0 to T inclusive (default 101).
+    #[arg(long, value_name = "K", conflicts_with = "dt", requires = "t_end")]
+    points: Option<usize>,
+    /// Grid spacing (s), from 0 up to T.
+    #[arg(long, value_name = "D", requires = "t_end", allow_hyphen_values = true)]
+    dt: Option<String>,
+}
+
 /// Monte Carlo options shared by `simulate`, `report --mc` and `curve --mc`.
 #[derive(clap::Args)]
 struct SimArgs {
@@ -228,18 +235,8 @@ struct SimulateArgs {
     /// Simulate this node's subtree instead of the whole tree (name or path).
     #[arg(long, value_name = "NAME")]
     node: Option<String>,
-    /// Comma-separated times (s) for the curve of the simulated node.
-    #[arg(long, value_delimiter = ',', value_name = "T1,T2,...", allow_hyphen_values = true, conflicts_with_all = ["t_end", "points", "dt"])]
-    times: Vec<String>,
-    /// Last time (s) of an evenly spaced curve grid from 0.
-    #[arg(long, value_name = "T", allow_hyphen_values = true)]
-    t_end: Option<String>,
-    /// Number of grid points (default 101).
-    #[arg(long, value_name = "K", conflicts_with = "dt", requires = "t_end")]
-    points: Option<usize>,
-    /// Grid spacing (s).
-    #[arg(long, value_name = "D", requires = "t_end", allow_hyphen_values = true)]
-    dt: Option<String>,
+    #[command(flatten)]
+    grid: TimeArgs,
     /// Output format.
     #[arg(long, value_enum, default_value_t = FormatArg::Table)]
     format: FormatArg,
@@ -395,25 +392,20 @@ fn parse_time(what: &str, s: &str) -> Result<f64, Failure> {
 }
 
 fn requested_times(args: &CurveArgs) -> Result<Vec<f64>, Failure> {
-    grid_times(
-        &args.times,
-        args.t_end.as_deref(),
-        args.points,
-        args.dt.as_deref(),
-    )?
-    .ok_or_else(|| {
+    grid_times(&args.grid)?.ok_or_else(|| {
         Failure::input("which times? give --times T1,T2,... or --t-end T [--points K | --dt D]")
     })
 }
 
 /// Times from `--times`, or from `--t-end` with `--points`/`--dt`; `None`
 /// when neither is given.
-fn grid_times(
-    list: &[String],
-    t_end: Option<&str>,
-    points: Option<usize>,
-    dt: Option<&str>,
-) -> Result<Option<Vec<f64>>, Failure> {
+fn grid_times(grid: &TimeArgs) -> Result<Option<Vec<f64>>, Failure> {
+    let (list, t_end, points, dt) = (
+        &grid.times,
+        grid.t_end.as_deref(),
+        grid.points,
+        grid.dt.as_deref(),
+    );
     if !list.is_empty() {
         let times = list
             .iter()
@@ -551,13 +543,7 @@ fn run_simulation(
 fn simulate(args: SimulateArgs) -> Result<(), Failure> {
     use btrel::report::simulation;
     let runs = parse_count("--runs", &args.runs)?;
-    let times = grid_times(
-        &args.times,
-        args.t_end.as_deref(),
-        args.points,
-        args.dt.as_deref(),
-    )?
-    .unwrap_or_default();
+    let times = grid_times(&args.grid)?.unwrap_or_default();
     if matches!(args.format, FormatArg::Csv) && !times.is_empty() {
         return Err(Failure::input(
             "--format csv prints the per-node figures; for a simulated curve as CSV use `btrel curve --mc N`",

@@ -114,34 +114,8 @@ pub fn write_table(tree: &Tree, cmp: &Comparison, k: usize, out: &mut dyn Write)
         row.push(mark.join(", "));
         rows.push(row);
     }
-    let widths: Vec<usize> = (0..header.len())
-        .map(|j| {
-            rows.iter()
-                .map(|r| r[j].chars().count())
-                .chain(std::iter::once(header[j].chars().count()))
-                .max()
-                .unwrap_or(0)
-        })
-        .collect();
-    let line = |cells: Vec<&str>| {
-        let mut s = String::new();
-        for (j, c) in cells.iter().enumerate() {
-            let pad = " ".repeat(widths[j] - c.chars().count());
-            if j == 1 || j + 1 == cells.len() {
-                s.push_str(c);
-                s.push_str(&pad);
-            } else {
-                s.push_str(&pad);
-                s.push_str(c);
-            }
-            s.push_str("  ");
-        }
-        s.trim_end().to_string()
-    };
-    writeln!(out, "{}", line(header.clone()))?;
-    for r in &rows {
-        writeln!(out, "{}", line(r.iter().map(String::as_str).collect()))?;
-    }
+    rows.insert(0, header.iter().map(|h| h.to_string()).collect());
+    super::table::write_aligned(&rows, |j, n| j == 1 || j + 1 == n, out)?;
     Ok(())
 }
 

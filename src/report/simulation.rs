@@ -78,31 +78,7 @@ fn pm(e: Option<&Estimate>) -> String {
 }
 
 fn aligned(rows: &[Vec<String>], left: usize, out: &mut dyn Write) -> io::Result<()> {
-    let cols = rows.iter().map(Vec::len).max().unwrap_or(0);
-    let widths: Vec<usize> = (0..cols)
-        .map(|j| {
-            rows.iter()
-                .map(|r| r.get(j).map_or(0, |c| c.chars().count()))
-                .max()
-                .unwrap_or(0)
-        })
-        .collect();
-    for r in rows {
-        let mut s = String::new();
-        for (j, c) in r.iter().enumerate() {
-            let pad = " ".repeat(widths[j] - c.chars().count());
-            if j < left {
-                s.push_str(c);
-                s.push_str(&pad);
-            } else {
-                s.push_str(&pad);
-                s.push_str(c);
-            }
-            s.push_str("  ");
-        }
-        writeln!(out, "{}", s.trim_end())?;
-    }
-    Ok(())
+    super::table::write_aligned(rows, |j, _| j < left, out)
 }
 
 /// The simulation as tables: per node (mean ± standard error), then the

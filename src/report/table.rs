@@ -16,10 +16,11 @@ pub struct TableExporter;
 impl Exporter for TableExporter {
     fn write(&self, report: &Report, out: &mut dyn Write) -> io::Result<()> {
         let header = ["node", "kind", "ps", "pf", "MTTS", "MTTF", "mu", "nu"];
-        let mut rows: Vec<[String; 8]> = Vec::with_capacity(report.nodes.len());
+        let mut rows: Vec<Vec<String>> = Vec::with_capacity(report.nodes.len() + 1);
+        rows.push(header.iter().map(|h| h.to_string()).collect());
         for n in &report.nodes {
             let f = &n.figures;
-            rows.push([
+            rows.push(vec![
                 format!("{}{}", "  ".repeat(n.depth), n.name),
                 n.kind.to_string(),
                 significant_or_dash(Some(f.ps), DIGITS),
@@ -30,42 +31,50 @@ impl Exporter for TableExporter {
                 significant_or_dash(f.nu(), DIGITS),
             ]);
         }
-        let width = |i: usize| {
-            rows.iter()
-                .map(|r| r[i].chars().count())
-                .chain(std::iter::once(header[i].len()))
-                .max()
-                .unwrap_or(0)
-        };
-        let widths: Vec<usize> = (0..8).map(width).collect();
         writeln!(
             out,
             "{} — method: {} (times in s, rates in 1/s)",
             report.tree,
             report.method.name()
         )?;
-        let line = |cells: &[&str]| -> String {
-            let mut s = String::new();
-            for (i, c) in cells.iter().enumerate() {
-                let pad = widths[i] - c.chars().count();
-                if i < 2 {
-                    s.push_str(c);
-                    s.push_str(&" ".repeat(pad));
-                } else {
-                    s.push_str(&" ".repeat(pad));
-                    s.push_str(c);
-                }
-                if i + 1 < cells.len() {
-                    s.push_str("  ");
-                }
-            }
-            s.trim_end().to_string()
-        };
-        writeln!(out, "{}", line(&header))?;
-        for r in &rows {
-            let cells: Vec<&str> = r.iter().map(String::as_str).collect();
-            writeln!(out, "{}", line(&cells))?;
-        }
+        write_aligned(&rows, |j, _| j < 2, out)?;
         Ok(())
     }
+}
+
+/// Writes rows as columns separated by two spaces, each as wide as its
+/// widest cell (counted in characters); `left(column, columns)` says which
+/// columns are left-aligned (the others are right-aligned). Trailing spaces
+/// are trimmed.
+pub fn write_aligned(
+    rows: &[Vec<String>],
+    left: impl Fn(usize, usize) -> bool,
+    out: &mut dyn Write,
+) -> io::Result<()> {
+    let cols = rows.iter().map(Vec::len).max().unwrap_or(0);
+    let widths: Vec<usize> = (0..cols)
+        .map(|j| {
+            rows.iter()
+                .map(|r| r.get(j).map_or(0, |c| c.chars().count()))
+                .max()
+                .unwrap_or(0)
+        })
+        .collect();
+    let mut line = String::new();
+    for r in rows {
+        line.clear();
+        for (j, c) in r.iter().enumerate() {
+            let pad = widths[j] - c.chars().count();
+            if left(j, r.len()) {
+                line.push_str(c);
+                line.extend(std::iter::repeat_n(' ', pad));
+            } else {
+                line.extend(std::iter::repeat_n(' ', pad));
+                line.push_str(c);
+            }
+            line.push_str("  ");
+        }
+        writeln!(out, "{}", line.trim_end())?;
+    }
+    Ok(())
 }
