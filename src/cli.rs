@@ -56,6 +56,9 @@ enum Command {
     /// Monte Carlo simulation of the tree's tick semantics (cross-checks every figure).
     #[command(after_help = SIMULATE_EXAMPLES)]
     Simulate(SimulateArgs),
+    /// Export the tree or a node's MRG as Graphviz DOT, or a node's exact CTMC for PRISM.
+    #[command(after_help = EXPORT_EXAMPLES)]
+    Export(ExportArgs),
     /// Validate a tree file without analysing it.
     #[command(after_help = "Example:\n  btrel check trees/search-and-grasp.yaml")]
     Check {
@@ -195,6 +198,48 @@ Examples:
 The same seed gives bit-identical output whatever --threads is (default seed 0x5EEDB7E1).
 For a simulated curve as CSV use `btrel curve --mc N`.";
 
+const EXPORT_EXAMPLES: &str = "\
+Examples:
+  btrel export trees/search-and-grasp.yaml --to dot -o tree.dot && dot -Tsvg tree.dot -o tree.svg
+  btrel export trees/search-and-grasp.yaml --to dot --mrg search -o search-mrg.dot
+  btrel export trees/search-and-grasp.yaml --to prism -o sg.sm --properties sg.csl
+  prism sg.sm sg.csl -const T=100 -prop success_by_T     # P(success by 100 s), weighted over the start
+
+DOT uses the book's notation: Sequence ->, Fallback ?, Parallel =>, decorators <>.";
+
+#[derive(Clone, Copy, ValueEnum)]
+enum ExportFormat {
+    Dot,
+    Prism,
+}
+
+#[derive(clap::Args)]
+struct ExportArgs {
+    /// The tree file (YAML).
+    tree: PathBuf,
+    /// dot: the tree (or with --mrg a node's MRG); prism: a node's exact CTMC.
+    #[arg(long, value_enum)]
+    to: ExportFormat,
+    /// Draw this control node's marking reachability graph instead of the tree (DOT).
+    #[arg(long, value_name = "NODE")]
+    mrg: Option<String>,
+    /// Node whose chain is exported to PRISM (default: the root).
+    #[arg(long, value_name = "NAME")]
+    node: Option<String>,
+    /// Write the matching PRISM properties file here (with --to prism).
+    #[arg(long, value_name = "FILE")]
+    properties: Option<PathBuf>,
+    /// Method of the figures shown in DOT labels.
+    #[arg(long, value_enum, default_value_t = MethodArg::Exact)]
+    method: MethodArg,
+    /// Largest chain (number of states) an exact analysis may build.
+    #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_STATES)]
+    max_states: usize,
+    /// Write to this file (atomically) instead of standard output.
+    #[arg(short, long, value_name = "FILE")]
+    output: Option<PathBuf>,
+}
+
 /// Time points: a list, or an evenly spaced grid from 0.
 #[derive(clap::Args)]
 struct TimeArgs {
@@ -296,6 +341,7 @@ pub fn main() -> ExitCode {
         Command::Curve(args) => curve(args),
         Command::Compare(args) => compare(args),
         Command::Simulate(args) => simulate(args),
+        Command::Export(args) => export(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -629,6 +675,61 @@ fn curve(args: CurveArgs) -> Result<(), Failure> {
         }
         Ok(())
     })
+}
+
+fn export(args: ExportArgs) -> Result<(), Failure> {
+    let tree = load(&args.tree)?;
+    let one = |name: &Option<String>| -> Result<usize, Failure> {
+        match name {
+            Some(n) => Ok(find_nodes(&tree, std::slice::from_ref(n), &args.tree)?[0]),
+            None => Ok(Tree::ROOT),
+        }
+    };
+    let options = Options {
+        method: method(args.method),
+        max_states: args.max_states,
+    };
+    let text = match args.to {
+        ExportFormat::Dot => {
+            let analysis = analyze(&tree, &options).ok();
+            match &args.mrg {
+                None => btrel::export::dot_tree(&tree, analysis.as_ref()),
+                Some(_) => {
+                    let id = one(&args.mrg)?;
+                    let analysis = analysis.ok_or_else(|| {
+                        Failure::analysis(
+                            "the tree cannot be analysed, so its MRG cannot be labelled",
+                        )
+                    })?;
+                    let figs: Vec<_> = tree
+                        .node(id)
+                        .kind
+                        .children()
+                        .iter()
+                        .map(|&c| analysis.nodes[c])
+                        .collect();
+                    btrel::export::dot_mrg(&tree, id, &figs).map_err(Failure::input)?
+                }
+            }
+        }
+        ExportFormat::Prism => {
+            if args.mrg.is_some() {
+                return Err(Failure::input("--mrg goes with --to dot"));
+            }
+            btrel::export::prism_ctmc(&tree, one(&args.node)?, args.max_states)
+                .map_err(Failure::analysis)?
+        }
+    };
+    if let Some(path) = &args.properties {
+        if !matches!(args.to, ExportFormat::Prism) {
+            return Err(Failure::input("--properties goes with --to prism"));
+        }
+        btrel::output::write_atomic(path, |out| {
+            out.write_all(btrel::export::PRISM_PROPERTIES.as_bytes())
+        })
+        .map_err(|e| Failure::input(format!("cannot write {}: {e}", path.display())))?;
+    }
+    emit(args.output.as_deref(), |out| out.write_all(text.as_bytes()))
 }
 
 fn find_nodes(tree: &Tree, names: &[String], file: &Path) -> Result<Vec<usize>, Failure> {
