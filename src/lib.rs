@@ -28,6 +28,7 @@
 pub mod compare;
 pub mod compile;
 pub mod curve;
+pub mod export;
 pub mod generate;
 pub mod output;
 pub mod report;
