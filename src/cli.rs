@@ -22,6 +22,7 @@ Examples:
   btrel report trees/search-and-grasp.yaml --method book --format json
   btrel report trees/two-arm-parallel.yaml --format csv -o figures.csv
   btrel check trees/search-and-grasp.yaml
+  btrel report trees/search-and-grasp.xml --params trees/search-and-grasp.params.yaml
   btrel curve trees/search-and-grasp.yaml --t-end 1000 --points 101 -o curve.csv
   btrel curve trees/search-and-grasp.yaml --node search --node grasp --times 10,100,1000
 
@@ -40,7 +41,24 @@ to succeed and to fail, the Mean Time To Succeed (MTTS) and the Mean Time To Fai
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Input format of TREE (default: by extension, .xml is BehaviorTree.CPP v4 XML).
+    #[arg(long, value_enum, global = true)]
+    input_format: Option<InputFormat>,
+    /// Parameters of an XML tree's actions and conditions (YAML; default: TREE with
+    /// the extension .params.yaml).
+    #[arg(long, value_name = "PARAMS.yaml", global = true)]
+    params: Option<PathBuf>,
 }
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum InputFormat {
+    Yaml,
+    Xml,
+}
+
+/// How tree files are read (set once from the global options).
+static INPUT: std::sync::OnceLock<(Option<InputFormat>, Option<PathBuf>)> =
+    std::sync::OnceLock::new();
 
 #[derive(Subcommand)]
 enum Command {
@@ -59,6 +77,9 @@ enum Command {
     /// Export the tree or a node's MRG as Graphviz DOT, or a node's exact CTMC for PRISM.
     #[command(after_help = EXPORT_EXAMPLES)]
     Export(ExportArgs),
+    /// Plot Success/Failure/Running over time as SVG (Figs. 9.18–9.22).
+    #[command(after_help = PLOT_EXAMPLES)]
+    Plot(PlotArgs),
     /// Validate a tree file without analysing it.
     #[command(after_help = "Example:\n  btrel check trees/search-and-grasp.yaml")]
     Check {
@@ -198,6 +219,58 @@ Examples:
 The same seed gives bit-identical output whatever --threads is (default seed 0x5EEDB7E1).
 For a simulated curve as CSV use `btrel curve --mc N`.";
 
+const PLOT_EXAMPLES: &str = "\
+Examples:
+  btrel plot trees/search-and-grasp.yaml -o sg.svg --mc 1e5                 # Fig. 9.18
+  btrel plot trees/search-and-grasp.yaml -o nodes.svg --node search --node grasp
+  btrel plot trees/search-and-grasp.yaml -o det.svg --timing both           # Fig. 9.20
+  btrel plot trees/search-and-grasp.yaml -o order.svg --compare search --deadline 100   # Fig. 9.22";
+
+#[derive(Clone, Copy, ValueEnum)]
+enum PlotTiming {
+    AsGiven,
+    Deterministic,
+    Both,
+}
+
+#[derive(clap::Args)]
+struct PlotArgs {
+    /// The tree file (YAML).
+    tree: PathBuf,
+    /// The SVG file to write (atomically).
+    #[arg(short, long, value_name = "FILE.svg")]
+    output: PathBuf,
+    /// Node to plot, by name or path (repeatable); default: the root.
+    #[arg(long = "node", value_name = "NAME")]
+    nodes: Vec<String>,
+    /// Horizon (s); default: 3 × the largest mean time plotted.
+    #[arg(long, value_name = "T", allow_hyphen_values = true)]
+    t_end: Option<String>,
+    /// Points of each curve.
+    #[arg(long, value_name = "K", default_value_t = 401)]
+    points: usize,
+    /// Overlay a simulation with N runs (markers).
+    #[arg(long, value_name = "N")]
+    mc: Option<String>,
+    #[command(flatten)]
+    sim: SimArgs,
+    /// as-given, deterministic (every rate r becomes a fixed 1/r), or both overlaid.
+    #[arg(long, value_enum, default_value_t = PlotTiming::AsGiven)]
+    timing: PlotTiming,
+    /// Overlay the best orderings of this Fallback's children (with --deadline: by success by then).
+    #[arg(long, value_name = "NODE")]
+    compare: Option<String>,
+    /// Deadline (s) ranking the orderings of --compare.
+    #[arg(long, value_name = "T", allow_hyphen_values = true)]
+    deadline: Option<String>,
+    /// How many orderings --compare overlays.
+    #[arg(long, value_name = "K", default_value_t = 2)]
+    top: usize,
+    /// exact (default) or book.
+    #[arg(long, value_enum, default_value_t = MethodArg::Exact)]
+    method: MethodArg,
+}
+
 const EXPORT_EXAMPLES: &str = "\
 Examples:
   btrel export trees/search-and-grasp.yaml --to dot -o tree.dot && dot -Tsvg tree.dot -o tree.svg
@@ -335,6 +408,7 @@ pub fn main() -> ExitCode {
             return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
         }
     };
+    let _ = INPUT.set((cli.input_format, cli.params.clone()));
     let result = match cli.command {
         Command::Report(args) => report(args),
         Command::Check { tree } => check(&tree),
@@ -342,6 +416,7 @@ pub fn main() -> ExitCode {
         Command::Compare(args) => compare(args),
         Command::Simulate(args) => simulate(args),
         Command::Export(args) => export(args),
+        Command::Plot(args) => plot(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -353,7 +428,30 @@ pub fn main() -> ExitCode {
 }
 
 fn load(path: &Path) -> Result<Tree, Failure> {
-    parse_file(path).map_err(Failure::input)
+    let (format, params) = INPUT.get().cloned().unwrap_or((None, None));
+    let xml = match format {
+        Some(f) => f == InputFormat::Xml,
+        None => path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("xml")),
+    };
+    if !xml {
+        if params.is_some() {
+            return Err(Failure::input(
+                "--params goes with an XML tree (YAML trees carry their parameters)",
+            ));
+        }
+        return parse_file(path).map_err(Failure::input);
+    }
+    let params = params.unwrap_or_else(|| path.with_extension("params.yaml"));
+    if !params.exists() {
+        return Err(Failure::input(format!(
+            "{}: an XML tree needs a parameters file; {} does not exist (give one with --params)",
+            path.display(),
+            params.display()
+        )));
+    }
+    btrel::tree::xml::parse_xml_file(path, &params).map_err(Failure::input)
 }
 
 fn check(path: &Path) -> Result<(), Failure> {
@@ -675,6 +773,182 @@ fn curve(args: CurveArgs) -> Result<(), Failure> {
         }
         Ok(())
     })
+}
+
+fn plot(args: PlotArgs) -> Result<(), Failure> {
+    use btrel::plot::{curve_series, mc_series, render_svg, PlotSpec, Series, Style};
+    if args.points < 2 || args.points > 100_000 {
+        return Err(Failure::input("--points must be between 2 and 100000"));
+    }
+    if args.top == 0 {
+        return Err(Failure::input("--top must be at least 1"));
+    }
+    let t_end = args
+        .t_end
+        .as_deref()
+        .map(|t| parse_time("--t-end", t))
+        .transpose()?;
+    let deadline = args
+        .deadline
+        .as_deref()
+        .map(|t| parse_time("--deadline", t))
+        .transpose()?;
+    let mc = args
+        .mc
+        .as_deref()
+        .map(|n| parse_count("--mc", n))
+        .transpose()?;
+    let tree = load(&args.tree)?;
+    let nodes = if args.nodes.is_empty() {
+        vec![Tree::ROOT]
+    } else {
+        find_nodes(&tree, &args.nodes, &args.tree)?
+    };
+    let base = CurveOptions {
+        method: method(args.method),
+        ..CurveOptions::default()
+    };
+    // the trees to draw: (label, tree, node, style, timing)
+    let mut drawn: Vec<(String, Tree, usize, Style, Timing)> = Vec::new();
+    if let Some(name) = &args.compare {
+        let node = find_nodes(&tree, std::slice::from_ref(name), &args.tree)?[0];
+        let cmp = btrel::compare::compare(
+            &tree,
+            &btrel::compare::CompareOptions {
+                nodes: vec![node],
+                deadline,
+                method: base.method,
+                ..btrel::compare::CompareOptions::default()
+            },
+        )
+        .map_err(|e| match e {
+            btrel::compare::CompareError::Analysis(a) => Failure::analysis(a),
+            other => Failure::input(other),
+        })?;
+        // the top K orderings, and the given one (as in Fig. 9.22)
+        let shown: Vec<_> = cmp
+            .candidates
+            .iter()
+            .enumerate()
+            .filter(|(i, c)| *i < args.top || c.given)
+            .map(|(_, c)| c)
+            .collect();
+        for (i, c) in shown.into_iter().enumerate() {
+            let mut t = tree.clone();
+            for (&n, o) in cmp.nodes.iter().zip(&c.orders) {
+                if let btrel::tree::NodeKind::Fallback { children } = &mut t.nodes[n].kind {
+                    children.clone_from(o);
+                }
+            }
+            let mut label = btrel::report::ranking::label(&tree, &cmp, c);
+            if c.given {
+                label.push_str(" (given)");
+            }
+            drawn.push((label, t, Tree::ROOT, Style::overlay(i), Timing::AsGiven));
+        }
+    } else {
+        for (i, &id) in nodes.iter().enumerate() {
+            let name = if nodes.len() > 1 {
+                tree.node(id).name.clone()
+            } else {
+                String::new()
+            };
+            let timings: &[(Timing, &str)] = match args.timing {
+                PlotTiming::AsGiven => &[(Timing::AsGiven, "")],
+                PlotTiming::Deterministic => &[(Timing::Deterministic, "deterministic")],
+                PlotTiming::Both => &[
+                    (Timing::AsGiven, "stochastic"),
+                    (Timing::Deterministic, "deterministic"),
+                ],
+            };
+            for (j, &(timing, what)) in timings.iter().enumerate() {
+                let label = [name.as_str(), what]
+                    .iter()
+                    .filter(|x| !x.is_empty())
+                    .copied()
+                    .collect::<Vec<_>>()
+                    .join(", ");
+                drawn.push((
+                    label,
+                    tree.clone(),
+                    id,
+                    Style::overlay(i * timings.len() + j),
+                    timing,
+                ));
+            }
+        }
+    }
+    let end = match t_end {
+        Some(t) if t > 0.0 => t,
+        Some(_) => return Err(Failure::input("--t-end must be > 0")),
+        None => {
+            let longest = drawn
+                .iter()
+                .map(|(_, t, id, _, _)| {
+                    analyze(
+                        t,
+                        &Options {
+                            method: base.method,
+                            ..Options::default()
+                        },
+                    )
+                    .map(|a| a.nodes[*id].mean_time())
+                    .unwrap_or(0.0)
+                })
+                .fold(0.0, f64::max);
+            deadline.unwrap_or(0.0).max(3.0 * longest).max(1e-9)
+        }
+    };
+    let times: Vec<f64> = (0..args.points)
+        .map(|k| end * k as f64 / (args.points - 1) as f64)
+        .collect();
+    let mut series: Vec<Series> = Vec::new();
+    for (label, t, id, style, timing) in &drawn {
+        let options = CurveOptions {
+            timing: *timing,
+            ..base
+        };
+        let points = btrel::curve::curve(t, *id, &times, &options).map_err(Failure::analysis)?;
+        series.extend(curve_series(label, &points, *style));
+    }
+    if let Some(runs) = mc {
+        let mc_times: Vec<f64> = (0..41).map(|k| end * k as f64 / 40.0).collect();
+        let o = sim_options(&args.sim, runs, mc_times, false)?;
+        for (label, t, id, _, timing) in &drawn {
+            if *timing == Timing::Deterministic {
+                continue;
+            }
+            let r = run_simulation(t, *id, &o)?;
+            let prefix = if label.is_empty() {
+                "Monte Carlo".to_string()
+            } else {
+                format!("{label}, Monte Carlo")
+            };
+            series.extend(mc_series(&prefix, &r.curve));
+        }
+    }
+    let title = match (&args.compare, deadline) {
+        (Some(n), Some(d)) => format!(
+            "{}: orderings of '{n}' (best by P(success by {} s) first)",
+            tree.title
+                .clone()
+                .unwrap_or_else(|| tree.nodes[0].name.clone()),
+            full(d)
+        ),
+        (Some(n), None) => format!(
+            "{}: orderings of '{n}' (best by mean time first)",
+            tree.title
+                .clone()
+                .unwrap_or_else(|| tree.nodes[0].name.clone())
+        ),
+        _ => {
+            let names: Vec<&str> = nodes.iter().map(|&n| tree.node(n).name.as_str()).collect();
+            format!("{} — {} method", names.join(", "), base.method.name())
+        }
+    };
+    let svg = render_svg(&PlotSpec::new(title, series)).map_err(Failure::analysis)?;
+    btrel::output::write_atomic(&args.output, |out| out.write_all(svg.as_bytes()))
+        .map_err(|e| Failure::input(format!("cannot write {}: {e}", args.output.display())))
 }
 
 fn export(args: ExportArgs) -> Result<(), Failure> {

@@ -31,6 +31,7 @@ pub mod curve;
 pub mod export;
 pub mod generate;
 pub mod output;
+pub mod plot;
 pub mod report;
 pub mod sim;
 pub mod solve;

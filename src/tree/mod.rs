@@ -7,6 +7,7 @@
 
 pub mod error;
 pub mod parse;
+pub mod xml;
 
 pub use error::TreeError;
 pub use parse::{parse_file, parse_str, parse_str_with, ParseLimits};
