@@ -12,7 +12,7 @@
 //! re-analyses the reordered nodes and their ancestors
 //! ([`compile::reanalyze`]). Beyond the limit:
 //!
-//! * for the mean time E[T], the ordering rule below is exact;
+//! * for the mean time `E[T]`, the ordering rule below is exact;
 //! * for other objectives a local search (best improving swap of two
 //!   children of one node, until none improves) starts from that rule; the
 //!   result is a local optimum and is reported as not proven.
@@ -24,13 +24,13 @@
 //! `P·(E_{i+1} + (1−p_{i+1})E_i)` (P the common prefix product), so `i`
 //! should come first iff `p_i E_{i+1} ≥ p_{i+1} E_i`, i.e.
 //! `p_i/E_i ≥ p_{i+1}/E_{i+1}`. Any ordering not sorted by that ratio has an
-//! adjacent pair whose swap does not increase E[T]; bubble-sorting by it
+//! adjacent pair whose swap does not increase `E[T]`; bubble-sorting by it
 //! therefore reaches a minimum, and all orderings sorted by the ratio (ties
-//! in any order) have the same E[T]: sorting by `p_i/E_i` descending is
-//! optimal. In a Sequence/Fallback tree a parent's E[T] is a non-negative
-//! combination of its children's E[T] with coefficients (products of the
+//! in any order) have the same `E[T]`: sorting by `p_i/E_i` descending is
+//! optimal. In a Sequence/Fallback tree a parent's `E[T]` is a non-negative
+//! combination of its children's `E[T]` with coefficients (products of the
 //! children's `p_s`, `p_f`) that do not depend on any ordering, so
-//! minimising each Fallback's E[T] bottom-up minimises the root's: the rule
+//! minimising each Fallback's `E[T]` bottom-up minimises the root's: the rule
 //! is globally optimal. Under a Parallel the mean time is not linear in the
 //! children's means, and the rule is then reported as not proven.
 
@@ -41,7 +41,7 @@ use crate::tree::{NodeId, NodeKind, Tree};
 /// What to optimise.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Objective {
-    /// Smallest E[T] = ps·MTTS + pf·MTTF.
+    /// Smallest `E[T]` = ps·MTTS + pf·MTTF.
     MeanTime,
     /// Smallest MTTS.
     Mtts,

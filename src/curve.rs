@@ -1,10 +1,10 @@
 //! Probabilities over time: `π(t)` of any node, by three methods.
 //!
 //! * **exact** (default): the node's exact phase chain ([`compile::phase`])
-//!   solved by uniformization ([`solve::transient`]) with a rigorous
+//!   solved by uniformization ([`solve::transient`](crate::solve::transient)) with a rigorous
 //!   truncation bound, or, when that would take too many steps (a stiff
 //!   chain over a long horizon) and the chain is small, by dense
-//!   exponentials in double-double ([`solve::expm`]); for subtrees whose actions all have deterministic
+//!   exponentials in double-double ([`solve::expm`](crate::solve::expm)); for subtrees whose actions all have deterministic
 //!   times, the exact finitely many return instants ([`compile::atoms`],
 //!   Prop. 9.2's zero-order hold without rounding to a grid).
 //! * **book**: the chapter's recursion: the node's CTMC over its MRG with

@@ -93,7 +93,7 @@ impl Figures {
         self.mttf.filter(|&t| t > 0.0).map(|t| 1.0 / t)
     }
 
-    /// Mean execution time E[T] = ps·MTTS + pf·MTTF.
+    /// Mean execution time `E[T]` = ps·MTTS + pf·MTTF.
     pub fn mean_time(&self) -> f64 {
         self.ps * self.mtts.unwrap_or(0.0) + self.pf * self.mttf.unwrap_or(0.0)
     }
@@ -317,7 +317,7 @@ fn node_figures(
 /// means of repeated runs add along paths).
 ///
 /// * inverter: outcomes swapped; force_success/force_failure: one outcome
-///   with the child's mean time E[T];
+///   with the child's mean time `E[T]`;
 /// * retry N: a Fallback of N fresh copies; repeat N: a Sequence of N copies,
 ///   solved over their MRG like any Fallback/Sequence.
 pub fn decorator_figures(decorator: Decorator, child: Figures) -> Result<Figures, String> {

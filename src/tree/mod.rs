@@ -2,7 +2,7 @@
 //!
 //! A [`Tree`] is an arena of [`Node`]s in pre-order (tree order): index 0 is
 //! the root and every node's children follow it. Trees are built by
-//! [`parse`](crate::tree::parse) from YAML, which validates every parameter,
+//! [`parse`] from YAML (or [`xml`] from BehaviorTree.CPP XML), which validates every parameter,
 //! so code downstream can rely on the invariants documented on each type.
 
 pub mod error;
