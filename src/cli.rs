@@ -438,7 +438,7 @@ fn load(path: &Path) -> Result<Tree, Failure> {
     if !xml {
         if params.is_some() {
             return Err(Failure::input(
-                "--params goes with an XML tree (YAML trees carry their parameters)",
+                "--params goes with an XML tree (YAML trees carry their parameters): remove --params",
             ));
         }
         return parse_file(path).map_err(Failure::input);
@@ -948,7 +948,7 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
     };
     let svg = render_svg(&PlotSpec::new(title, series)).map_err(Failure::analysis)?;
     btrel::output::write_atomic(&args.output, |out| out.write_all(svg.as_bytes()))
-        .map_err(|e| Failure::input(format!("cannot write {}: {e}", args.output.display())))
+        .map_err(|e| Failure::input(write_error(&args.output, &e)))
 }
 
 fn export(args: ExportArgs) -> Result<(), Failure> {
@@ -1001,7 +1001,7 @@ fn export(args: ExportArgs) -> Result<(), Failure> {
         btrel::output::write_atomic(path, |out| {
             out.write_all(btrel::export::PRISM_PROPERTIES.as_bytes())
         })
-        .map_err(|e| Failure::input(format!("cannot write {}: {e}", path.display())))?;
+        .map_err(|e| Failure::input(write_error(path, &e)))?;
     }
     emit(args.output.as_deref(), |out| out.write_all(text.as_bytes()))
 }
@@ -1099,13 +1099,23 @@ fn compare(args: CompareArgs) -> Result<(), Failure> {
             }
             Ok(())
         })
-        .map_err(|e| Failure::input(format!("cannot write {}: {e}", path.display())))?;
+        .map_err(|e| Failure::input(write_error(path, &e)))?;
     }
     emit(args.output.as_deref(), |out| match args.format {
         FormatArg::Table => ranking::write_table(&tree, &cmp, args.top, out),
         FormatArg::Json => ranking::write_json(&tree, &cmp, args.top, out),
         FormatArg::Csv => ranking::write_csv(&tree, &cmp, args.top, out),
     })
+}
+
+/// A failed output file, with what to do about it.
+fn write_error(path: &Path, e: &io::Error) -> String {
+    let advice = match e.kind() {
+        io::ErrorKind::NotFound => "create the directory first or choose another -o path",
+        io::ErrorKind::PermissionDenied => "check the permissions or choose another -o path",
+        _ => "choose another path, or check the disk",
+    };
+    format!("cannot write {}: {e}; {advice}", path.display())
 }
 
 /// Quotes a CSV field when needed.
@@ -1124,8 +1134,9 @@ fn emit(
     write: impl FnOnce(&mut dyn Write) -> io::Result<()>,
 ) -> Result<(), Failure> {
     match path {
-        Some(p) => btrel::output::write_atomic(p, write)
-            .map_err(|e| Failure::input(format!("cannot write {}: {e}", p.display()))),
+        Some(p) => {
+            btrel::output::write_atomic(p, write).map_err(|e| Failure::input(write_error(p, &e)))
+        }
         None => {
             let stdout = io::stdout();
             let mut lock = io::BufWriter::new(stdout.lock());

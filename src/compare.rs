@@ -161,7 +161,8 @@ pub struct Comparison {
 pub enum CompareError {
     /// A node that cannot be reordered.
     #[error(
-        "node '{0}' is a {1}: only the children of Fallback nodes can be reordered (Def. 9.10)"
+        "node '{0}' is a {1}: only the children of Fallback nodes can be reordered (Def. 9.10); \
+         give a Fallback with --node, or omit --node to reorder every Fallback"
     )]
     NotReorderable(String, &'static str),
     /// Nothing to compare.

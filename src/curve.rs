@@ -175,10 +175,15 @@ fn solve_chain(
     name: &str,
 ) -> Result<Vec<CurvePoint>, AnalysisError> {
     let work = uniformization_work(chain, times);
-    let points = if work <= options.max_work {
+    let small = chain.len() + 2 <= expm::MAX_DENSE_STATES;
+    // the cheaper of the two: uniformization needs ~Λt steps, the dense
+    // exponential of a small chain costs the same at any horizon
+    let dense = small && expm::dense_work(chain, times) < work;
+    let points = if !dense && work <= options.max_work {
         transient::transient(chain, times, options.tolerance)
-    } else if chain.len() + 2 <= expm::MAX_DENSE_STATES {
-        // stiff but small: dense exponentials with a rigorous bound
+    } else if small {
+        // long horizon or stiff, but small: dense exponentials with a
+        // rigorous bound
         let (points, bound) = expm::transient_dense(chain, times);
         if bound > options.tolerance.max(DENSE_TOLERANCE) {
             return Err(AnalysisError::Numerical {

@@ -126,6 +126,35 @@ fn exponential(chain: &PhaseChain, h: f64) -> Exponential {
     Exponential { x, bound }
 }
 
+/// Rough operation count of [`transient_dense`], to choose between it and
+/// uniformization: one exponential (28 Taylor products and `s` squarings
+/// of an upper-triangular m × m double-double matrix, ~m³/6 multiply-adds
+/// each, ~20 flops apiece) per distinct interval, and m²/2 per time point.
+pub fn dense_work(chain: &PhaseChain, times: &[f64]) -> f64 {
+    let m = (chain.len() + 2) as f64;
+    let lambda = (0..chain.len())
+        .map(|i| chain.total_rate(i))
+        .fold(0.0, f64::max);
+    let mut sorted: Vec<f64> = times.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let mut distinct = 0usize;
+    let mut last_interval: Option<f64> = None;
+    let mut now = 0.0;
+    for &t in &sorted {
+        let dt = t - now;
+        let same = last_interval.is_some_and(|h| (h - dt).abs() <= 1e-9 * h);
+        if dt > 0.0 && !same {
+            distinct += 1;
+            last_interval = Some(dt);
+        }
+        now = t;
+    }
+    let horizon = sorted.last().copied().unwrap_or(0.0);
+    let squarings = (2.0 * lambda * horizon).max(1.0).log2().ceil().max(0.0);
+    let per_exponential = (28.0 + squarings) * m * m * m / 6.0 * 20.0;
+    distinct as f64 * per_exponential + times.len() as f64 * m * m * 10.0
+}
+
 /// π(t) at `times` (finite, ≥ 0, any order) by dense exponentials; also
 /// returns a rigorous bound on the absolute error of every probability.
 /// Equal consecutive intervals (e.g. an evenly spaced grid) share one

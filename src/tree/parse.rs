@@ -163,7 +163,7 @@ pub fn parse_file(path: &std::path::Path) -> Result<Tree, TreeError> {
         line: 0,
         column: 0,
         message: format!("cannot read the file: {e}"),
-        help: None,
+        help: Some(read_help(&e).into()),
         source_line: None,
     };
     let limits = ParseLimits::default();
@@ -186,6 +186,17 @@ pub fn parse_file(path: &std::path::Path) -> Result<Tree, TreeError> {
         }
     })?;
     parse_str_with(&source, &file, limits)
+}
+
+/// Advice for a file that cannot be read.
+pub(crate) fn read_help(e: &std::io::Error) -> &'static str {
+    match e.kind() {
+        std::io::ErrorKind::NotFound => {
+            "check the path (relative paths start from the current directory)"
+        }
+        std::io::ErrorKind::PermissionDenied => "check the file's permissions",
+        _ => "check that the path names a readable file",
+    }
 }
 
 /// Parses a tree from YAML text with default limits; `file` names the source

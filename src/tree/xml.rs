@@ -1654,7 +1654,9 @@ pub fn parse_xml_file(xml: &Path, params: &Path) -> Result<Tree, TreeError> {
 }
 
 fn read_text(path: &Path, file: &str) -> Result<String, TreeError> {
-    let io_err = |e: std::io::Error| plain(file, format!("cannot read the file: {e}"));
+    let io_err = |e: std::io::Error| {
+        plain(file, format!("cannot read the file: {e}")).with_help(super::parse::read_help(&e))
+    };
     let meta = std::fs::metadata(path).map_err(io_err)?;
     if meta.len() > MAX_BYTES as u64 {
         return Err(too_large(file, meta.len() as usize));
