@@ -5,6 +5,7 @@
 //! [`parse`] from YAML (or [`xml`] from BehaviorTree.CPP XML), which validates every parameter,
 //! so code downstream can rely on the invariants documented on each type.
 
+mod action;
 pub mod error;
 pub mod parse;
 pub mod xml;

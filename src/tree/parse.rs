@@ -20,8 +20,9 @@
 use serde::Deserialize;
 use serde_saphyr::Spanned;
 
+use super::action::{validate_action, ActionParams};
 use super::error::{nearest, TreeError};
-use super::{Action, Decorator, Duration, Node, NodeKind, Tree};
+use super::{Action, Decorator, Node, NodeKind, Tree};
 
 /// Bounds on what the parser accepts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -661,116 +662,27 @@ impl Builder<'_> {
         Ok(x)
     }
 
-    fn rate(&self, key: &str, v: &Spanned<f64>) -> Result<f64, TreeError> {
-        let x = v.value;
-        if !x.is_finite() || x <= 0.0 {
-            return Err(self
-                .err(loc(v), format!("{key} = {x} is not a valid rate"))
-                .with_help(format!(
-                    "{key} is a rate in 1/s and must be a finite number > 0 (mean time = 1/{key})"
-                )));
-        }
-        Ok(x)
-    }
-
-    fn time(&self, key: &str, v: &Spanned<f64>) -> Result<f64, TreeError> {
-        let x = v.value;
-        if !x.is_finite() || x < 0.0 {
-            return Err(self
-                .err(loc(v), format!("{key} = {x} is not a valid time"))
-                .with_help(format!(
-                    "{key} is a time in s and must be a finite number >= 0"
-                )));
-        }
-        Ok(x)
-    }
-
     fn action(&self, a: &ActionDef) -> Result<Action, TreeError> {
-        let ps = self.probability("ps", &a.ps)?;
-        let pf = match &a.pf {
-            None => 1.0 - ps,
-            Some(pf_def) => {
-                let pf = self.probability("pf", pf_def)?;
-                if (ps + pf - 1.0).abs() > PROBABILITY_SUM_TOLERANCE {
-                    return Err(self
-                        .err(loc(pf_def), format!("ps + pf = {} but must be 1", ps + pf))
-                        .with_help(format!(
-                            "ps = {ps} and pf = {pf}; the outcomes are exclusive, so pf = 1 - ps \
-                             (within {PROBABILITY_SUM_TOLERANCE:e}); omit pf to get 1 - ps"
-                        )));
-                }
-                pf
+        let params = ActionParams {
+            ps: Some(a.ps.clone()),
+            pf: a.pf.clone(),
+            mu: a.mu.clone(),
+            nu: a.nu.clone(),
+            tau_s: a.tau_s.clone(),
+            tau_f: a.tau_f.clone(),
+        };
+        let err = |at: (usize, usize), message: String, help: String| {
+            self.err(at, message).with_help(help)
+        };
+        match validate_action(&params, &err)? {
+            Ok(action) => Ok(action),
+            Err(missing) => {
+                let (what, help) = missing.split_once(": ").unwrap_or((&missing, ""));
+                Err(self
+                    .err(loc(&a.ps), format!("action {what}"))
+                    .with_help(help.to_string()))
             }
-        };
-        if let (Some(m), Some(t)) = (&a.mu, &a.tau_s) {
-            let at = loc(m).max(loc(t));
-            return Err(self
-                .err(at, "both `mu` and `tau_s` give the success time")
-                .with_help(
-                    "give `mu` (exponential, rate) or `tau_s` (deterministic, time), not both",
-                ));
         }
-        if let (Some(n), Some(t)) = (&a.nu, &a.tau_f) {
-            let at = loc(n).max(loc(t));
-            return Err(self
-                .err(at, "both `nu` and `tau_f` give the failure time")
-                .with_help(
-                    "give `nu` (exponential, rate) or `tau_f` (deterministic, time), not both",
-                ));
-        }
-        let mu = a.mu.as_ref().map(|v| self.rate("mu", v)).transpose()?;
-        let nu = a.nu.as_ref().map(|v| self.rate("nu", v)).transpose()?;
-        let tau_s = a
-            .tau_s
-            .as_ref()
-            .map(|v| self.time("tau_s", v))
-            .transpose()?;
-        let tau_f = a
-            .tau_f
-            .as_ref()
-            .map(|v| self.time("tau_f", v))
-            .transpose()?;
-        let at = loc(&a.ps);
-        if ps > 0.0 && mu.is_none() && tau_s.is_none() {
-            return Err(self
-                .err(
-                    at,
-                    format!("action can succeed (ps = {ps}) but has no success time"),
-                )
-                .with_help(
-                    "add `mu` (success rate, 1/s) or `tau_s` (deterministic success time, s)",
-                ));
-        }
-        if pf > 0.0 && nu.is_none() && tau_f.is_none() {
-            return Err(self
-                .err(
-                    at,
-                    format!("action can fail (pf = {pf}) but has no failure time"),
-                )
-                .with_help(
-                    "add `nu` (failure rate, 1/s) or `tau_f` (deterministic failure time, s)",
-                ));
-        }
-        // Def. 9.9: in a hybrid action the random side is cut off at the
-        // deterministic time of the other outcome.
-        let success = match (mu, tau_s, tau_f) {
-            (Some(rate), _, Some(cap)) => Some(Duration::TruncatedExponential { rate, cap }),
-            (Some(rate), _, None) => Some(Duration::Exponential { rate }),
-            (None, Some(time), _) => Some(Duration::Fixed { time }),
-            (None, None, _) => None,
-        };
-        let failure = match (nu, tau_f, tau_s) {
-            (Some(rate), _, Some(cap)) => Some(Duration::TruncatedExponential { rate, cap }),
-            (Some(rate), _, None) => Some(Duration::Exponential { rate }),
-            (None, Some(time), _) => Some(Duration::Fixed { time }),
-            (None, None, _) => None,
-        };
-        Ok(Action {
-            ps,
-            pf,
-            success: success.filter(|_| ps > 0.0),
-            failure: failure.filter(|_| pf > 0.0),
-        })
     }
 
     fn check_names(&self) -> Result<(), TreeError> {
