@@ -377,8 +377,45 @@ fn mrg_chain(g: &Mrg, children: &[Figures], competing: bool) -> AbsorbingChain {
         Status::Success => Target::Success,
         Status::Failure => Target::Failure,
     };
-    let sojourn = |f: &Figures| f.mean_time();
-    let mut edges = Vec::with_capacity(g.events.len());
+    let edges = weighted_events(g, children, competing)
+        .into_iter()
+        .filter(|w| w.prob > 0.0)
+        .map(|w| Edge {
+            from: dense[w.event.from],
+            to: target(w.event.to),
+            prob: w.prob,
+            duration: w.duration,
+        })
+        .collect();
+    AbsorbingChain {
+        n,
+        initial: vec![(0, 1.0)],
+        initial_success: 0.0,
+        initial_failure: 0.0,
+        edges,
+    }
+}
+
+/// An MRG event with its DTMC probability and mean duration.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WeightedEvent {
+    /// The event.
+    pub event: mrg::Event,
+    /// Its probability from its marking (0 for a child pre-empted by a
+    /// zero-duration sibling).
+    pub prob: f64,
+    /// Its mean duration.
+    pub duration: f64,
+}
+
+/// Every event of `g` with the probability and duration described on
+/// [`mrg_chain`]'s rules: the child's own ps/pf and MTTS/MTTF when it is the
+/// only feasible child (or `competing` is false), otherwise the share
+/// (9.38)–(9.39) of rates `1/SJ_h` and the marking's mean sojourn (9.40);
+/// zero-duration children return first.
+pub fn weighted_events(g: &Mrg, children: &[Figures], competing: bool) -> Vec<WeightedEvent> {
+    let sojourn = |h: usize| children[h].mean_time();
+    let mut out = Vec::with_capacity(g.events.len());
     let mut start = 0;
     while start < g.events.len() {
         let from = g.events[start].from;
@@ -389,12 +426,9 @@ fn mrg_chain(g: &Mrg, children: &[Figures], competing: bool) -> AbsorbingChain {
             .filter(|e| e.outcome == Outcome::Success)
             .map(|e| e.child)
             .collect();
-        let instantaneous = feasible
-            .iter()
-            .copied()
-            .find(|&h| sojourn(&children[h]) == 0.0);
+        let instantaneous = feasible.iter().copied().find(|&h| sojourn(h) == 0.0);
         let single = feasible.len() == 1 || !competing;
-        let total_rate: f64 = feasible.iter().map(|&h| 1.0 / sojourn(&children[h])).sum();
+        let total_rate: f64 = feasible.iter().map(|&h| 1.0 / sojourn(h)).sum();
         for e in events {
             let f = &children[e.child];
             let p_outcome = match e.outcome {
@@ -408,32 +442,20 @@ fn mrg_chain(g: &Mrg, children: &[Figures], competing: bool) -> AbsorbingChain {
                 };
                 (p_outcome, t.unwrap_or(0.0))
             } else if let Some(h) = instantaneous {
-                if e.child != h {
-                    continue;
-                }
-                (p_outcome, 0.0)
+                (if e.child == h { p_outcome } else { 0.0 }, 0.0)
             } else {
-                let share = (1.0 / sojourn(f)) / total_rate;
+                let share = (1.0 / sojourn(e.child)) / total_rate;
                 (p_outcome * share, 1.0 / total_rate)
             };
-            if prob > 0.0 {
-                edges.push(Edge {
-                    from: dense[from],
-                    to: target(e.to),
-                    prob,
-                    duration,
-                });
-            }
+            out.push(WeightedEvent {
+                event: *e,
+                prob,
+                duration,
+            });
         }
         start = end;
     }
-    AbsorbingChain {
-        n,
-        initial: vec![(0, 1.0)],
-        initial_success: 0.0,
-        initial_failure: 0.0,
-        edges,
-    }
+    out
 }
 
 fn check(f: &Figures, node: &str) -> Result<(), AnalysisError> {

@@ -4,7 +4,7 @@ use std::fmt::Write as _;
 
 use super::dot_escape;
 use crate::compile::mrg::{parallel_marking_count, Mrg, Outcome, Policy, Status};
-use crate::compile::{Analysis, Figures};
+use crate::compile::{weighted_events, Analysis, Figures};
 use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
 
 /// Most markings [`dot_mrg`] draws (a Parallel MRG can grow like 3^N).
@@ -224,55 +224,25 @@ pub fn dot_mrg(tree: &Tree, node: NodeId, children: &[Figures]) -> Result<String
         };
         let _ = writeln!(out, "  m{i} [label=\"[{vector}]\"{style}];");
     }
-    let sojourn = |h: usize| children[h].mean_time();
-    let mut start = 0;
-    while start < g.events.len() {
-        let from = g.events[start].from;
-        let end = start + g.events[start..].partition_point(|e| e.from == from);
-        let events = &g.events[start..end];
-        let feasible: Vec<usize> = events
-            .iter()
-            .filter(|e| e.outcome == Outcome::Success)
-            .map(|e| e.child)
-            .collect();
-        let immediate = feasible.iter().copied().find(|&h| sojourn(h) == 0.0);
-        let total_rate: f64 = feasible.iter().map(|&h| 1.0 / sojourn(h)).sum();
-        for e in events {
-            let f = &children[e.child];
-            let p_outcome = match e.outcome {
-                Outcome::Success => f.ps,
-                Outcome::Failure => f.pf,
-            };
-            let prob = if !competing || feasible.len() == 1 {
-                p_outcome
-            } else if let Some(h) = immediate {
-                if e.child == h {
-                    p_outcome
-                } else {
-                    0.0
-                }
-            } else {
-                p_outcome * (1.0 / sojourn(e.child)) / total_rate
-            };
-            let letter = match e.outcome {
-                Outcome::Success => "S",
-                Outcome::Failure => "F",
-            };
-            let style = if prob > 0.0 {
-                ""
-            } else {
-                ", style=dashed, color=gray50, fontcolor=gray50"
-            };
-            let _ = writeln!(
-                out,
-                "  m{} -> m{} [label=\"h{} {letter}\\np = {}\"{style}];",
-                e.from,
-                e.to,
-                e.child + 1,
-                short(prob)
-            );
-        }
-        start = end;
+    for w in weighted_events(&g, children, competing) {
+        let e = w.event;
+        let letter = match e.outcome {
+            Outcome::Success => "S",
+            Outcome::Failure => "F",
+        };
+        let style = if w.prob > 0.0 {
+            ""
+        } else {
+            ", style=dashed, color=gray50, fontcolor=gray50"
+        };
+        let _ = writeln!(
+            out,
+            "  m{} -> m{} [label=\"h{} {letter}\\np = {}\"{style}];",
+            e.from,
+            e.to,
+            e.child + 1,
+            short(w.prob)
+        );
     }
     out.push_str("}\n");
     Ok(out)
