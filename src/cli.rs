@@ -473,11 +473,7 @@ fn report(args: ReportArgs) -> Result<(), Failure> {
         method: method(args.method),
         max_states: args.max_states,
     };
-    let mc = args
-        .mc
-        .as_deref()
-        .map(|n| parse_count("--mc", n))
-        .transpose()?;
+    let mc = optional_count("--mc", &args.mc)?;
     let sim = mc
         .map(|runs| sim_options(&args.sim, runs, Vec::new(), true))
         .transpose()?;
@@ -597,6 +593,16 @@ fn grid_times(grid: &TimeArgs) -> Result<Option<Vec<f64>>, Failure> {
             .map(|k| end * k as f64 / (points - 1) as f64)
             .collect(),
     ))
+}
+
+/// An optional time option (finite, ≥ 0).
+fn optional_time(what: &str, value: &Option<String>) -> Result<Option<f64>, Failure> {
+    value.as_deref().map(|t| parse_time(what, t)).transpose()
+}
+
+/// An optional count option (see [`parse_count`]).
+fn optional_count(what: &str, value: &Option<String>) -> Result<Option<u64>, Failure> {
+    value.as_deref().map(|n| parse_count(what, n)).transpose()
 }
 
 /// A count such as `1000000`, `1_000_000` or `1e6`.
@@ -724,11 +730,7 @@ fn curve(args: CurveArgs) -> Result<(), Failure> {
         max_states: args.max_states,
         ..CurveOptions::default()
     };
-    let mc = args
-        .mc
-        .as_deref()
-        .map(|n| parse_count("--mc", n))
-        .transpose()?;
+    let mc = optional_count("--mc", &args.mc)?;
     let sim = mc
         .map(|runs| sim_options(&args.sim, runs, times.clone(), false))
         .transpose()?;
@@ -783,21 +785,9 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
     if args.top == 0 {
         return Err(Failure::input("--top must be at least 1"));
     }
-    let t_end = args
-        .t_end
-        .as_deref()
-        .map(|t| parse_time("--t-end", t))
-        .transpose()?;
-    let deadline = args
-        .deadline
-        .as_deref()
-        .map(|t| parse_time("--deadline", t))
-        .transpose()?;
-    let mc = args
-        .mc
-        .as_deref()
-        .map(|n| parse_count("--mc", n))
-        .transpose()?;
+    let t_end = optional_time("--t-end", &args.t_end)?;
+    let deadline = optional_time("--deadline", &args.deadline)?;
+    let mc = optional_count("--mc", &args.mc)?;
     let tree = load(&args.tree)?;
     let nodes = if args.nodes.is_empty() {
         vec![Tree::ROOT]
@@ -1023,16 +1013,8 @@ fn find_nodes(tree: &Tree, names: &[String], file: &Path) -> Result<Vec<usize>, 
 fn compare(args: CompareArgs) -> Result<(), Failure> {
     use btrel::compare::{CompareError, CompareOptions, Objective};
     use btrel::report::ranking;
-    let deadline = args
-        .deadline
-        .as_deref()
-        .map(|d| parse_time("--deadline", d))
-        .transpose()?;
-    let t_end = args
-        .t_end
-        .as_deref()
-        .map(|d| parse_time("--t-end", d))
-        .transpose()?;
+    let deadline = optional_time("--deadline", &args.deadline)?;
+    let t_end = optional_time("--t-end", &args.t_end)?;
     if args.top == 0 {
         return Err(Failure::input("--top must be at least 1"));
     }
