@@ -101,6 +101,18 @@ pub fn curve(
     }
     let node = tree.node(id);
     let is_control = !node.kind.children().is_empty();
+    if options.method == Method::Exact {
+        if let NodeKind::Parallel {
+            success_threshold,
+            failure_threshold,
+            children,
+        } = &node.kind
+        {
+            if *failure_threshold == children.len() - success_threshold + 1 {
+                return parallel_by_counts(tree, children, *success_threshold, times, options);
+            }
+        }
+    }
     // deterministic subtrees: exact atoms (both methods agree on a leaf)
     if options.method == Method::Exact || !is_control {
         if let Some(a) = atoms::atoms(tree, id, options.max_states)? {
@@ -166,6 +178,72 @@ pub fn curve(
         },
     };
     solve_chain(&chain, times, options, &node.name)
+}
+
+/// `π(t)` of a Parallel node with the book's thresholds (F = N − M + 1),
+/// exactly, from its children's own curves.
+///
+/// Before the node returns its children run independently, and its two
+/// thresholds cannot both be met (M + (N − M + 1) > N). So the node has
+/// succeeded by t iff at least M children have succeeded by t — had it
+/// failed first, N − M + 1 children would have failed, leaving fewer than M
+/// to succeed — and likewise for Failure. With `S_h(t)`, `F_h(t)` the
+/// children's curves (independent), the counts of children that have
+/// succeeded and failed by t follow a trinomial Poisson-binomial law,
+/// computed by a dynamic programme over the children with both counts capped
+/// at their thresholds: O(N·M·(N−M+1)) per time point instead of a product
+/// chain of up to 4^N states. Children are analysed on their own (any kind,
+/// including deterministic ones).
+fn parallel_by_counts(
+    tree: &Tree,
+    children: &[NodeId],
+    m: usize,
+    times: &[f64],
+    options: &CurveOptions,
+) -> Result<Vec<CurvePoint>, AnalysisError> {
+    let n = children.len();
+    let f_cap = n - m + 1;
+    let curves = children
+        .iter()
+        .map(|&c| curve(tree, c, times, options))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut out = Vec::with_capacity(times.len());
+    // dp[s][f]: probability of s successes and f failures so far (capped)
+    let mut dp = vec![vec![0.0f64; f_cap + 1]; m + 1];
+    for (k, &t) in times.iter().enumerate() {
+        for row in dp.iter_mut() {
+            row.iter_mut().for_each(|x| *x = 0.0);
+        }
+        dp[0][0] = 1.0;
+        for c in &curves {
+            let p = c[k];
+            let running = (1.0 - p.success - p.failure).max(0.0);
+            for s in (0..=m).rev() {
+                for f in (0..=f_cap).rev() {
+                    let here = dp[s][f];
+                    if here == 0.0 {
+                        continue;
+                    }
+                    // capped states absorb
+                    if s == m || f == f_cap {
+                        continue;
+                    }
+                    dp[s][f] = here * running;
+                    dp[s + 1][f] += here * p.success;
+                    dp[s][f + 1] += here * p.failure;
+                }
+            }
+        }
+        let success: f64 = dp[m].iter().sum();
+        let failure: f64 = dp.iter().take(m).map(|row| row[f_cap]).sum();
+        out.push(CurvePoint {
+            t,
+            success: success.clamp(0.0, 1.0),
+            failure: failure.clamp(0.0, 1.0),
+            running: (1.0 - success - failure).max(0.0),
+        });
+    }
+    Ok(out)
 }
 
 fn solve_chain(
