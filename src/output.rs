@@ -7,10 +7,21 @@ use std::io::{self, BufWriter, Write};
 use std::path::Path;
 
 /// Writes `path` atomically with the bytes produced by `write`.
+///
+/// A destination that exists but is not a regular file (`/dev/null`, a
+/// FIFO, a terminal) is written directly: renaming over it would replace the
+/// device with a file.
 pub fn write_atomic(
     path: &Path,
     write: impl FnOnce(&mut dyn Write) -> io::Result<()>,
 ) -> io::Result<()> {
+    if let Ok(meta) = fs::metadata(path) {
+        if !meta.is_file() && !meta.is_dir() {
+            let mut w = BufWriter::new(fs::OpenOptions::new().write(true).open(path)?);
+            write(&mut w)?;
+            return w.flush();
+        }
+    }
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
@@ -54,5 +65,16 @@ mod tests {
         assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 0);
         write_atomic(&p, |w| w.write_all(b"ok")).unwrap();
         assert_eq!(fs::read_to_string(&p).unwrap(), "ok");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn devices_are_written_not_replaced() {
+        let null = Path::new("/dev/null");
+        let before = fs::metadata(null).unwrap();
+        assert!(!before.is_file());
+        write_atomic(null, |w| w.write_all(b"discarded")).unwrap();
+        let after = fs::metadata(null).unwrap();
+        assert!(!after.is_file(), "/dev/null must stay a device");
     }
 }
