@@ -13,7 +13,7 @@
 //!   time `τ = 1/rate` first (the book's Figs. 9.20–9.21 comparison).
 
 use crate::compile::mrg::{Mrg, Policy};
-use crate::compile::{self, analyze, atoms, book_ctmc, phase, AnalysisError, Method};
+use crate::compile::{self, analyze, atoms, book_ctmc, counts, phase, AnalysisError, Method};
 use crate::solve::chain::PhaseChain;
 use crate::solve::expm;
 use crate::solve::transient::{self, uniformization_work};
@@ -191,7 +191,7 @@ pub fn curve(
 /// children's curves (independent), the counts of children that have
 /// succeeded and failed by t follow a trinomial Poisson-binomial law,
 /// computed by a dynamic programme over the children with both counts capped
-/// at their thresholds: O(N·M·(N−M+1)) per time point instead of a product
+/// at their thresholds ([`counts::status_by_counts`]): O(N·M·(N−M+1)) per time point instead of a product
 /// chain of up to 4^N states. Children are analysed on their own (any kind,
 /// including deterministic ones).
 fn parallel_by_counts(
@@ -207,43 +207,23 @@ fn parallel_by_counts(
         .iter()
         .map(|&c| curve(tree, c, times, options))
         .collect::<Result<Vec<_>, _>>()?;
-    let mut out = Vec::with_capacity(times.len());
-    // dp[s][f]: probability of s successes and f failures so far (capped)
-    let mut dp = vec![vec![0.0f64; f_cap + 1]; m + 1];
-    for (k, &t) in times.iter().enumerate() {
-        for row in dp.iter_mut() {
-            row.iter_mut().for_each(|x| *x = 0.0);
-        }
-        dp[0][0] = 1.0;
-        for c in &curves {
-            let p = c[k];
-            let running = (1.0 - p.success - p.failure).max(0.0);
-            for s in (0..=m).rev() {
-                for f in (0..=f_cap).rev() {
-                    let here = dp[s][f];
-                    if here == 0.0 {
-                        continue;
-                    }
-                    // capped states absorb
-                    if s == m || f == f_cap {
-                        continue;
-                    }
-                    dp[s][f] = here * running;
-                    dp[s + 1][f] += here * p.success;
-                    dp[s][f + 1] += here * p.failure;
-                }
+    Ok(times
+        .iter()
+        .enumerate()
+        .map(|(k, &t)| {
+            let points: Vec<(f64, f64)> = curves
+                .iter()
+                .map(|c| (c[k].success, c[k].failure))
+                .collect();
+            let (success, failure) = counts::status_by_counts(&points, m, f_cap);
+            CurvePoint {
+                t,
+                success: success.clamp(0.0, 1.0),
+                failure: failure.clamp(0.0, 1.0),
+                running: (1.0 - success - failure).max(0.0),
             }
-        }
-        let success: f64 = dp[m].iter().sum();
-        let failure: f64 = dp.iter().take(m).map(|row| row[f_cap]).sum();
-        out.push(CurvePoint {
-            t,
-            success: success.clamp(0.0, 1.0),
-            failure: failure.clamp(0.0, 1.0),
-            running: (1.0 - success - failure).max(0.0),
-        });
-    }
-    Ok(out)
+        })
+        .collect())
 }
 
 fn solve_chain(

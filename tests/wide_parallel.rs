@@ -80,3 +80,130 @@ fn wide_parallels_agree_with_simulation() {
         }
     }
 }
+
+/// A child of a test Parallel: an action, or a small Sequence/Fallback of
+/// two actions (a chain with internal transitions).
+fn child_yaml(kind: u8, a: (f64, f64, f64), b: (f64, f64, f64)) -> String {
+    let act =
+        |(ps, mu, nu): (f64, f64, f64)| format!("{{action: {{ps: {ps}, mu: {mu}, nu: {nu}}}}}");
+    match kind % 3 {
+        0 => act(a),
+        1 => format!("{{sequence: {{children: [{}, {}]}}}}", act(a), act(b)),
+        _ => format!("{{fallback: {{children: [{}, {}]}}}}", act(a), act(b)),
+    }
+}
+
+type Spec = (u8, (f64, f64, f64), (f64, f64, f64));
+
+fn mixed_parallel(m: usize, specs: &[Spec]) -> btrel::Tree {
+    let kids: Vec<String> = specs.iter().map(|&(k, a, b)| child_yaml(k, a, b)).collect();
+    let yaml = format!(
+        "tree: {{parallel: {{success_threshold: {m}, children: [{}]}}}}",
+        kids.join(", ")
+    );
+    parse_str(&yaml, "p.yaml").unwrap()
+}
+
+fn action_params() -> impl Strategy<Value = (f64, f64, f64)> {
+    (0.0f64..=1.0, 0.05f64..5.0, 0.05f64..5.0)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(40))]
+
+    /// Mean times by counting (quadrature with a rigorous bound) equal the
+    /// product chain's (exact linear solves), within the stated bound.
+    #[test]
+    fn counted_means_match_the_product_chain(
+        specs in proptest::collection::vec((0u8..3, action_params(), action_params()), 1..=5),
+        m_seed in 0usize..100,
+    ) {
+        use btrel::compile::counts::{parallel_means, ChildLaw, ACCEPTED};
+        let m = 1 + m_seed % specs.len();
+        let tree = mixed_parallel(m, &specs);
+        let children = tree.node(0).kind.children().to_vec();
+        let laws: Vec<ChildLaw> = children
+            .iter()
+            .map(|&c| ChildLaw::new(phase_chain(&tree, c, 1_000_000).unwrap()))
+            .collect();
+        let (s, f) = parallel_means(&laws, m).unwrap();
+        let product = btrel::solve::solve_absorbing(
+            &phase_chain(&tree, 0, 1_000_000).unwrap().jump_chain(),
+        )
+        .unwrap();
+        prop_assert!((s.probability - product.success).abs() < 1e-13);
+        prop_assert!((f.probability - product.failure).abs() < 1e-13);
+        for (c, exact) in [(s, product.time_success), (f, product.time_failure)] {
+            prop_assert!(c.bound <= ACCEPTED * c.time + 1e-300, "{c:?}");
+            // the product's own rounding: a few ulps of the sum
+            prop_assert!(
+                (c.time - exact).abs() <= c.bound + 1e-12 * exact,
+                "{c:?} vs {exact}"
+            );
+        }
+    }
+}
+
+/// The report's figures of wide Parallels (10, 16, 24 children; counted)
+/// and of a Parallel of 8 subtrees nested in a Sequence agree with
+/// simulation: probabilities within 5 binomial standard errors, mean times
+/// within 5 standard errors of the simulated means.
+#[test]
+fn counted_reports_agree_with_simulation() {
+    let mut trees = Vec::new();
+    for (n, m) in [(10usize, 5usize), (16, 4), (24, 20)] {
+        let specs: Vec<Spec> = (0..n)
+            .map(|i| {
+                let i = i as f64;
+                (
+                    0,
+                    (0.55 + 0.015 * i, 0.5 + 0.1 * i, 1.0 + 0.05 * i),
+                    (0.0, 1.0, 1.0),
+                )
+            })
+            .collect();
+        trees.push(mixed_parallel(m, &specs));
+    }
+    let subtrees: Vec<String> = (0..8)
+        .map(|i| {
+            let i = i as f64;
+            child_yaml(
+                1 + (i as u8 % 2),
+                (0.6 + 0.04 * i, 0.4 + 0.2 * i, 1.5 - 0.1 * i),
+                (0.7, 1.0 + 0.1 * i, 2.0),
+            )
+        })
+        .collect();
+    let nested = format!(
+        "tree: {{sequence: {{children: [{{action: {{ps: 0.9, mu: 1.0, nu: 2.0}}}}, \
+         {{parallel: {{success_threshold: 5, children: [{}]}}}}, \
+         {{action: {{ps: 0.8, mu: 0.5, nu: 1.0}}}}]}}}}",
+        subtrees.join(", ")
+    );
+    trees.push(parse_str(&nested, "nested.yaml").unwrap());
+    for tree in &trees {
+        let analysis = btrel::analyze(tree, &Default::default()).unwrap();
+        let sim = simulate(
+            tree,
+            &SimOptions {
+                runs: 400_000,
+                per_node: false,
+                ..Default::default()
+            },
+            None,
+        )
+        .unwrap();
+        let (a, s) = (analysis.nodes[0], &sim.nodes[0]);
+        assert!(
+            (a.ps - s.ps.mean).abs() <= 5.0 * s.ps.se + 1e-12,
+            "{a:?} vs {s:?}"
+        );
+        for (exact, est) in [(a.mtts, s.mtts), (a.mttf, s.mttf)] {
+            if let (Some(x), Some(e)) = (exact, est) {
+                if e.count > 100 {
+                    assert!((x - e.mean).abs() <= 5.0 * e.se, "{a:?} vs {s:?}");
+                }
+            }
+        }
+    }
+}

@@ -19,6 +19,7 @@
 
 pub mod atoms;
 pub mod book_ctmc;
+pub mod counts;
 pub mod mrg;
 pub mod phase;
 
@@ -292,7 +293,18 @@ fn node_figures(
             }
             mrg_chain(&Mrg::build(policy, children.len()), &child_figs, true)
         }
-        (Policy::Parallel { .. }, Method::Exact) => {
+        (
+            Policy::Parallel {
+                success_threshold,
+                failure_threshold,
+            },
+            Method::Exact,
+        ) => {
+            if failure_threshold == children.len() + 1 - success_threshold {
+                if let Some(f) = parallel_by_counts(tree, id, success_threshold, options)? {
+                    return Ok(f);
+                }
+            }
             match phase::phase_chain(tree, id, options.max_states) {
                 Ok(chain) => chain.jump_chain(),
                 Err(AnalysisError::NotMarkovian { leaf }) => {
@@ -311,6 +323,48 @@ fn node_figures(
     };
     let a = solve_absorbing(&chain).map_err(numerical)?;
     Ok(Figures::from_absorption(&a))
+}
+
+/// Largest product (upper bound `Π (phases_h + 2)`) for which a Parallel
+/// node with the book's thresholds is solved through its product chain;
+/// wider ones are counted ([`counts`]).
+pub const PRODUCT_LIMIT: f64 = 20_000.0;
+
+/// Figures of a Parallel node with the book's thresholds by counting its
+/// children ([`counts`]), when its product chain would be larger than
+/// [`PRODUCT_LIMIT`]. `Ok(None)` when the product is small enough, or when a
+/// child has no phase chain (deterministic times: the atoms path applies).
+fn parallel_by_counts(
+    tree: &Tree,
+    id: NodeId,
+    m: usize,
+    options: &Options,
+) -> Result<Option<Figures>, AnalysisError> {
+    let node = tree.node(id);
+    let children = node.kind.children();
+    let mut chains = Vec::with_capacity(children.len());
+    for &c in children {
+        match phase::phase_chain(tree, c, options.max_states) {
+            Ok(chain) => chains.push(chain),
+            Err(AnalysisError::NotMarkovian { .. }) => return Ok(None),
+            Err(e) => return Err(e),
+        }
+    }
+    let product: f64 = chains.iter().map(|c| (c.len() + 2) as f64).product();
+    if product <= PRODUCT_LIMIT {
+        return Ok(None);
+    }
+    let laws: Vec<counts::ChildLaw> = chains.into_iter().map(counts::ChildLaw::new).collect();
+    let (s, f) = counts::parallel_means(&laws, m).map_err(|what| AnalysisError::Numerical {
+        node: node.name.clone(),
+        what,
+    })?;
+    Ok(Some(Figures {
+        ps: s.probability,
+        pf: f.probability,
+        mtts: (s.probability > 0.0).then(|| s.time / s.probability),
+        mttf: (f.probability > 0.0).then(|| f.time / f.probability),
+    }))
 }
 
 /// Figures of a decorator from its child's (exact under both methods: the

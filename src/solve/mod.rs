@@ -23,6 +23,7 @@
 pub mod chain;
 pub mod dd;
 pub mod expm;
+pub mod quadrature;
 pub mod transient;
 
 use chain::{AbsorbingChain, Target};

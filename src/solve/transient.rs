@@ -367,6 +367,134 @@ pub fn transient_by_intervals(
     out
 }
 
+/// π(t) split by destination: besides the absorbed masses, the probability
+/// still running at t that will end in Success (`running_to_success`) and in
+/// Failure.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SplitPoint {
+    /// The time.
+    pub t: f64,
+    /// P(returned Success by t).
+    pub success: f64,
+    /// P(returned Failure by t).
+    pub failure: f64,
+    /// P(running at t and ending in Success later).
+    pub running_to_success: f64,
+    /// P(running at t and ending in Failure later).
+    pub running_to_failure: f64,
+}
+
+/// Probability of ending in Success and in Failure from each phase, and the
+/// mean time to absorption from each phase (backward over the topological
+/// order).
+pub fn absorption_by_phase(chain: &PhaseChain) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let n = chain.len();
+    let (mut hs, mut hf, mut time) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    for i in (0..n).rev() {
+        let q = chain.total_rate(i);
+        let (mut s, mut f, mut x) = (chain.exit_success[i], chain.exit_failure[i], 1.0);
+        for &(j, r) in &chain.transitions[i] {
+            s += r * hs[j];
+            f += r * hf[j];
+            x += r * time[j];
+        }
+        hs[i] = s / q;
+        hf[i] = f / q;
+        time[i] = x / q;
+    }
+    (hs, hf, time)
+}
+
+/// [`transient`] with the running mass split by destination ([`SplitPoint`]),
+/// given `to_success`/`to_failure` from [`absorption_by_phase`]. Each of the
+/// four figures is a Poisson average of quantities in [0, 1] (`π₀Pᵏ·h`), so
+/// its truncation error is at most `tolerance`; and each is computed from
+/// non-negative terms, so small values keep their relative accuracy (no
+/// cancellation as in `P(S) − S(t)`). `None` if the horizon needs more than
+/// [`MAX_SINGLE_PASS_STEPS`].
+pub fn transient_split(
+    chain: &PhaseChain,
+    times: &[f64],
+    tolerance: f64,
+    to_success: &[f64],
+    to_failure: &[f64],
+) -> Option<Vec<SplitPoint>> {
+    let lambda = max_rate(chain);
+    let horizon = times.iter().copied().fold(0.0, f64::max);
+    let initial = |h: &[f64]| chain.initial.iter().map(|&(i, p)| p * h[i]).sum::<f64>();
+    if chain.is_empty() || lambda == 0.0 {
+        let (rs, rf) = (initial(to_success), initial(to_failure));
+        return Some(
+            times
+                .iter()
+                .map(|&t| SplitPoint {
+                    t,
+                    success: chain.initial_success,
+                    failure: chain.initial_failure,
+                    running_to_success: rs,
+                    running_to_failure: rf,
+                })
+                .collect(),
+        );
+    }
+    let max_lt = lambda * horizon;
+    let inv = reciprocals((max_lt + 10.0 * max_lt.sqrt() + 64.0).min(1e8) as usize);
+    let windows: Vec<PoissonWindow> = times
+        .iter()
+        .map(|&t| poisson_window_with(lambda * t, tolerance, &inv))
+        .collect();
+    let steps = windows
+        .iter()
+        .map(|w| w.left + w.weights.len())
+        .max()
+        .unwrap_or(0);
+    if steps > MAX_SINGLE_PASS_STEPS {
+        return None;
+    }
+    let p = Uniformized::new(chain, lambda);
+    let n = chain.len();
+    let mut state = vec![0.0; n];
+    for &(i, q) in &chain.initial {
+        state[i] += q;
+    }
+    let mut next = vec![0.0; n];
+    let dot = |v: &[f64], h: &[f64]| v.iter().zip(h).map(|(a, b)| a * b).sum::<f64>();
+    // per step: absorbed S, absorbed F, running → S, running → F
+    let mut sums = Vec::with_capacity(steps);
+    let (mut s, mut f) = (0.0, 0.0);
+    sums.push([s, f, dot(&state, to_success), dot(&state, to_failure)]);
+    for _ in 1..steps {
+        let (ds, df) = p.step(&state, &mut next);
+        s += ds;
+        f += df;
+        std::mem::swap(&mut state, &mut next);
+        next.iter_mut().for_each(|x| *x = 0.0);
+        sums.push([s, f, dot(&state, to_success), dot(&state, to_failure)]);
+    }
+    Some(
+        times
+            .iter()
+            .zip(&windows)
+            .map(|(&t, w)| {
+                let total: f64 = w.weights.iter().sum();
+                let mut acc = [0.0; 4];
+                for (j, &wk) in w.weights.iter().enumerate() {
+                    for (a, x) in acc.iter_mut().zip(&sums[w.left + j]) {
+                        *a += wk * x;
+                    }
+                }
+                SplitPoint {
+                    t,
+                    success: chain.initial_success + acc[0] / total,
+                    failure: chain.initial_failure + acc[1] / total,
+                    running_to_success: acc[2] / total,
+                    running_to_failure: acc[3] / total,
+                }
+            })
+            .collect(),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
