@@ -43,21 +43,22 @@
 //! 2. **Tail.** `g(t) ≤ Σ_h (s_h − S_h(t)) q_h`, where `q_h` is the
 //!    probability that at least M − 1 of the other children eventually
 //!    reach the outcome (a pending child is needed, and it matters only
-//!    then), and `∫_T^∞ (s_h − S_h) ≤ P_h(running at T) · max_i E_i[time to
-//!    absorb]`.
+//!    then), and `∫_T^∞ (s_h − S_h) = π_h(T)·m_h` with `m_h` the per-phase
+//!    `E_i[T·1{S}]` (computed alongside, [`absorption_by_phase`]).
 //! 3. **Evaluation.** Children's figures come from closed forms (a child
 //!    whose phases exit directly, such as an action) or from uniformization
-//!    with a truncation error ≤ 1e-15 each; `g` is multilinear, and its
-//!    partial derivatives in child h's three inputs lie in `[0, q_h]`, so
-//!    its error is at most `Σ_h 3·error_h·q_h` plus relative rounding,
-//!    times the horizon.
+//!    with dropped Poisson mass ≤ 1e-15 (error ≤ 2e-15 times the child's
+//!    probability of the outcome); `g` is multilinear, and its
+//!    partial derivatives in child h's inputs lie in `[0, q_h]`, so its
+//!    error is at most `Σ_h (error of done + error of pending)·q_h` plus
+//!    relative rounding, times the horizon.
 //!
 //! The analysis accepts the result only if the bound is below 1e-9 of the
 //! integral (in practice it is ~1e-12).
 
 use crate::solve::chain::PhaseChain;
 use crate::solve::quadrature::{Ellipse, GaussLegendre};
-use crate::solve::transient::{absorption_by_phase, transient_split, SplitPoint};
+use crate::solve::transient::{absorption_by_phase, transient_split, PhaseAbsorption, SplitPoint};
 
 /// Truncation error allowed for each uniformized figure of a child.
 const CHILD_TOLERANCE: f64 = 1e-15;
@@ -140,18 +141,23 @@ pub fn pending_by_counts(
 #[derive(Debug, Clone)]
 pub struct ChildLaw {
     chain: PhaseChain,
-    to_success: Vec<f64>,
-    to_failure: Vec<f64>,
+    absorption: PhaseAbsorption,
     /// Probability that the child ends in Success.
     pub success: f64,
     /// Probability that the child ends in Failure.
     pub failure: f64,
     rate: f64,
-    longest_mean: f64,
+    /// `E[T·1{Success}]`, `E[T·1{Failure}]` from the start.
+    time: [f64; 2],
     closed_form: bool,
 }
 
-/// A child's figures at one time, with their absolute error.
+/// A child's figures at one time. Each is a Poisson average of a sequence
+/// `π₀Pᵏ·h` (non-negative `h` with `h ≥ P h`, so non-increasing in k and at
+/// most its start `π₀·h`; or the absorbed mass, at most its limit), truncated
+/// with dropped mass ≤ `error`: after renormalising, its absolute error is at
+/// most `2·error` times the child's probability of the outcome (or its
+/// `E[T·1{outcome}]` for the time integrals).
 #[derive(Debug, Clone, Copy)]
 struct ChildPoint {
     at: SplitPoint,
@@ -164,23 +170,25 @@ struct ChildPoint {
 impl ChildLaw {
     /// Prepares a child from its exact phase chain.
     pub fn new(chain: PhaseChain) -> ChildLaw {
-        let (to_success, to_failure, time) = absorption_by_phase(&chain);
+        let absorption = absorption_by_phase(&chain);
         let start = |h: &[f64]| chain.initial.iter().map(|&(i, p)| p * h[i]).sum::<f64>();
-        let success = chain.initial_success + start(&to_success);
-        let failure = chain.initial_failure + start(&to_failure);
+        let success = chain.initial_success + start(&absorption.to_success);
+        let failure = chain.initial_failure + start(&absorption.to_failure);
         let rate = (0..chain.len())
             .map(|i| chain.total_rate(i))
             .fold(0.0, f64::max);
-        let longest_mean = time.iter().copied().fold(0.0, f64::max);
+        let time = [
+            start(&absorption.time_to_success),
+            start(&absorption.time_to_failure),
+        ];
         let closed_form = chain.transitions.iter().all(Vec::is_empty);
         ChildLaw {
+            time,
             chain,
-            to_success,
-            to_failure,
+            absorption,
             success,
             failure,
             rate,
-            longest_mean,
             closed_form,
         }
     }
@@ -192,7 +200,7 @@ impl ChildLaw {
                 .chain
                 .initial
                 .iter()
-                .map(|&(i, p)| (p, self.chain.total_rate(i), self.to_success[i]))
+                .map(|&(i, p)| (p, self.chain.total_rate(i), self.absorption.to_success[i]))
                 .collect();
             let ln_sum = |t: f64, h: &dyn Fn(f64) -> f64| {
                 let logs: Vec<f64> = terms
@@ -216,6 +224,8 @@ impl ChildLaw {
                         failure: self.chain.initial_failure,
                         running_to_success: 0.0,
                         running_to_failure: 0.0,
+                        time_to_success: 0.0,
+                        time_to_failure: 0.0,
                     };
                     for &(p, q, hs) in &terms {
                         let (gone, left) = (-(-q * t).exp_m1(), (-q * t).exp());
@@ -223,6 +233,8 @@ impl ChildLaw {
                         at.failure += p * (1.0 - hs) * gone;
                         at.running_to_success += p * hs * left;
                         at.running_to_failure += p * (1.0 - hs) * left;
+                        at.time_to_success += p * hs * left / q;
+                        at.time_to_failure += p * (1.0 - hs) * left / q;
                     }
                     ChildPoint {
                         at,
@@ -233,21 +245,16 @@ impl ChildLaw {
                 })
                 .collect());
         }
-        let points = transient_split(
-            &self.chain,
-            times,
-            CHILD_TOLERANCE,
-            &self.to_success,
-            &self.to_failure,
-        )
-        .ok_or("a child is too stiff for uniformization over the horizon of its mean times")?;
+        let (success, failure) = (self.success, self.failure);
+        let points = transient_split(&self.chain, times, CHILD_TOLERANCE, &self.absorption)
+            .ok_or("a child is too stiff for uniformization over the horizon of its mean times")?;
         Ok(points
             .into_iter()
             .map(|at| ChildPoint {
                 at,
                 error: CHILD_TOLERANCE,
-                ln_to_success: (at.running_to_success + CHILD_TOLERANCE).ln(),
-                ln_to_failure: (at.running_to_failure + CHILD_TOLERANCE).ln(),
+                ln_to_success: (at.running_to_success + 2.0 * CHILD_TOLERANCE * success).ln(),
+                ln_to_failure: (at.running_to_failure + 2.0 * CHILD_TOLERANCE * failure).ln(),
             })
             .collect())
     }
@@ -273,6 +280,35 @@ impl Side {
         match self {
             Side::Success => c.success,
             Side::Failure => c.failure,
+        }
+    }
+
+    /// Upper bound on `∫_t^∞ P(child pending at u) du` from a point.
+    fn tail(self, c: &ChildLaw, p: &ChildPoint) -> f64 {
+        let (time, total) = match self {
+            Side::Success => (p.at.time_to_success, c.time[0]),
+            Side::Failure => (p.at.time_to_failure, c.time[1]),
+        };
+        time + 2.0 * p.error * total
+    }
+
+    /// Absolute errors of (done, pending) at a point.
+    fn errors(self, c: &ChildLaw, p: &ChildPoint) -> (f64, f64) {
+        let e = 2.0 * p.error * self.total(c);
+        (e, e)
+    }
+
+    /// The child's mean time to this outcome, given it (0 if impossible).
+    fn mean(self, c: &ChildLaw) -> f64 {
+        let (p, h) = match self {
+            Side::Success => (c.success, &c.absorption.time_to_success),
+            Side::Failure => (c.failure, &c.absorption.time_to_failure),
+        };
+        let m: f64 = c.chain.initial.iter().map(|&(i, a)| a * h[i]).sum();
+        if p > 0.0 {
+            m / p
+        } else {
+            0.0
         }
     }
 }
@@ -343,7 +379,7 @@ fn side_mean(
             pending_by_counts(rest, m - 1, &mut scratch)
         })
         .collect();
-    let scale = children.iter().map(|c| c.longest_mean).fold(0.0, f64::max);
+    let scale = children.iter().map(|c| side.mean(c)).fold(0.0, f64::max);
     let first = 0.1 / lam_sum;
     // end points: 0, then geometric growth by 30% per panel
     let mut ends = vec![0.0, first];
@@ -355,6 +391,7 @@ fn side_mean(
     };
     extend(&mut ends, 32.0 * scale);
     let mut result = zero;
+    let mut parts = [0.0; 3];
     for _ in 0..40 {
         // the last panel's right neighbour, for its ellipse
         let k = ends.len() - 1;
@@ -415,7 +452,7 @@ fn side_mean(
                             (grow + ln_pending).exp()
                         };
                         let (done_right, _, _) = at(ci, right_idx);
-                        let err = values[ci][right_idx].error;
+                        let (err, _) = side.errors(c, &values[ci][right_idx]);
                         let u = (grow.exp() * (done_right + err)).min(side.total(c) + v);
                         (u, v, 1.0 - side.total(c))
                     }),
@@ -431,18 +468,24 @@ fn side_mean(
             .iter()
             .zip(children)
             .zip(&others)
-            .map(|((v, c), q)| {
-                let end = &v[k];
-                (end.at.running_to_success + end.at.running_to_failure + 2.0 * end.error)
-                    * c.longest_mean
-                    * q
-            })
+            .map(|((v, c), q)| side.tail(c, &v[k]) * q)
+            .sum();
+        // the part of the tail bound that a longer horizon cannot reduce
+        let tail_floor: f64 = values
+            .iter()
+            .zip(children)
+            .zip(&others)
+            .map(|((v, c), q)| 2.0 * v[k].error * (c.time[0] + c.time[1]) * q)
             .sum();
         let evaluation: f64 = horizon
             * values
                 .iter()
+                .zip(children)
                 .zip(&others)
-                .map(|(v, q)| 3.0 * v[0].error * q + 4.0 * f64::EPSILON * integral / horizon)
+                .map(|((v, c), q)| {
+                    let (done, pending) = side.errors(c, &v[0]);
+                    (done + pending) * q + 4.0 * f64::EPSILON * integral / horizon
+                })
                 .sum::<f64>();
         let quadrature: f64 = panel_bounds.iter().sum();
         let bound = quadrature + tail + evaluation;
@@ -451,12 +494,13 @@ fn side_mean(
             time: integral,
             bound,
         };
+        parts = [quadrature, tail, evaluation];
         let target = TARGET * integral;
         if bound <= target {
             break;
         }
         let mut changed = false;
-        if tail > target / 3.0 {
+        if tail > target / 3.0 && tail > 2.0 * tail_floor {
             let to = horizon * 2.0;
             extend(&mut ends, to);
             changed = true;
@@ -481,8 +525,9 @@ fn side_mean(
     let accepted = result.bound <= ACCEPTED * result.time;
     if !accepted {
         return Err(format!(
-            "could not bound the mean time's integral well enough (bound {:.1e} on {:.6e})",
-            result.bound, result.time
+            "could not bound the mean time's integral well enough: bound {:.1e} on {:.6e} \
+             (quadrature {:.1e}, tail {:.1e}, evaluation {:.1e})",
+            result.bound, result.time, parts[0], parts[1], parts[2]
         ));
     }
     Ok(result)

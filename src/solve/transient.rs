@@ -382,33 +382,59 @@ pub struct SplitPoint {
     pub running_to_success: f64,
     /// P(running at t and ending in Failure later).
     pub running_to_failure: f64,
+    /// `∫_t^∞ P(running at u, ending in Success) du`.
+    pub time_to_success: f64,
+    /// `∫_t^∞ P(running at u, ending in Failure) du`.
+    pub time_to_failure: f64,
+}
+
+/// Per-phase quantities of an absorbing phase chain ([`absorption_by_phase`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PhaseAbsorption {
+    /// Probability of ending in Success from each phase.
+    pub to_success: Vec<f64>,
+    /// Probability of ending in Failure from each phase.
+    pub to_failure: Vec<f64>,
+    /// `E_i[T·1{Success}]` from each phase.
+    pub time_to_success: Vec<f64>,
+    /// `E_i[T·1{Failure}]` from each phase.
+    pub time_to_failure: Vec<f64>,
 }
 
 /// Probability of ending in Success and in Failure from each phase, and the
-/// mean time to absorption from each phase (backward over the topological
-/// order).
-pub fn absorption_by_phase(chain: &PhaseChain) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+/// time integrals `E_i[T·1{outcome}]` (backward over the topological order:
+/// `h_i = (exit_i + Σ_j r_ij h_j)/q_i`, `m_i = (h_i + Σ_j r_ij m_j)/q_i`).
+pub fn absorption_by_phase(chain: &PhaseChain) -> PhaseAbsorption {
     let n = chain.len();
-    let (mut hs, mut hf, mut time) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let mut a = PhaseAbsorption {
+        to_success: vec![0.0; n],
+        to_failure: vec![0.0; n],
+        time_to_success: vec![0.0; n],
+        time_to_failure: vec![0.0; n],
+    };
     for i in (0..n).rev() {
         let q = chain.total_rate(i);
-        let (mut s, mut f, mut x) = (chain.exit_success[i], chain.exit_failure[i], 1.0);
+        let (mut s, mut f) = (chain.exit_success[i], chain.exit_failure[i]);
+        let (mut ms, mut mf) = (0.0, 0.0);
         for &(j, r) in &chain.transitions[i] {
-            s += r * hs[j];
-            f += r * hf[j];
-            x += r * time[j];
+            s += r * a.to_success[j];
+            f += r * a.to_failure[j];
+            ms += r * a.time_to_success[j];
+            mf += r * a.time_to_failure[j];
         }
-        hs[i] = s / q;
-        hf[i] = f / q;
-        time[i] = x / q;
+        a.to_success[i] = s / q;
+        a.to_failure[i] = f / q;
+        a.time_to_success[i] = (a.to_success[i] + ms) / q;
+        a.time_to_failure[i] = (a.to_failure[i] + mf) / q;
     }
-    (hs, hf, time)
+    a
 }
 
 /// [`transient`] with the running mass split by destination ([`SplitPoint`]),
-/// given `to_success`/`to_failure` from [`absorption_by_phase`]. Each of the
-/// four figures is a Poisson average of quantities in [0, 1] (`π₀Pᵏ·h`), so
-/// its truncation error is at most `tolerance`; and each is computed from
+/// given the chain's [`absorption_by_phase`]. Each figure is a Poisson
+/// average of `π₀Pᵏ·h` for a non-negative `h`, so its truncation error is
+/// at most `tolerance · max h` (`tolerance` for the probabilities); and each
+/// is computed from
 /// non-negative terms, so small values keep their relative accuracy (no
 /// cancellation as in `P(S) − S(t)`). `None` if the horizon needs more than
 /// [`MAX_SINGLE_PASS_STEPS`].
@@ -416,14 +442,17 @@ pub fn transient_split(
     chain: &PhaseChain,
     times: &[f64],
     tolerance: f64,
-    to_success: &[f64],
-    to_failure: &[f64],
+    absorption: &PhaseAbsorption,
 ) -> Option<Vec<SplitPoint>> {
     let lambda = max_rate(chain);
     let horizon = times.iter().copied().fold(0.0, f64::max);
-    let initial = |h: &[f64]| chain.initial.iter().map(|&(i, p)| p * h[i]).sum::<f64>();
+    let weights = [
+        &absorption.to_success[..],
+        &absorption.to_failure[..],
+        &absorption.time_to_success[..],
+        &absorption.time_to_failure[..],
+    ];
     if chain.is_empty() || lambda == 0.0 {
-        let (rs, rf) = (initial(to_success), initial(to_failure));
         return Some(
             times
                 .iter()
@@ -431,8 +460,10 @@ pub fn transient_split(
                     t,
                     success: chain.initial_success,
                     failure: chain.initial_failure,
-                    running_to_success: rs,
-                    running_to_failure: rf,
+                    running_to_success: 0.0,
+                    running_to_failure: 0.0,
+                    time_to_success: 0.0,
+                    time_to_failure: 0.0,
                 })
                 .collect(),
         );
@@ -459,17 +490,24 @@ pub fn transient_split(
     }
     let mut next = vec![0.0; n];
     let dot = |v: &[f64], h: &[f64]| v.iter().zip(h).map(|(a, b)| a * b).sum::<f64>();
-    // per step: absorbed S, absorbed F, running → S, running → F
+    let row = |s: f64, f: f64, state: &[f64]| {
+        let mut r = [s, f, 0.0, 0.0, 0.0, 0.0];
+        for (x, h) in r[2..].iter_mut().zip(weights) {
+            *x = dot(state, h);
+        }
+        r
+    };
+    // per step: absorbed S, absorbed F, then π·h for the four weights
     let mut sums = Vec::with_capacity(steps);
     let (mut s, mut f) = (0.0, 0.0);
-    sums.push([s, f, dot(&state, to_success), dot(&state, to_failure)]);
+    sums.push(row(s, f, &state));
     for _ in 1..steps {
         let (ds, df) = p.step(&state, &mut next);
         s += ds;
         f += df;
         std::mem::swap(&mut state, &mut next);
         next.iter_mut().for_each(|x| *x = 0.0);
-        sums.push([s, f, dot(&state, to_success), dot(&state, to_failure)]);
+        sums.push(row(s, f, &state));
     }
     Some(
         times
@@ -477,7 +515,7 @@ pub fn transient_split(
             .zip(&windows)
             .map(|(&t, w)| {
                 let total: f64 = w.weights.iter().sum();
-                let mut acc = [0.0; 4];
+                let mut acc = [0.0; 6];
                 for (j, &wk) in w.weights.iter().enumerate() {
                     for (a, x) in acc.iter_mut().zip(&sums[w.left + j]) {
                         *a += wk * x;
@@ -489,6 +527,8 @@ pub fn transient_split(
                     failure: chain.initial_failure + acc[1] / total,
                     running_to_success: acc[2] / total,
                     running_to_failure: acc[3] / total,
+                    time_to_success: acc[4] / total,
+                    time_to_failure: acc[5] / total,
                 }
             })
             .collect(),

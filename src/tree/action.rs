@@ -18,22 +18,42 @@ pub(crate) type Loc = (usize, usize);
 #[serde(deny_unknown_fields)]
 pub(crate) struct ActionParams {
     #[serde(default)]
-    pub ps: Option<Spanned<f64>>,
+    pub ps: Option<At<f64>>,
     #[serde(default)]
-    pub pf: Option<Spanned<f64>>,
+    pub pf: Option<At<f64>>,
     #[serde(default)]
-    pub mu: Option<Spanned<f64>>,
+    pub mu: Option<At<f64>>,
     #[serde(default)]
-    pub nu: Option<Spanned<f64>>,
+    pub nu: Option<At<f64>>,
     #[serde(default)]
-    pub tau_s: Option<Spanned<f64>>,
+    pub tau_s: Option<At<f64>>,
     #[serde(default)]
-    pub tau_f: Option<Spanned<f64>>,
+    pub tau_f: Option<At<f64>>,
 }
 
 /// The location of a value.
-pub(crate) fn sloc<T>(s: &Spanned<T>) -> Loc {
-    (s.referenced.line() as usize, s.referenced.column() as usize)
+/// A value with the 1-based line and column where it was written (read
+/// through serde-saphyr's `Spanned`, or set by the fast YAML reader).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct At<T> {
+    pub value: T,
+    pub line: u32,
+    pub column: u32,
+}
+
+impl<'de, T: Deserialize<'de>> Deserialize<'de> for At<T> {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let s = Spanned::<T>::deserialize(d)?;
+        Ok(At {
+            value: s.value,
+            line: s.referenced.line() as u32,
+            column: s.referenced.column() as u32,
+        })
+    }
+}
+
+pub(crate) fn sloc<T>(s: &At<T>) -> Loc {
+    (s.line as usize, s.column as usize)
 }
 
 /// Validates `p`. An invalid value is an error built by `e(location,
@@ -43,7 +63,7 @@ pub(crate) fn validate_action(
     p: &ActionParams,
     e: &dyn Fn(Loc, String, String) -> TreeError,
 ) -> Result<Result<Action, String>, TreeError> {
-    let probability = |key: &str, v: &Spanned<f64>| {
+    let probability = |key: &str, v: &At<f64>| {
         let x = v.value;
         if !x.is_finite() || !(0.0..=1.0).contains(&x) {
             return Err(e(
@@ -54,7 +74,7 @@ pub(crate) fn validate_action(
         }
         Ok(x)
     };
-    let rate = |key: &str, v: &Spanned<f64>| {
+    let rate = |key: &str, v: &At<f64>| {
         let x = v.value;
         if !x.is_finite() || x <= 0.0 {
             return Err(e(
@@ -67,7 +87,7 @@ pub(crate) fn validate_action(
         }
         Ok(x)
     };
-    let time = |key: &str, v: &Spanned<f64>| {
+    let time = |key: &str, v: &At<f64>| {
         let x = v.value;
         if !x.is_finite() || x < 0.0 {
             return Err(e(

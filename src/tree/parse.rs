@@ -18,9 +18,8 @@
 //! is rejected with an error instead of exhausting memory or the stack.
 
 use serde::Deserialize;
-use serde_saphyr::Spanned;
 
-use super::action::{validate_action, ActionParams};
+use super::action::{sloc, validate_action, ActionParams, At};
 use super::error::{nearest, TreeError};
 use super::{Action, Decorator, Node, NodeKind, Tree};
 
@@ -66,7 +65,7 @@ const NODE_KINDS: &[&str] = &[
 struct FileDef {
     #[serde(default)]
     name: Option<String>,
-    tree: Spanned<NodeDef>,
+    tree: At<NodeDef>,
 }
 
 #[derive(Deserialize)]
@@ -88,72 +87,72 @@ enum NodeDef {
 #[serde(deny_unknown_fields)]
 struct DecoratorDef {
     #[serde(default)]
-    name: Option<Spanned<String>>,
-    child: Spanned<NodeDef>,
+    name: Option<At<String>>,
+    child: At<NodeDef>,
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RetryDef {
     #[serde(default)]
-    name: Option<Spanned<String>>,
-    attempts: Spanned<f64>,
-    child: Spanned<NodeDef>,
+    name: Option<At<String>>,
+    attempts: At<f64>,
+    child: At<NodeDef>,
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RepeatDef {
     #[serde(default)]
-    name: Option<Spanned<String>>,
-    times: Spanned<f64>,
-    child: Spanned<NodeDef>,
+    name: Option<At<String>>,
+    times: At<f64>,
+    child: At<NodeDef>,
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ControlDef {
     #[serde(default)]
-    name: Option<Spanned<String>>,
-    children: Spanned<Vec<Spanned<NodeDef>>>,
+    name: Option<At<String>>,
+    children: At<Vec<At<NodeDef>>>,
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ParallelDef {
     #[serde(default)]
-    name: Option<Spanned<String>>,
+    name: Option<At<String>>,
     #[serde(default)]
-    success_threshold: Option<Spanned<f64>>,
+    success_threshold: Option<At<f64>>,
     #[serde(default)]
-    failure_threshold: Option<Spanned<f64>>,
-    children: Spanned<Vec<Spanned<NodeDef>>>,
+    failure_threshold: Option<At<f64>>,
+    children: At<Vec<At<NodeDef>>>,
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ActionDef {
     #[serde(default)]
-    name: Option<Spanned<String>>,
-    ps: Spanned<f64>,
+    name: Option<At<String>>,
+    ps: At<f64>,
     #[serde(default)]
-    pf: Option<Spanned<f64>>,
+    pf: Option<At<f64>>,
     #[serde(default)]
-    mu: Option<Spanned<f64>>,
+    mu: Option<At<f64>>,
     #[serde(default)]
-    nu: Option<Spanned<f64>>,
+    nu: Option<At<f64>>,
     #[serde(default)]
-    tau_s: Option<Spanned<f64>>,
+    tau_s: Option<At<f64>>,
     #[serde(default)]
-    tau_f: Option<Spanned<f64>>,
+    tau_f: Option<At<f64>>,
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ConditionDef {
     #[serde(default)]
-    name: Option<Spanned<String>>,
-    ps: Spanned<f64>,
+    name: Option<At<String>>,
+    ps: At<f64>,
 }
 
 /// Reads and parses a tree file with default limits.
@@ -455,8 +454,8 @@ struct Builder<'a> {
     max_depth: usize,
 }
 
-fn loc<T>(s: &Spanned<T>) -> (usize, usize) {
-    (s.referenced.line() as usize, s.referenced.column() as usize)
+fn loc<T>(s: &At<T>) -> (usize, usize) {
+    sloc(s)
 }
 
 impl Builder<'_> {
@@ -466,7 +465,7 @@ impl Builder<'_> {
 
     fn node(
         &mut self,
-        def: &Spanned<NodeDef>,
+        def: &At<NodeDef>,
         parent: Option<usize>,
         depth: usize,
         path: String,
@@ -577,7 +576,7 @@ impl Builder<'_> {
 
     fn node_name(
         &self,
-        name: &Option<Spanned<String>>,
+        name: &Option<At<String>>,
         keyword: &str,
         path: &str,
     ) -> Result<String, TreeError> {
@@ -594,8 +593,7 @@ impl Builder<'_> {
     fn decorator<'d>(
         &self,
         def: &'d NodeDef,
-    ) -> Result<Option<(&'d Option<Spanned<String>>, Decorator, &'d Spanned<NodeDef>)>, TreeError>
-    {
+    ) -> Result<Option<(&'d Option<At<String>>, Decorator, &'d At<NodeDef>)>, TreeError> {
         Ok(Some(match def {
             NodeDef::Inverter(d) => (&d.name, Decorator::Inverter, &d.child),
             NodeDef::ForceSuccess(d) => (&d.name, Decorator::ForceSuccess, &d.child),
@@ -619,7 +617,7 @@ impl Builder<'_> {
     }
 
     /// A repetition count: a whole number from 1 to 1,000,000.
-    fn count(&self, key: &str, v: &Spanned<f64>) -> Result<usize, TreeError> {
+    fn count(&self, key: &str, v: &At<f64>) -> Result<usize, TreeError> {
         let x = v.value;
         if !(x.is_finite() && x.fract() == 0.0 && (1.0..=1e6).contains(&x)) {
             return Err(self
@@ -630,7 +628,7 @@ impl Builder<'_> {
     }
 
     fn thresholds(&self, p: &ParallelDef, n: usize) -> Result<(usize, usize), TreeError> {
-        let check = |t: &Spanned<f64>, key: &str, meaning: &str| -> Result<usize, TreeError> {
+        let check = |t: &At<f64>, key: &str, meaning: &str| -> Result<usize, TreeError> {
             let v = t.value;
             if !(v.is_finite() && v.fract() == 0.0 && v >= 1.0 && v <= n as f64) {
                 return Err(self
@@ -652,7 +650,7 @@ impl Builder<'_> {
         Ok((m, f))
     }
 
-    fn probability(&self, key: &str, v: &Spanned<f64>) -> Result<f64, TreeError> {
+    fn probability(&self, key: &str, v: &At<f64>) -> Result<f64, TreeError> {
         let x = v.value;
         if !x.is_finite() || !(0.0..=1.0).contains(&x) {
             return Err(self
@@ -706,7 +704,7 @@ impl Builder<'_> {
     }
 }
 
-fn name_location(def: &Spanned<NodeDef>) -> Option<(usize, usize)> {
+fn name_location(def: &At<NodeDef>) -> Option<(usize, usize)> {
     let name = match &def.value {
         NodeDef::Action(a) => &a.name,
         NodeDef::Condition(c) => &c.name,

@@ -70,9 +70,7 @@
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::Path;
 
-use serde_saphyr::Spanned;
-
-use super::action::{sloc, validate_action, ActionParams, Loc};
+use super::action::{sloc, validate_action, ActionParams, At, Loc};
 use super::error::{nearest, TreeError};
 use super::{Action, Decorator, Node, NodeKind, Tree};
 
@@ -535,10 +533,7 @@ fn xml_char(c: char) -> bool {
 // Params file
 // ---------------------------------------------------------------------------
 
-fn parse_params(
-    src: &str,
-    file: &str,
-) -> Result<BTreeMap<String, Spanned<ActionParams>>, TreeError> {
+fn parse_params(src: &str, file: &str) -> Result<BTreeMap<String, At<ActionParams>>, TreeError> {
     let only_comments = src
         .lines()
         .all(|l| l.trim().is_empty() || l.trim_start().starts_with('#'));
