@@ -17,6 +17,8 @@
 //! with a stack large enough for the deepest tree allowed, so hostile input
 //! is rejected with an error instead of exhausting memory or the stack.
 
+mod fast;
+
 use serde::Deserialize;
 
 use super::action::{sloc, validate_action, ActionParams, At};
@@ -254,6 +256,36 @@ pub fn parse_str_with(source: &str, file: &str, limits: ParseLimits) -> Result<T
 }
 
 fn parse_on_this_thread(source: &str, file: &str, limits: ParseLimits) -> Result<Tree, TreeError> {
+    let only_comments = source
+        .lines()
+        .all(|l| l.trim().is_empty() || l.trim_start().starts_with('#'));
+    if only_comments {
+        return Err(
+            TreeError::at(file, source, (1, 1), "the file is empty").with_help(
+                "a tree file needs a `tree:` key, e.g. `tree: {action: {ps: 0.5, mu: 1, nu: 1}}`",
+            ),
+        );
+    }
+    // the common subset first; anything else, and every error, through the
+    // full parser
+    if let Some(def) = fast::read(source, limits.max_depth) {
+        if let Ok(tree) = build(def, source, file, &limits) {
+            return Ok(tree);
+        }
+    }
+    parse_full(source, file, limits)
+}
+
+/// Whether the fast reader reads `source` (for tests and benchmarks).
+#[doc(hidden)]
+pub fn fast_reader_accepts(source: &str) -> bool {
+    fast::read(source, ParseLimits::default().max_depth).is_some()
+}
+
+/// Parses with serde-saphyr only, never the fast reader (for tests and
+/// benchmarks that compare the two; runs on the caller's stack).
+#[doc(hidden)]
+pub fn parse_full(source: &str, file: &str, limits: ParseLimits) -> Result<Tree, TreeError> {
     // each tree level is three YAML levels: kind map, node map, children list
     let options = serde_saphyr::options! {
         budget: serde_saphyr::budget! {
@@ -268,18 +300,12 @@ fn parse_on_this_thread(source: &str, file: &str, limits: ParseLimits) -> Result
         },
         with_snippet: false,
     };
-    let only_comments = source
-        .lines()
-        .all(|l| l.trim().is_empty() || l.trim_start().starts_with('#'));
-    if only_comments {
-        return Err(
-            TreeError::at(file, source, (1, 1), "the file is empty").with_help(
-                "a tree file needs a `tree:` key, e.g. `tree: {action: {ps: 0.5, mu: 1, nu: 1}}`",
-            ),
-        );
-    }
     let def: FileDef = serde_saphyr::from_str_with_options(source, options)
         .map_err(|e| yaml_error(&e, source, file, &limits))?;
+    build(def, source, file, &limits)
+}
+
+fn build(def: FileDef, source: &str, file: &str, limits: &ParseLimits) -> Result<Tree, TreeError> {
     let mut b = Builder {
         source,
         file,
