@@ -272,9 +272,7 @@ impl<'a> Reader<'a> {
             ascii: text.is_ascii(),
             max_depth: 3 * self.max_depth + 4,
         };
-        let v = if text.starts_with('{') || text.starts_with('[') || text.starts_with('"') {
-            f.value(false, depth)?
-        } else if text.starts_with('\'') {
+        let v = if text.starts_with(['{', '[', '"', '\'']) {
             f.value(false, depth)?
         } else {
             // a plain scalar in block context: the whole rest of the line
@@ -426,9 +424,7 @@ impl<'a> Flow<'a> {
             }
             _ if in_flow => {
                 let rest = &self.text[self.pos..];
-                let end = rest
-                    .find(|c| matches!(c, ',' | '}' | ']'))
-                    .unwrap_or(rest.len());
+                let end = rest.find([',', '}', ']']).unwrap_or(rest.len());
                 // a scalar running to the end of the line is outside the subset
                 if end == rest.len() {
                     return None;
