@@ -207,3 +207,95 @@ fn counted_reports_agree_with_simulation() {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(32))]
+
+    /// A Parallel nested in a Sequence/Fallback (optionally under an
+    /// inverter): π(t) by composing the counted Parallel with the rest
+    /// equals the product chain's. A small budget forces the composition.
+    #[test]
+    fn composed_curves_match_the_product_chain(
+        specs in proptest::collection::vec((0u8..3, action_params(), action_params()), 2..=3),
+        m_seed in 0usize..100,
+        outer in 0u8..3,
+        before in action_params(),
+        after in action_params(),
+    ) {
+        let m = 1 + m_seed % specs.len();
+        let kids: Vec<String> = specs.iter().map(|&(k, a, b)| child_yaml(k, a, b)).collect();
+        let parallel = format!(
+            "{{parallel: {{success_threshold: {m}, children: [{}]}}}}",
+            kids.join(", ")
+        );
+        let body = format!("[{}, {parallel}, {}]", child_yaml(0, before, before), child_yaml(0, after, after));
+        let yaml = match outer {
+            0 => format!("tree: {{sequence: {{children: {body}}}}}"),
+            1 => format!("tree: {{fallback: {{children: {body}}}}}"),
+            _ => format!("tree: {{inverter: {{child: {{sequence: {{children: {body}}}}}}}}}"),
+        };
+        let tree = parse_str(&yaml, "n.yaml").unwrap();
+        let times = [0.0, 0.3, 1.0, 3.0, 10.0];
+        // a budget whose Parallel share (1/16) is below any product of two
+        // or more children: composition (the other chains are ≤ 32 phases)
+        let small = CurveOptions {
+            max_states: 32,
+            ..CurveOptions::default()
+        };
+        let composed = curve(&tree, 0, &times, &small).unwrap();
+        let chain = phase_chain(&tree, 0, 10_000_000).unwrap();
+        let product = transient(&chain, &times, 1e-14);
+        for (a, b) in composed.iter().zip(&product) {
+            prop_assert!((a.success - b.success).abs() < 1e-9, "{a:?} vs {b:?}");
+            prop_assert!((a.failure - b.failure).abs() < 1e-9, "{a:?} vs {b:?}");
+        }
+    }
+}
+
+/// The nested example of the issue (a Parallel of 8 subtrees between two
+/// actions; product bound 1.7e7 states): composed π(t) against simulation.
+#[test]
+fn nested_parallel_curve_agrees_with_simulation() {
+    let subtrees: Vec<String> = (0..8)
+        .map(|i| {
+            let i = i as f64;
+            child_yaml(
+                1 + (i as u8 % 2),
+                (0.6 + 0.04 * i, 0.4 + 0.2 * i, 1.5 - 0.1 * i),
+                (0.7, 1.0 + 0.1 * i, 2.0),
+            )
+        })
+        .collect();
+    let yaml = format!(
+        "tree: {{sequence: {{children: [{{action: {{ps: 0.9, mu: 1.0, nu: 2.0}}}}, \
+         {{parallel: {{success_threshold: 5, children: [{}]}}}}, \
+         {{action: {{ps: 0.8, mu: 0.5, nu: 1.0}}}}]}}}}",
+        subtrees.join(", ")
+    );
+    let tree = parse_str(&yaml, "nested.yaml").unwrap();
+    let times = [0.5, 1.0, 2.0, 5.0, 10.0];
+    let exact = curve(&tree, 0, &times, &CurveOptions::default()).unwrap();
+    let runs = 400_000u64;
+    let r = simulate(
+        &tree,
+        &SimOptions {
+            runs,
+            times: times.to_vec(),
+            per_node: false,
+            ..Default::default()
+        },
+        None,
+    )
+    .unwrap();
+    let se = |p: f64| (p * (1.0 - p) / runs as f64).sqrt();
+    for (e, s) in exact.iter().zip(&r.curve) {
+        assert!(
+            (e.success - s.success.mean).abs() <= 5.0 * se(e.success) + 1e-12,
+            "{e:?} vs {s:?}"
+        );
+        assert!(
+            (e.failure - s.failure.mean).abs() <= 5.0 * se(e.failure) + 1e-12,
+            "{e:?} vs {s:?}"
+        );
+    }
+}

@@ -74,11 +74,34 @@ pub fn phase_chain(
             initial_failure: 1.0 - ps,
             ..PhaseChain::default()
         }),
-        NodeKind::Sequence { children } | NodeKind::Fallback { children } => {
-            let chains = children
+        _ => {
+            let chains = node
+                .kind
+                .children()
                 .iter()
                 .map(|&c| phase_chain(tree, c, max_states))
                 .collect::<Result<Vec<_>, _>>()?;
+            combine(tree, id, chains, max_states)
+        }
+    }
+}
+
+/// The phase chain of control node `id` from its children's chains (in
+/// child order): concatenation for Sequence/Fallback, the decorator's
+/// transformation, or the Parallel product. Lets a caller substitute a
+/// child's chain (e.g. by a marker, see [`crate::curve`]).
+pub fn combine(
+    tree: &Tree,
+    id: NodeId,
+    chains: Vec<PhaseChain>,
+    max_states: usize,
+) -> Result<PhaseChain, AnalysisError> {
+    let node = tree.node(id);
+    match &node.kind {
+        NodeKind::Action(_) | NodeKind::Condition { .. } => {
+            unreachable!("combine is called on control nodes")
+        }
+        NodeKind::Sequence { .. } | NodeKind::Fallback { .. } => {
             let total: usize = chains.iter().map(PhaseChain::len).sum();
             if total > max_states {
                 return Err(AnalysisError::StateBudget {
@@ -90,8 +113,8 @@ pub fn phase_chain(
             let sequence = matches!(node.kind, NodeKind::Sequence { .. });
             Ok(concatenate(chains, sequence))
         }
-        NodeKind::Decorator { decorator, child } => {
-            let mut c = phase_chain(tree, *child, max_states)?;
+        NodeKind::Decorator { decorator, .. } => {
+            let mut c = chains.into_iter().next().expect("a decorator has a child");
             let copies = match *decorator {
                 Decorator::Inverter => {
                     std::mem::swap(&mut c.exit_success, &mut c.exit_failure);
@@ -124,12 +147,25 @@ pub fn phase_chain(
             let sequence = matches!(decorator, Decorator::Repeat { .. });
             Ok(concatenate(vec![c; copies], sequence))
         }
-        NodeKind::Parallel { children, .. } => {
-            let chains = children
-                .iter()
-                .map(|&c| phase_chain(tree, c, max_states))
-                .collect::<Result<Vec<_>, _>>()?;
+        NodeKind::Parallel {
+            success_threshold,
+            failure_threshold,
+            children,
+        } => {
             let policy = Policy::of(&node.kind).expect("a Parallel has a policy");
+            // with the book's thresholds the node is counted rather than
+            // multiplied out when its product is large ([`super::counts`],
+            // [`crate::curve`]): refuse early instead of building it
+            let bound: f64 = chains.iter().map(|c| (c.len() + 2) as f64).product();
+            let limit = max_states / BOOK_PARALLEL_SHARE;
+            if *failure_threshold == children.len() + 1 - success_threshold && bound > limit as f64
+            {
+                return Err(AnalysisError::StateBudget {
+                    node: node.name.clone(),
+                    states: bound,
+                    budget: limit,
+                });
+            }
             product(&chains, policy, max_states).ok_or_else(|| AnalysisError::StateBudget {
                 node: node.name.clone(),
                 states: chains.iter().map(|c| (c.len() + 2) as f64).product(),
@@ -138,6 +174,11 @@ pub fn phase_chain(
         }
     }
 }
+
+/// A Parallel with the book's thresholds gets its product chain only up to
+/// `max_states / BOOK_PARALLEL_SHARE` (bound `Π (phases + 2)`); beyond, it is
+/// analysed by counting its children.
+pub const BOOK_PARALLEL_SHARE: usize = 16;
 
 /// Sequence (`sequence = true`) or Fallback composition of children's chains.
 fn concatenate(chains: Vec<PhaseChain>, sequence: bool) -> PhaseChain {

@@ -444,29 +444,49 @@ pub fn transient_split(
     tolerance: f64,
     absorption: &PhaseAbsorption,
 ) -> Option<Vec<SplitPoint>> {
-    let lambda = max_rate(chain);
-    let horizon = times.iter().copied().fold(0.0, f64::max);
     let weights = [
         &absorption.to_success[..],
         &absorption.to_failure[..],
         &absorption.time_to_success[..],
         &absorption.time_to_failure[..],
     ];
+    let rows = transient_weighted(chain, times, tolerance, &weights)?;
+    Some(
+        times
+            .iter()
+            .zip(rows)
+            .map(|(&t, r)| SplitPoint {
+                t,
+                success: r[0],
+                failure: r[1],
+                running_to_success: r[2],
+                running_to_failure: r[3],
+                time_to_success: r[4],
+                time_to_failure: r[5],
+            })
+            .collect(),
+    )
+}
+
+/// One uniformization pass giving, at each time, `[S(t), F(t), π(t)·h₁,
+/// π(t)·h₂, ...]` for the transient distribution `π(t)` and the given
+/// per-phase weight vectors (e.g. exit rates, for the outcome densities).
+/// The truncation error of `π(t)·h` is at most `2·tolerance·sup_k |π₀Pᵏ·h|`.
+/// `None` if the horizon needs more than [`MAX_SINGLE_PASS_STEPS`].
+pub fn transient_weighted(
+    chain: &PhaseChain,
+    times: &[f64],
+    tolerance: f64,
+    weights: &[&[f64]],
+) -> Option<Vec<Vec<f64>>> {
+    let lambda = max_rate(chain);
+    let horizon = times.iter().copied().fold(0.0, f64::max);
+    let width = 2 + weights.len();
     if chain.is_empty() || lambda == 0.0 {
-        return Some(
-            times
-                .iter()
-                .map(|&t| SplitPoint {
-                    t,
-                    success: chain.initial_success,
-                    failure: chain.initial_failure,
-                    running_to_success: 0.0,
-                    running_to_failure: 0.0,
-                    time_to_success: 0.0,
-                    time_to_failure: 0.0,
-                })
-                .collect(),
-        );
+        let mut row = vec![0.0; width];
+        row[0] = chain.initial_success;
+        row[1] = chain.initial_failure;
+        return Some(vec![row; times.len()]);
     }
     let max_lt = lambda * horizon;
     let inv = reciprocals((max_lt + 10.0 * max_lt.sqrt() + 64.0).min(1e8) as usize);
@@ -490,46 +510,39 @@ pub fn transient_split(
     }
     let mut next = vec![0.0; n];
     let dot = |v: &[f64], h: &[f64]| v.iter().zip(h).map(|(a, b)| a * b).sum::<f64>();
-    let row = |s: f64, f: f64, state: &[f64]| {
-        let mut r = [s, f, 0.0, 0.0, 0.0, 0.0];
-        for (x, h) in r[2..].iter_mut().zip(weights) {
-            *x = dot(state, h);
-        }
-        r
+    // per step, flattened: absorbed S, absorbed F, then π·h for each weight
+    let mut sums = Vec::with_capacity(steps * width);
+    let push = |sums: &mut Vec<f64>, s: f64, f: f64, state: &[f64]| {
+        sums.push(s);
+        sums.push(f);
+        sums.extend(weights.iter().map(|h| dot(state, h)));
     };
-    // per step: absorbed S, absorbed F, then π·h for the four weights
-    let mut sums = Vec::with_capacity(steps);
     let (mut s, mut f) = (0.0, 0.0);
-    sums.push(row(s, f, &state));
+    push(&mut sums, s, f, &state);
     for _ in 1..steps {
         let (ds, df) = p.step(&state, &mut next);
         s += ds;
         f += df;
         std::mem::swap(&mut state, &mut next);
         next.iter_mut().for_each(|x| *x = 0.0);
-        sums.push(row(s, f, &state));
+        push(&mut sums, s, f, &state);
     }
     Some(
-        times
+        windows
             .iter()
-            .zip(&windows)
-            .map(|(&t, w)| {
+            .map(|w| {
                 let total: f64 = w.weights.iter().sum();
-                let mut acc = [0.0; 6];
+                let mut acc = vec![0.0; width];
                 for (j, &wk) in w.weights.iter().enumerate() {
-                    for (a, x) in acc.iter_mut().zip(&sums[w.left + j]) {
+                    let row = &sums[(w.left + j) * width..(w.left + j + 1) * width];
+                    for (a, x) in acc.iter_mut().zip(row) {
                         *a += wk * x;
                     }
                 }
-                SplitPoint {
-                    t,
-                    success: chain.initial_success + acc[0] / total,
-                    failure: chain.initial_failure + acc[1] / total,
-                    running_to_success: acc[2] / total,
-                    running_to_failure: acc[3] / total,
-                    time_to_success: acc[4] / total,
-                    time_to_failure: acc[5] / total,
-                }
+                acc.iter_mut().for_each(|a| *a /= total);
+                acc[0] += chain.initial_success;
+                acc[1] += chain.initial_failure;
+                acc
             })
             .collect(),
     )

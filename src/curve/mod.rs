@@ -21,6 +21,8 @@ use crate::tree::{Duration, NodeId, NodeKind, Tree};
 
 pub use crate::solve::transient::CurvePoint;
 
+mod compose;
+
 /// How action times are taken.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Timing {
@@ -173,6 +175,9 @@ pub fn curve(
                     node: node.name.clone(),
                     leaf,
                 })
+            }
+            Err(e @ AnalysisError::StateBudget { .. }) if options.method == Method::Exact => {
+                return compose::with_opaque_child(tree, id, times, options).unwrap_or(Err(e));
             }
             Err(e) => return Err(e),
         },
