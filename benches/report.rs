@@ -10,6 +10,10 @@ use btrel::generate::{random_tree_yaml, Shape};
 use btrel::report::{table::TableExporter, Exporter, Report};
 use btrel::tree::parse_str;
 
+// as in the `btrel` binary
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn report(c: &mut Criterion) {
     let mut group = c.benchmark_group("report");
     group.sample_size(10);

@@ -357,7 +357,7 @@ fn cli_curve_simulate_compare_export_plot() {
 
 /// Every node's curve to t = 1e7 within 3 s (the issue: "each command within
 /// a few seconds"). The root (rates 1e-4..1e5) is fast: its uniformization
-/// work exceeds 2e10 so the dense double-double solver runs. Small chains
+/// work exceeds the work limit so the dense double-double solver runs. Small chains
 /// with moderate rates stay just under that work limit and run ~1e8
 /// uniformization steps instead.
 #[test]

@@ -299,3 +299,46 @@ fn nested_parallel_curve_agrees_with_simulation() {
         );
     }
 }
+
+/// Identical children: given that k of N succeed, the node's success time
+/// is the M-th order statistic of k exponentials of rate mu, with mean
+/// `(1/mu) Σ_{j<M} 1/(k − j)`; so `E[T·1{S}] = Σ_{k≥M} C(N,k) ps^k pf^(N−k)
+/// (1/mu) Σ_{j<M} 1/(k−j)`, and likewise for Failure with F = N − M + 1 and
+/// nu. The counted report must match this closed form to 1e-9.
+#[test]
+fn identical_children_match_order_statistics() {
+    fn binom(n: usize, k: usize) -> f64 {
+        (0..k).fold(1.0, |acc, j| acc * (n - j) as f64 / (j + 1) as f64)
+    }
+    fn side(n: usize, need: usize, p: f64, rate: f64) -> (f64, f64) {
+        let (mut prob, mut time) = (0.0, 0.0);
+        for k in need..=n {
+            let w = binom(n, k) * p.powi(k as i32) * (1.0 - p).powi((n - k) as i32);
+            prob += w;
+            time += w * (0..need).map(|j| 1.0 / (k - j) as f64).sum::<f64>() / rate;
+        }
+        (prob, time / prob)
+    }
+    for (n, m, ps, mu, nu) in [
+        (10, 5, 0.6, 2.0, 0.5),
+        (16, 12, 0.85, 1.0, 3.0),
+        (24, 12, 0.5, 0.25, 4.0),
+    ] {
+        let tree = mixed_parallel(m, &vec![(0, (ps, mu, nu), (0.0, 1.0, 1.0)); n]);
+        let a = btrel::analyze(&tree, &Default::default()).unwrap().nodes[0];
+        let (p_s, mtts) = side(n, m, ps, mu);
+        let (p_f, mttf) = side(n, n - m + 1, 1.0 - ps, nu);
+        assert!(
+            (a.ps - p_s).abs() < 1e-12 && (a.pf - p_f).abs() < 1e-12,
+            "{a:?}"
+        );
+        assert!(
+            (a.mtts.unwrap() - mtts).abs() < 1e-9 * mtts,
+            "{a:?} vs {mtts}"
+        );
+        assert!(
+            (a.mttf.unwrap() - mttf).abs() < 1e-9 * mttf,
+            "{a:?} vs {mttf}"
+        );
+    }
+}

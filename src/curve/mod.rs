@@ -36,8 +36,9 @@ pub enum Timing {
 /// Error bound accepted from the dense stiff solver.
 pub const DENSE_TOLERANCE: f64 = 1e-10;
 
-/// Default limit on uniformization work (vector operations × nonzeros).
-pub const DEFAULT_MAX_WORK: f64 = 2e10;
+/// Default limit on uniformization work (vector operations × nonzeros; an
+/// upper bound, since the solver skips zero entries: about a few seconds).
+pub const DEFAULT_MAX_WORK: f64 = 1e11;
 
 /// Options of a curve computation.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -2,6 +2,8 @@
 
 use std::io::{self, Write};
 
+use rayon::prelude::*;
+
 use super::number::significant_or_dash;
 use super::{Exporter, Report};
 
@@ -16,20 +18,34 @@ pub struct TableExporter;
 impl Exporter for TableExporter {
     fn write(&self, report: &Report, out: &mut dyn Write) -> io::Result<()> {
         let header = ["node", "kind", "ps", "pf", "MTTS", "MTTF", "mu", "nu"];
-        let mut rows: Vec<Vec<String>> = Vec::with_capacity(report.nodes.len() + 1);
-        rows.push(header.iter().map(|h| h.to_string()).collect());
-        for n in &report.nodes {
-            let f = &n.figures;
-            rows.push(vec![
-                format!("{}{}", "  ".repeat(n.depth), n.name),
-                n.kind.to_string(),
-                significant_or_dash(Some(f.ps), DIGITS),
-                significant_or_dash(Some(f.pf), DIGITS),
-                significant_or_dash(f.mtts, DIGITS),
-                significant_or_dash(f.mttf, DIGITS),
-                significant_or_dash(f.mu(), DIGITS),
-                significant_or_dash(f.nu(), DIGITS),
-            ]);
+        let mut cells = Cells::with_capacity(header.len(), report.nodes.len() + 1);
+        cells.push_row(header.iter().copied());
+        // formatting numbers dominates on large trees: chunks in parallel
+        let chunks: Vec<Cells> = report
+            .nodes
+            .par_chunks(16_384)
+            .map(|chunk| {
+                let mut part = Cells::with_capacity(header.len(), chunk.len());
+                let mut name = String::new();
+                for n in chunk {
+                    let f = &n.figures;
+                    name.clear();
+                    name.extend(std::iter::repeat_n("  ", n.depth));
+                    name.push_str(&n.name);
+                    let kind = n.kind.to_string();
+                    let numbers = [Some(f.ps), Some(f.pf), f.mtts, f.mttf, f.mu(), f.nu()]
+                        .map(|x| significant_or_dash(x, DIGITS));
+                    part.push_row(
+                        [name.as_str(), kind.as_str()]
+                            .into_iter()
+                            .chain(numbers.iter().map(String::as_str)),
+                    );
+                }
+                part
+            })
+            .collect();
+        for part in &chunks {
+            cells.append(part);
         }
         writeln!(
             out,
@@ -37,44 +53,118 @@ impl Exporter for TableExporter {
             report.tree,
             report.method.name()
         )?;
-        write_aligned(&rows, |j, _| j < 2, out)?;
+        cells.write_aligned(|j, _| j < 2, out)
+    }
+}
+
+/// A table's cells in one buffer (a million-row table would otherwise be
+/// millions of small strings), with each cell's width in characters.
+#[derive(Debug, Clone, Default)]
+pub struct Cells {
+    text: String,
+    /// End offset in `text` and width of every cell, row after row.
+    cells: Vec<(u32, u32)>,
+    /// Index in `cells` where each row starts.
+    rows: Vec<usize>,
+}
+
+impl Cells {
+    /// An empty table with room for `rows` rows of `columns` cells.
+    pub fn with_capacity(columns: usize, rows: usize) -> Cells {
+        Cells {
+            text: String::with_capacity(rows * columns * 8),
+            cells: Vec::with_capacity(rows * columns),
+            rows: Vec::with_capacity(rows),
+        }
+    }
+
+    /// Appends a row.
+    pub fn push_row<'a>(&mut self, row: impl IntoIterator<Item = &'a str>) {
+        self.rows.push(self.cells.len());
+        for c in row {
+            self.text.push_str(c);
+            let width = if c.is_ascii() {
+                c.len()
+            } else {
+                c.chars().count()
+            };
+            self.cells.push((self.text.len() as u32, width as u32));
+        }
+    }
+
+    /// Appends the rows of another table.
+    pub fn append(&mut self, other: &Cells) {
+        let (text, cells) = (self.text.len() as u32, self.cells.len());
+        self.text.push_str(&other.text);
+        self.cells
+            .extend(other.cells.iter().map(|&(end, w)| (end + text, w)));
+        self.rows.extend(other.rows.iter().map(|&r| r + cells));
+    }
+
+    fn row(&self, r: usize) -> impl Iterator<Item = (&str, usize)> {
+        let from = self.rows[r];
+        let to = self.rows.get(r + 1).copied().unwrap_or(self.cells.len());
+        (from..to).map(move |i| {
+            let start = if i == 0 {
+                0
+            } else {
+                self.cells[i - 1].0 as usize
+            };
+            let (end, width) = self.cells[i];
+            (&self.text[start..end as usize], width as usize)
+        })
+    }
+
+    /// Writes the rows as columns separated by two spaces, each as wide as
+    /// its widest cell; `left(column, columns)` says which columns are
+    /// left-aligned (the others are right-aligned). Trailing spaces are
+    /// trimmed.
+    pub fn write_aligned(
+        &self,
+        left: impl Fn(usize, usize) -> bool,
+        out: &mut dyn Write,
+    ) -> io::Result<()> {
+        let mut widths: Vec<usize> = Vec::new();
+        for r in 0..self.rows.len() {
+            for (j, (_, w)) in self.row(r).enumerate() {
+                if j == widths.len() {
+                    widths.push(0);
+                }
+                widths[j] = widths[j].max(w);
+            }
+        }
+        let mut line = String::new();
+        for r in 0..self.rows.len() {
+            line.clear();
+            let n = self.row(r).count();
+            for (j, (c, w)) in self.row(r).enumerate() {
+                let pad = widths[j] - w;
+                if left(j, n) {
+                    line.push_str(c);
+                    line.extend(std::iter::repeat_n(' ', pad));
+                } else {
+                    line.extend(std::iter::repeat_n(' ', pad));
+                    line.push_str(c);
+                }
+                line.push_str("  ");
+            }
+            line.truncate(line.trim_end().len());
+            line.push('\n');
+            out.write_all(line.as_bytes())?;
+        }
         Ok(())
     }
 }
 
-/// Writes rows as columns separated by two spaces, each as wide as its
-/// widest cell (counted in characters); `left(column, columns)` says which
-/// columns are left-aligned (the others are right-aligned). Trailing spaces
-/// are trimmed.
+/// [`Cells::write_aligned`] for rows of strings (small tables).
 pub fn write_aligned(
     rows: &[Vec<String>],
     left: impl Fn(usize, usize) -> bool,
     out: &mut dyn Write,
 ) -> io::Result<()> {
-    let cols = rows.iter().map(Vec::len).max().unwrap_or(0);
-    let widths: Vec<usize> = (0..cols)
-        .map(|j| {
-            rows.iter()
-                .map(|r| r.get(j).map_or(0, |c| c.chars().count()))
-                .max()
-                .unwrap_or(0)
-        })
-        .collect();
-    let mut line = String::new();
+    let mut cells = Cells::default();
     for r in rows {
-        line.clear();
-        for (j, c) in r.iter().enumerate() {
-            let pad = widths[j] - c.chars().count();
-            if left(j, r.len()) {
-                line.push_str(c);
-                line.extend(std::iter::repeat_n(' ', pad));
-            } else {
-                line.extend(std::iter::repeat_n(' ', pad));
-                line.push_str(c);
-            }
-            line.push_str("  ");
-        }
-        writeln!(out, "{}", line.trim_end())?;
+        cells.push_row(r.iter().map(String::as_str));
     }
-    Ok(())
+    cells.write_aligned(left, out)
 }

@@ -520,7 +520,7 @@ impl Builder<'_> {
                 location: Some(at),
             });
             self.locations.push(name_location(def).unwrap_or(at));
-            let c = self.node(child, Some(id), depth + 1, format!("{path}.0"))?;
+            let c = self.node(child, Some(id), depth + 1, child_path(&path, 0))?;
             if let NodeKind::Decorator { child, .. } = &mut self.nodes[id].kind {
                 *child = c;
             }
@@ -576,7 +576,7 @@ impl Builder<'_> {
             }
             let mut ids = Vec::with_capacity(list.value.len());
             for (i, child) in list.value.iter().enumerate() {
-                ids.push(self.node(child, Some(id), depth + 1, format!("{path}.{i}"))?);
+                ids.push(self.node(child, Some(id), depth + 1, child_path(&path, i))?);
             }
             let thresholds = match &def.value {
                 NodeDef::Parallel(p) => Some(self.thresholds(p, ids.len())?),
@@ -728,6 +728,27 @@ impl Builder<'_> {
         }
         Ok(())
     }
+}
+
+/// `{path}.{i}` without the formatting machinery (a million-node tree
+/// builds a million of these).
+fn child_path(path: &str, i: usize) -> String {
+    let mut digits = [0u8; 20];
+    let mut k = digits.len();
+    let mut n = i;
+    loop {
+        k -= 1;
+        digits[k] = b'0' + (n % 10) as u8;
+        n /= 10;
+        if n == 0 {
+            break;
+        }
+    }
+    let mut p = String::with_capacity(path.len() + 1 + digits.len() - k);
+    p.push_str(path);
+    p.push('.');
+    p.extend(digits[k..].iter().map(|&d| d as char));
+    p
 }
 
 fn name_location(def: &At<NodeDef>) -> Option<(usize, usize)> {
