@@ -342,3 +342,70 @@ fn identical_children_match_order_statistics() {
         );
     }
 }
+
+/// Random trees with Parallels of up to 12 leaves anywhere (children may be
+/// subtrees and conditions): wherever the analysis answers — counted,
+/// composed or multiplied out — the root's figures and π(t) agree with
+/// simulation within 5 standard errors.
+#[test]
+fn random_trees_with_wide_parallels_agree_with_simulation() {
+    use btrel::generate::{random_tree_yaml, Shape};
+    let shape = Shape {
+        leaves: 36,
+        max_children: 4,
+        condition_fraction: 0.15,
+        parallel_fraction: 0.6,
+        max_parallel_children: 12,
+    };
+    let times = [0.5, 2.0, 8.0];
+    let runs = 200_000u64;
+    let mut answered = 0;
+    for seed in 0..12 {
+        let tree = parse_str(&random_tree_yaml(&shape, seed), "r.yaml").unwrap();
+        let (Ok(analysis), Ok(exact)) = (
+            btrel::analyze(&tree, &Default::default()),
+            curve(&tree, 0, &times, &CurveOptions::default()),
+        ) else {
+            continue;
+        };
+        answered += 1;
+        let sim = simulate(
+            &tree,
+            &SimOptions {
+                runs,
+                times: times.to_vec(),
+                per_node: false,
+                ..Default::default()
+            },
+            None,
+        )
+        .unwrap();
+        let (a, s) = (analysis.nodes[0], &sim.nodes[0]);
+        let se = |p: f64| (p * (1.0 - p) / runs as f64).sqrt();
+        assert!(
+            (a.ps - s.ps.mean).abs() <= 5.0 * se(a.ps) + 1e-12,
+            "seed {seed}: {a:?} vs {s:?}"
+        );
+        for (x, e) in [(a.mtts, s.mtts), (a.mttf, s.mttf)] {
+            if let (Some(x), Some(e)) = (x, e) {
+                if e.count > 100 {
+                    assert!(
+                        (x - e.mean).abs() <= 5.0 * e.se,
+                        "seed {seed}: {a:?} vs {s:?}"
+                    );
+                }
+            }
+        }
+        for (e, s) in exact.iter().zip(&sim.curve) {
+            assert!(
+                (e.success - s.success.mean).abs() <= 5.0 * se(e.success) + 1e-12,
+                "seed {seed}: {e:?} vs {s:?}"
+            );
+            assert!(
+                (e.failure - s.failure.mean).abs() <= 5.0 * se(e.failure) + 1e-12,
+                "seed {seed}: {e:?} vs {s:?}"
+            );
+        }
+    }
+    assert!(answered >= 8, "only {answered} of 12 trees answered");
+}
