@@ -95,6 +95,27 @@ fn child_yaml(kind: u8, a: (f64, f64, f64), b: (f64, f64, f64)) -> String {
 
 type Spec = (u8, (f64, f64, f64), (f64, f64, f64));
 
+/// Sequence(action, Parallel(5 of 8 two-action subtrees), action): the
+/// issue's nested example, with a product bound of 1.7e7 states.
+fn nested_yaml() -> String {
+    let subtrees: Vec<String> = (0..8)
+        .map(|i| {
+            let i = i as f64;
+            child_yaml(
+                1 + (i as u8 % 2),
+                (0.6 + 0.04 * i, 0.4 + 0.2 * i, 1.5 - 0.1 * i),
+                (0.7, 1.0 + 0.1 * i, 2.0),
+            )
+        })
+        .collect();
+    format!(
+        "tree: {{sequence: {{children: [{{action: {{ps: 0.9, mu: 1.0, nu: 2.0}}}}, \
+         {{parallel: {{success_threshold: 5, children: [{}]}}}}, \
+         {{action: {{ps: 0.8, mu: 0.5, nu: 1.0}}}}]}}}}",
+        subtrees.join(", ")
+    )
+}
+
 fn mixed_parallel(m: usize, specs: &[Spec]) -> btrel::Tree {
     let kids: Vec<String> = specs.iter().map(|&(k, a, b)| child_yaml(k, a, b)).collect();
     let yaml = format!(
@@ -164,23 +185,7 @@ fn counted_reports_agree_with_simulation() {
             .collect();
         trees.push(mixed_parallel(m, &specs));
     }
-    let subtrees: Vec<String> = (0..8)
-        .map(|i| {
-            let i = i as f64;
-            child_yaml(
-                1 + (i as u8 % 2),
-                (0.6 + 0.04 * i, 0.4 + 0.2 * i, 1.5 - 0.1 * i),
-                (0.7, 1.0 + 0.1 * i, 2.0),
-            )
-        })
-        .collect();
-    let nested = format!(
-        "tree: {{sequence: {{children: [{{action: {{ps: 0.9, mu: 1.0, nu: 2.0}}}}, \
-         {{parallel: {{success_threshold: 5, children: [{}]}}}}, \
-         {{action: {{ps: 0.8, mu: 0.5, nu: 1.0}}}}]}}}}",
-        subtrees.join(", ")
-    );
-    trees.push(parse_str(&nested, "nested.yaml").unwrap());
+    trees.push(parse_str(&nested_yaml(), "nested.yaml").unwrap());
     for tree in &trees {
         let analysis = btrel::analyze(tree, &Default::default()).unwrap();
         let sim = simulate(
@@ -256,23 +261,7 @@ proptest! {
 /// actions; product bound 1.7e7 states): composed π(t) against simulation.
 #[test]
 fn nested_parallel_curve_agrees_with_simulation() {
-    let subtrees: Vec<String> = (0..8)
-        .map(|i| {
-            let i = i as f64;
-            child_yaml(
-                1 + (i as u8 % 2),
-                (0.6 + 0.04 * i, 0.4 + 0.2 * i, 1.5 - 0.1 * i),
-                (0.7, 1.0 + 0.1 * i, 2.0),
-            )
-        })
-        .collect();
-    let yaml = format!(
-        "tree: {{sequence: {{children: [{{action: {{ps: 0.9, mu: 1.0, nu: 2.0}}}}, \
-         {{parallel: {{success_threshold: 5, children: [{}]}}}}, \
-         {{action: {{ps: 0.8, mu: 0.5, nu: 1.0}}}}]}}}}",
-        subtrees.join(", ")
-    );
-    let tree = parse_str(&yaml, "nested.yaml").unwrap();
+    let tree = parse_str(&nested_yaml(), "nested.yaml").unwrap();
     let times = [0.5, 1.0, 2.0, 5.0, 10.0];
     let exact = curve(&tree, 0, &times, &CurveOptions::default()).unwrap();
     let runs = 400_000u64;

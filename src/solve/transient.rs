@@ -172,56 +172,21 @@ pub const MAX_SINGLE_PASS_STEPS: usize = 20_000_000;
 /// on its own (at most `tolerance`), and the work is that of one
 /// uniformization to the horizon, whatever the number of points.
 pub fn transient(chain: &PhaseChain, times: &[f64], tolerance: f64) -> Vec<CurvePoint> {
-    let lambda = max_rate(chain);
     let horizon = times.iter().copied().fold(0.0, f64::max);
-    if chain.is_empty() || lambda == 0.0 || horizon == 0.0 {
+    let rows = if chain.is_empty() || max_rate(chain) == 0.0 || horizon == 0.0 {
+        None
+    } else {
+        transient_weighted(chain, times, tolerance, &[])
+    };
+    let Some(rows) = rows else {
         return transient_by_intervals(chain, times, tolerance);
-    }
-    let max_lt = lambda * horizon;
-    let inv = reciprocals((max_lt + 10.0 * max_lt.sqrt() + 64.0).min(1e8) as usize);
-    let windows: Vec<PoissonWindow> = times
-        .iter()
-        .map(|&t| poisson_window_with(lambda * t, tolerance, &inv))
-        .collect();
-    let steps = windows
-        .iter()
-        .map(|w| w.left + w.weights.len())
-        .max()
-        .unwrap_or(0);
-    if steps > MAX_SINGLE_PASS_STEPS {
-        return transient_by_intervals(chain, times, tolerance);
-    }
-    let p = Uniformized::new(chain, lambda);
-    let n = chain.len();
-    let mut state = vec![0.0; n];
-    for &(i, q) in &chain.initial {
-        state[i] += q;
-    }
-    let mut next = vec![0.0; n];
-    let mut absorbed = Vec::with_capacity(steps);
-    let (mut s, mut f) = (0.0, 0.0);
-    absorbed.push((s, f));
-    for _ in 1..steps {
-        let (ds, df) = p.step(&state, &mut next);
-        s += ds;
-        f += df;
-        absorbed.push((s, f));
-        std::mem::swap(&mut state, &mut next);
-        next.iter_mut().for_each(|x| *x = 0.0);
-    }
+    };
     times
         .iter()
-        .zip(&windows)
-        .map(|(&t, w)| {
-            let total: f64 = w.weights.iter().sum();
-            let (mut ps, mut pf) = (0.0, 0.0);
-            for (j, &wk) in w.weights.iter().enumerate() {
-                let (sk, fk) = absorbed[w.left + j];
-                ps += wk * sk;
-                pf += wk * fk;
-            }
-            let success = (chain.initial_success + ps / total).clamp(0.0, 1.0);
-            let failure = (chain.initial_failure + pf / total).clamp(0.0, 1.0);
+        .zip(rows)
+        .map(|(&t, r)| {
+            let success = r[0].clamp(0.0, 1.0);
+            let failure = r[1].clamp(0.0, 1.0);
             CurvePoint {
                 t,
                 success,

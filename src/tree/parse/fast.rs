@@ -690,38 +690,32 @@ fn decorator(v: Value) -> Option<DecoratorDef> {
     })
 }
 
-fn retry(v: Value) -> Option<RetryDef> {
+/// A repetition decorator's name, count (under `key`) and child.
+#[allow(clippy::type_complexity)]
+fn repetition(v: Value<'_>, key: &str) -> Option<(Option<At<String>>, At<f64>, At<NodeDef>)> {
     let (mut name, mut count, mut child) = (None, None, None);
     fields(v, |k, v| {
         match k {
             "name" => name = Some(string(v)?),
-            "attempts" => count = Some(number(v)?),
             "child" => child = Some(node(v)?),
+            _ if k == key => count = Some(number(v)?),
             _ => return Some(false),
         }
         Some(true)
     })?;
+    Some((name, count?, child?))
+}
+
+fn retry(v: Value) -> Option<RetryDef> {
+    let (name, attempts, child) = repetition(v, "attempts")?;
     Some(RetryDef {
         name,
-        attempts: count?,
-        child: child?,
+        attempts,
+        child,
     })
 }
 
 fn repeat(v: Value) -> Option<RepeatDef> {
-    let (mut name, mut count, mut child) = (None, None, None);
-    fields(v, |k, v| {
-        match k {
-            "name" => name = Some(string(v)?),
-            "times" => count = Some(number(v)?),
-            "child" => child = Some(node(v)?),
-            _ => return Some(false),
-        }
-        Some(true)
-    })?;
-    Some(RepeatDef {
-        name,
-        times: count?,
-        child: child?,
-    })
+    let (name, times, child) = repetition(v, "times")?;
+    Some(RepeatDef { name, times, child })
 }
