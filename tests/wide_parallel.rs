@@ -41,6 +41,44 @@ proptest! {
     }
 }
 
+/// Simulates the whole tree (root only) with the curve at `times`.
+fn simulated(tree: &btrel::Tree, times: &[f64], runs: u64) -> btrel::sim::SimResult {
+    simulate(
+        tree,
+        &SimOptions {
+            runs,
+            times: times.to_vec(),
+            per_node: false,
+            ..Default::default()
+        },
+        None,
+    )
+    .unwrap()
+}
+
+/// Binomial standard error of a proportion, from the exact probability
+/// (rare events may have no simulated occurrence at all).
+fn binomial_se(p: f64, runs: u64) -> f64 {
+    (p * (1.0 - p) / runs as f64).sqrt()
+}
+
+/// The exact curve within 5 standard errors of the simulated one.
+fn assert_curve_close(
+    exact: &[btrel::curve::CurvePoint],
+    sim: &btrel::sim::SimResult,
+    label: &str,
+) {
+    for (e, s) in exact.iter().zip(&sim.curve) {
+        for (x, m) in [(e.success, s.success.mean), (e.failure, s.failure.mean)] {
+            assert!(
+                (x - m).abs() <= 5.0 * binomial_se(x, sim.runs) + 1e-12,
+                "{label}: {e:?} vs {s:?}"
+            );
+        }
+        assert!((e.success + e.failure + e.running - 1.0).abs() < 1e-12);
+    }
+}
+
 #[test]
 fn wide_parallels_agree_with_simulation() {
     for (n, m) in [(10, 5), (16, 8), (24, 12)] {
@@ -53,31 +91,11 @@ fn wide_parallels_agree_with_simulation() {
         let tree = parse_str(&parallel_yaml(m, &children), "wide.yaml").unwrap();
         let times = [0.5, 1.0, 2.0, 5.0];
         let exact = curve(&tree, 0, &times, &CurveOptions::default()).unwrap();
-        let r = simulate(
-            &tree,
-            &SimOptions {
-                runs: 200_000,
-                times: times.to_vec(),
-                per_node: false,
-                ..Default::default()
-            },
-            None,
-        )
-        .unwrap();
-        // binomial standard errors from the exact probabilities (rare events
-        // may have no simulated occurrence at all)
-        let se = |p: f64| (p * (1.0 - p) / 200_000.0).sqrt();
-        for (e, s) in exact.iter().zip(&r.curve) {
-            assert!(
-                (e.success - s.success.mean).abs() <= 5.0 * se(e.success) + 1e-12,
-                "n={n}: {e:?} vs {s:?}"
-            );
-            assert!(
-                (e.failure - s.failure.mean).abs() <= 5.0 * se(e.failure) + 1e-12,
-                "n={n}: {e:?} vs {s:?}"
-            );
-            assert!((e.success + e.failure + e.running - 1.0).abs() < 1e-12);
-        }
+        assert_curve_close(
+            &exact,
+            &simulated(&tree, &times, 200_000),
+            &format!("n={n}"),
+        );
     }
 }
 
@@ -264,29 +282,7 @@ fn nested_parallel_curve_agrees_with_simulation() {
     let tree = parse_str(&nested_yaml(), "nested.yaml").unwrap();
     let times = [0.5, 1.0, 2.0, 5.0, 10.0];
     let exact = curve(&tree, 0, &times, &CurveOptions::default()).unwrap();
-    let runs = 400_000u64;
-    let r = simulate(
-        &tree,
-        &SimOptions {
-            runs,
-            times: times.to_vec(),
-            per_node: false,
-            ..Default::default()
-        },
-        None,
-    )
-    .unwrap();
-    let se = |p: f64| (p * (1.0 - p) / runs as f64).sqrt();
-    for (e, s) in exact.iter().zip(&r.curve) {
-        assert!(
-            (e.success - s.success.mean).abs() <= 5.0 * se(e.success) + 1e-12,
-            "{e:?} vs {s:?}"
-        );
-        assert!(
-            (e.failure - s.failure.mean).abs() <= 5.0 * se(e.failure) + 1e-12,
-            "{e:?} vs {s:?}"
-        );
-    }
+    assert_curve_close(&exact, &simulated(&tree, &times, 400_000), "nested");
 }
 
 /// Identical children: given that k of N succeed, the node's success time
@@ -358,21 +354,10 @@ fn random_trees_with_wide_parallels_agree_with_simulation() {
             continue;
         };
         answered += 1;
-        let sim = simulate(
-            &tree,
-            &SimOptions {
-                runs,
-                times: times.to_vec(),
-                per_node: false,
-                ..Default::default()
-            },
-            None,
-        )
-        .unwrap();
+        let sim = simulated(&tree, &times, runs);
         let (a, s) = (analysis.nodes[0], &sim.nodes[0]);
-        let se = |p: f64| (p * (1.0 - p) / runs as f64).sqrt();
         assert!(
-            (a.ps - s.ps.mean).abs() <= 5.0 * se(a.ps) + 1e-12,
+            (a.ps - s.ps.mean).abs() <= 5.0 * binomial_se(a.ps, runs) + 1e-12,
             "seed {seed}: {a:?} vs {s:?}"
         );
         for (x, e) in [(a.mtts, s.mtts), (a.mttf, s.mttf)] {
@@ -385,16 +370,7 @@ fn random_trees_with_wide_parallels_agree_with_simulation() {
                 }
             }
         }
-        for (e, s) in exact.iter().zip(&sim.curve) {
-            assert!(
-                (e.success - s.success.mean).abs() <= 5.0 * se(e.success) + 1e-12,
-                "seed {seed}: {e:?} vs {s:?}"
-            );
-            assert!(
-                (e.failure - s.failure.mean).abs() <= 5.0 * se(e.failure) + 1e-12,
-                "seed {seed}: {e:?} vs {s:?}"
-            );
-        }
+        assert_curve_close(&exact, &sim, &format!("seed {seed}"));
     }
     assert!(answered >= 8, "only {answered} of 12 trees answered");
 }
