@@ -374,3 +374,32 @@ fn random_trees_with_wide_parallels_agree_with_simulation() {
     }
     assert!(answered >= 8, "only {answered} of 12 trees answered");
 }
+
+/// The bundled fleet example (a 12-of-16 Parallel of two-level subtrees
+/// between other steps): `report` and `curve` answer from the command line,
+/// and the root's figures agree with simulation.
+#[test]
+fn drone_fleet_example_is_answered_and_agrees_with_simulation() {
+    for args in [
+        vec!["report", "trees/drone-fleet.yaml"],
+        vec!["curve", "trees/drone-fleet.yaml", "--times", "60,300,600"],
+    ] {
+        assert_cmd::Command::cargo_bin("btrel")
+            .unwrap()
+            .args(&args)
+            .assert()
+            .success()
+            .stdout(predicates::str::contains("mission"));
+    }
+    let tree = btrel::tree::parse_file(std::path::Path::new("trees/drone-fleet.yaml")).unwrap();
+    let a = btrel::analyze(&tree, &Default::default()).unwrap().nodes[0];
+    let runs = 200_000;
+    let sim = simulated(&tree, &[60.0, 300.0, 600.0], runs);
+    let s = &sim.nodes[0];
+    assert!((a.ps - s.ps.mean).abs() <= 5.0 * binomial_se(a.ps, runs), "{a:?} vs {s:?}");
+    let (mtts, mttf) = (s.mtts.unwrap(), s.mttf.unwrap());
+    assert!((a.mtts.unwrap() - mtts.mean).abs() <= 5.0 * mtts.se, "{a:?} vs {s:?}");
+    assert!((a.mttf.unwrap() - mttf.mean).abs() <= 5.0 * mttf.se, "{a:?} vs {s:?}");
+    let exact = curve(&tree, 0, &[60.0, 300.0, 600.0], &CurveOptions::default()).unwrap();
+    assert_curve_close(&exact, &sim, "fleet");
+}
