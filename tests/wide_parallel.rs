@@ -396,10 +396,67 @@ fn drone_fleet_example_is_answered_and_agrees_with_simulation() {
     let runs = 200_000;
     let sim = simulated(&tree, &[60.0, 300.0, 600.0], runs);
     let s = &sim.nodes[0];
-    assert!((a.ps - s.ps.mean).abs() <= 5.0 * binomial_se(a.ps, runs), "{a:?} vs {s:?}");
+    assert!(
+        (a.ps - s.ps.mean).abs() <= 5.0 * binomial_se(a.ps, runs),
+        "{a:?} vs {s:?}"
+    );
     let (mtts, mttf) = (s.mtts.unwrap(), s.mttf.unwrap());
-    assert!((a.mtts.unwrap() - mtts.mean).abs() <= 5.0 * mtts.se, "{a:?} vs {s:?}");
-    assert!((a.mttf.unwrap() - mttf.mean).abs() <= 5.0 * mttf.se, "{a:?} vs {s:?}");
+    assert!(
+        (a.mtts.unwrap() - mtts.mean).abs() <= 5.0 * mtts.se,
+        "{a:?} vs {s:?}"
+    );
+    assert!(
+        (a.mttf.unwrap() - mttf.mean).abs() <= 5.0 * mttf.se,
+        "{a:?} vs {s:?}"
+    );
     let exact = curve(&tree, 0, &[60.0, 300.0, 600.0], &CurveOptions::default()).unwrap();
     assert_curve_close(&exact, &sim, "fleet");
+}
+
+/// A wide Parallel below a child of a counted Parallel: π(t) is answered
+/// (counts of a composition) and agrees with simulation; the mean times are
+/// refused with a message that names the alternatives, exit code 1.
+#[test]
+fn parallel_of_nested_wide_parallels() {
+    let inner: Vec<String> = (0..12)
+        .map(|i| {
+            format!(
+                "{{action: {{ps: 0.8, mu: {}, nu: 2}}}}",
+                1.0 + 0.1 * i as f64
+            )
+        })
+        .collect();
+    let wide = format!(
+        "{{parallel: {{name: inner, success_threshold: 6, children: [{}]}}}}",
+        inner.join(", ")
+    );
+    let yaml = format!(
+        "tree: {{parallel: {{success_threshold: 2, children: [{{action: {{ps: 0.9, mu: 1, nu: 1}}}}, \
+         {{sequence: {{children: [{{action: {{ps: 0.9, mu: 1, nu: 1}}}}, {wide}]}}}}, \
+         {{action: {{ps: 0.5, mu: 0.5, nu: 0.5}}}}]}}}}\n"
+    );
+    let tree = parse_str(&yaml, "pp.yaml").unwrap();
+    let times = [1.0, 2.0, 5.0];
+    let exact = curve(&tree, 0, &times, &CurveOptions::default()).unwrap();
+    assert_curve_close(
+        &exact,
+        &simulated(&tree, &times, 200_000),
+        "parallel of nested",
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("pp.yaml");
+    std::fs::write(&path, &yaml).unwrap();
+    let out = assert_cmd::Command::cargo_bin("btrel")
+        .unwrap()
+        .args(["report", path.to_str().unwrap()])
+        .assert()
+        .code(1)
+        .get_output()
+        .stderr
+        .clone();
+    let msg = String::from_utf8(out).unwrap();
+    assert!(
+        msg.contains("'inner'") && msg.contains("btrel simulate") && msg.contains("btrel curve"),
+        "{msg}"
+    );
 }

@@ -135,6 +135,22 @@ pub enum AnalysisError {
         /// The budget.
         budget: usize,
     },
+    /// A Parallel counted for its mean times has a child without a phase
+    /// chain (typically one holding a wide Parallel).
+    #[error(
+        "the mean times of Parallel node '{node}' need its children's phase chains, but the \
+         chain of '{inner}' below it would have up to {states:.3e} states (a wide Parallel is \
+         counted, not multiplied out); `btrel curve` answers for this tree, `btrel simulate` \
+         estimates its mean times, or raise --max-states"
+    )]
+    NestedWideParallel {
+        /// The Parallel whose mean times are asked.
+        node: String,
+        /// The node below it whose chain is too large.
+        inner: String,
+        /// That chain's size bound.
+        states: f64,
+    },
     /// A subtree mixes deterministic (or hybrid) and stochastic times, which
     /// has neither a finite phase chain nor finitely many atoms.
     #[error(
@@ -347,6 +363,17 @@ fn parallel_by_counts(
         match phase::phase_chain(tree, c, options.max_states) {
             Ok(chain) => chains.push(chain),
             Err(AnalysisError::NotMarkovian { .. }) => return Ok(None),
+            Err(AnalysisError::StateBudget {
+                node: inner,
+                states,
+                ..
+            }) => {
+                return Err(AnalysisError::NestedWideParallel {
+                    node: node.name.clone(),
+                    inner,
+                    states,
+                })
+            }
             Err(e) => return Err(e),
         }
     }
