@@ -722,6 +722,14 @@ fn report_every_example_tree_in_every_format() {
                 .arg(&path)
                 .output()
                 .unwrap();
+            if method == "book" && path.ends_with("drone-fleet.yaml") {
+                // the book's recursion needs the MRG of the 16-child Parallel
+                // (2.4e7 markings): refused before allocating
+                let stderr = String::from_utf8(out.stderr).unwrap();
+                assert_eq!(out.status.code(), Some(1), "{stderr}");
+                assert!(stderr.contains("--max-states"), "{stderr}");
+                continue;
+            }
             assert!(out.status.success(), "{}: {out:?}", path.display());
             assert!(out.stderr.is_empty());
             let table = String::from_utf8(out.stdout).unwrap();
