@@ -490,7 +490,7 @@ pub struct WeightedEvent {
 }
 
 /// Every event of `g` with the probability and duration described on
-/// [`mrg_chain`]'s rules: the child's own ps/pf and MTTS/MTTF when it is the
+/// `mrg_chain`'s rules: the child's own ps/pf and MTTS/MTTF when it is the
 /// only feasible child (or `competing` is false), otherwise the share
 /// (9.38)–(9.39) of rates `1/SJ_h` and the marking's mean sojourn (9.40);
 /// zero-duration children return first.
