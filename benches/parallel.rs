@@ -1,6 +1,7 @@
 //! Wide and nested Parallel nodes: `report` (figures with certified mean
 //! times) and `curve` at 4 time points of Parallels of 10, 16 and 24 leaf
-//! children, and of a Sequence(action, Parallel of 8 subtrees, action).
+//! children, of a Sequence(action, Parallel of 8 subtrees, action), and of
+//! a three-phase mission with three Parallels of 8 subtrees.
 //!
 //! Run: `cargo bench --bench parallel`
 
@@ -53,6 +54,32 @@ fn nested() -> String {
     )
 }
 
+/// Sequence(8 of 8, 6 of 8, Retry 2 × (7 of 8)) over two-level robot
+/// subtrees: three wide Parallels in one Sequence, one under a Retry.
+fn mission() -> String {
+    let robot = |i: usize| {
+        format!(
+            "{{sequence: {{children: [{}, {{fallback: {{children: [{}, {}]}}}}]}}}}",
+            action(i),
+            action(i + 8),
+            action(i + 16)
+        )
+    };
+    let parallel = |m: usize| {
+        let kids: Vec<String> = (0..8).map(robot).collect();
+        format!(
+            "{{parallel: {{success_threshold: {m}, children: [{}]}}}}",
+            kids.join(", ")
+        )
+    };
+    format!(
+        "tree: {{sequence: {{children: [{}, {}, {{retry: {{attempts: 2, child: {}}}}}]}}}}",
+        parallel(8),
+        parallel(6),
+        parallel(7)
+    )
+}
+
 fn parallels(c: &mut Criterion) {
     let mut group = c.benchmark_group("parallel");
     group.sample_size(20);
@@ -62,6 +89,7 @@ fn parallels(c: &mut Criterion) {
         .map(|&n| (format!("wide_{n}"), wide(n)))
         .collect();
     cases.push(("nested_8_subtrees".into(), nested()));
+    cases.push(("mission_3_wide".into(), mission()));
     for (name, yaml) in &cases {
         let tree = parse_str(yaml, "bench.yaml").expect("valid tree");
         group.bench_with_input(BenchmarkId::new("report", name), &tree, |b, tree| {

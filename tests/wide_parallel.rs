@@ -275,6 +275,74 @@ proptest! {
     }
 }
 
+/// A small Parallel of 2–3 children, as YAML.
+fn small_parallel() -> impl Strategy<Value = String> {
+    (
+        proptest::collection::vec((0u8..3, action_params(), action_params()), 2..=3),
+        0usize..100,
+    )
+        .prop_map(|(specs, m_seed)| {
+            let m = 1 + m_seed % specs.len();
+            let kids: Vec<String> = specs.iter().map(|&(k, a, b)| child_yaml(k, a, b)).collect();
+            format!(
+                "{{parallel: {{success_threshold: {m}, children: [{}]}}}}",
+                kids.join(", ")
+            )
+        })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(40))]
+
+    /// Several Parallels in one Sequence/Fallback, one of them under a
+    /// decorator (retry, repeat, inverter, force) and one nested a level
+    /// deeper: π(t) from the composed outcome laws equals the product
+    /// chain's. A small budget makes every Parallel opaque.
+    #[test]
+    fn composed_laws_match_the_product_chain(
+        first in small_parallel(),
+        second in small_parallel(),
+        third in small_parallel(),
+        between in action_params(),
+        outer in 0u8..2,
+        decorator in 0u8..6,
+        condition in 0.0f64..=1.0,
+    ) {
+        let act = |(ps, mu, nu): (f64, f64, f64)| format!("{{action: {{ps: {ps}, mu: {mu}, nu: {nu}}}}}");
+        let decorated = match decorator {
+            0 => format!("{{retry: {{attempts: 3, child: {second}}}}}"),
+            1 => format!("{{repeat: {{times: 2, child: {second}}}}}"),
+            2 => format!("{{inverter: {{child: {second}}}}}"),
+            3 => format!("{{force_success: {{child: {second}}}}}"),
+            4 => format!("{{force_failure: {{child: {second}}}}}"),
+            _ => second.clone(),
+        };
+        let inner = if outer == 0 { "fallback" } else { "sequence" };
+        let nested = format!(
+            "{{{inner}: {{children: [{{condition: {{ps: {condition}}}}}, {third}, {}]}}}}",
+            act(between)
+        );
+        let kind = if outer == 0 { "sequence" } else { "fallback" };
+        let yaml = format!(
+            "tree: {{{kind}: {{children: [{first}, {}, {decorated}, {nested}]}}}}",
+            act(between)
+        );
+        let tree = parse_str(&yaml, "laws.yaml").unwrap();
+        let times = [0.0, 0.2, 1.0, 3.0, 12.0];
+        let small = CurveOptions {
+            max_states: 32,
+            ..CurveOptions::default()
+        };
+        let composed = curve(&tree, 0, &times, &small).unwrap();
+        let chain = phase_chain(&tree, 0, 10_000_000).unwrap();
+        let product = transient(&chain, &times, 1e-15);
+        for (a, b) in composed.iter().zip(&product) {
+            prop_assert!((a.success - b.success).abs() < 1e-11, "{:?} vs {:?}", a, b);
+            prop_assert!((a.failure - b.failure).abs() < 1e-11, "{:?} vs {:?}", a, b);
+        }
+    }
+}
+
 /// The nested example of the issue (a Parallel of 8 subtrees between two
 /// actions; product bound 1.7e7 states): composed π(t) against simulation.
 #[test]
@@ -283,6 +351,56 @@ fn nested_parallel_curve_agrees_with_simulation() {
     let times = [0.5, 1.0, 2.0, 5.0, 10.0];
     let exact = curve(&tree, 0, &times, &CurveOptions::default()).unwrap();
     assert_curve_close(&exact, &simulated(&tree, &times, 400_000), "nested");
+}
+
+/// A three-phase mission of 8 robots (each a Sequence of a move and a
+/// Fallback of two tries): Sequence(all 8 go, 6 of 8 work, Retry 2 × (7 of 8
+/// return)). Three wide Parallels in one Sequence, one under a Retry: π(t)
+/// from composed laws, and the report, against simulation.
+fn mission_yaml() -> String {
+    let act = |ps: f64, mu: f64, nu: f64| format!("{{action: {{ps: {ps}, mu: {mu}, nu: {nu}}}}}");
+    let robot = |i: usize, phase: usize| {
+        let i = i as f64;
+        format!(
+            "{{sequence: {{children: [{}, {{fallback: {{children: [{}, {}]}}}}]}}}}",
+            act(0.95 - 0.01 * i, 0.5 + 0.05 * i + 0.1 * phase as f64, 1.0),
+            act(0.7, 1.0 + 0.1 * i, 2.0),
+            act(0.6, 0.8, 1.5)
+        )
+    };
+    let parallel = |m: usize, phase: usize| {
+        let kids: Vec<String> = (0..8).map(|i| robot(i, phase)).collect();
+        format!(
+            "{{parallel: {{success_threshold: {m}, children: [{}]}}}}",
+            kids.join(", ")
+        )
+    };
+    format!(
+        "tree: {{sequence: {{children: [{}, {}, {{retry: {{attempts: 2, child: {}}}}}]}}}}\n",
+        parallel(8, 0),
+        parallel(6, 1),
+        parallel(7, 2)
+    )
+}
+
+#[test]
+fn three_phase_mission_agrees_with_simulation() {
+    let tree = parse_str(&mission_yaml(), "mission.yaml").unwrap();
+    let times = [2.0, 5.0, 10.0, 20.0];
+    let exact = curve(&tree, 0, &times, &CurveOptions::default()).unwrap();
+    let runs = 400_000;
+    let sim = simulated(&tree, &times, runs);
+    assert_curve_close(&exact, &sim, "mission");
+    let a = btrel::analyze(&tree, &Default::default()).unwrap().nodes[0];
+    let s = &sim.nodes[0];
+    assert!(
+        (a.ps - s.ps.mean).abs() <= 5.0 * binomial_se(a.ps, runs),
+        "{a:?} vs {s:?}"
+    );
+    for (x, e) in [(a.mtts, s.mtts), (a.mttf, s.mttf)] {
+        let (x, e) = (x.unwrap(), e.unwrap());
+        assert!((x - e.mean).abs() <= 5.0 * e.se, "{a:?} vs {s:?}");
+    }
 }
 
 /// Identical children: given that k of N succeed, the node's success time

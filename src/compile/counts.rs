@@ -97,6 +97,47 @@ pub fn status_by_counts(points: &[(f64, f64)], m: usize, f_cap: usize) -> (f64, 
     (success, failure)
 }
 
+/// [`status_by_counts`] with time derivatives: from each child's
+/// `[S_h, F_h, s_h, f_h]` (probabilities of having succeeded and failed by
+/// t and their densities) the node's `[S, F, s, f]`. The programme is
+/// multilinear in the children's inputs, so it is run in dual numbers
+/// (value, derivative): a child's running probability `1 − S_h − F_h` has
+/// derivative `−s_h − f_h`.
+pub fn status_and_densities_by_counts(points: &[[f64; 4]], m: usize, f_cap: usize) -> [f64; 4] {
+    let width = f_cap + 1;
+    // (value, derivative) per cell
+    let mut dp = vec![(0.0f64, 0.0f64); (m + 1) * width];
+    dp[0] = (1.0, 0.0);
+    for &[ps, pf, ds, df] in points {
+        let running = (1.0 - ps - pf).max(0.0);
+        let d_running = -ds - df;
+        for s in (0..m).rev() {
+            for f in (0..f_cap).rev() {
+                let (x, dx) = dp[s * width + f];
+                if x == 0.0 && dx == 0.0 {
+                    continue;
+                }
+                dp[s * width + f] = (x * running, dx * running + x * d_running);
+                let up = &mut dp[(s + 1) * width + f];
+                *up = (up.0 + x * ps, up.1 + dx * ps + x * ds);
+                let right = &mut dp[s * width + f + 1];
+                *right = (right.0 + x * pf, right.1 + dx * pf + x * df);
+            }
+        }
+    }
+    let mut out = [0.0; 4];
+    for &(v, d) in &dp[m * width..] {
+        out[0] += v;
+        out[2] += d;
+    }
+    for s in 0..m {
+        let (v, d) = dp[s * width + f_cap];
+        out[1] += v;
+        out[3] += d;
+    }
+    out
+}
+
 /// `Σ Π` over assignments of each child to *done* / *pending* / *never`
 /// (weights `(u, v, w)`) with fewer than `m` done and at least `m` done or
 /// pending. With probabilities it is `P(K_t < m ≤ K_∞)`; with upper bounds
@@ -595,5 +636,60 @@ mod tests {
         assert!((s.time / s.probability - 0.5).abs() < 1e-12, "{s:?}");
         assert!((f.time / f.probability - 2.0).abs() < 1e-12, "{f:?}");
         assert!(s.bound < 1e-10 * s.time && f.bound < 1e-10 * f.time);
+    }
+
+    #[test]
+    fn densities_by_counts_match_enumeration() {
+        // children as (S, F, s, f); node: S = P(≥ m succeeded), F = P(≥ f
+        // failed); the densities by enumerating the 3^n outcomes of the
+        // children and differentiating each product by the product rule
+        let kids = [
+            [0.1, 0.2, 0.5, 0.3],
+            [0.4, 0.1, 0.2, 0.7],
+            [0.0, 0.6, 1.5, 0.1],
+            [0.3, 0.3, 0.05, 0.4],
+        ];
+        for m in 1..=4 {
+            let f_cap = kids.len() - m + 1;
+            let mut want = [0.0; 4];
+            for code in 0..3usize.pow(kids.len() as u32) {
+                let digits: Vec<usize> = (0..kids.len())
+                    .map(|h| code / 3usize.pow(h as u32) % 3)
+                    .collect();
+                let factor = |h: usize, d: bool| {
+                    let [ps, pf, ds, df] = kids[h];
+                    match (digits[h], d) {
+                        (0, false) => ps,
+                        (0, true) => ds,
+                        (1, false) => pf,
+                        (1, true) => df,
+                        (_, false) => 1.0 - ps - pf,
+                        (_, true) => -ds - df,
+                    }
+                };
+                let value: f64 = (0..kids.len()).map(|h| factor(h, false)).product();
+                let derivative: f64 = (0..kids.len())
+                    .map(|j| (0..kids.len()).map(|h| factor(h, h == j)).product::<f64>())
+                    .sum();
+                let succeeded = digits.iter().filter(|&&d| d == 0).count();
+                let failed = digits.iter().filter(|&&d| d == 1).count();
+                if succeeded >= m {
+                    want[0] += value;
+                    want[2] += derivative;
+                } else if failed >= f_cap {
+                    want[1] += value;
+                    want[3] += derivative;
+                }
+            }
+            let got = status_and_densities_by_counts(&kids, m, f_cap);
+            for c in 0..4 {
+                assert!(
+                    (got[c] - want[c]).abs() < 1e-14,
+                    "m={m} c={c}: {got:?} vs {want:?}"
+                );
+            }
+            let plain = status_by_counts(&kids.map(|k| (k[0], k[1])), m, f_cap);
+            assert!((plain.0 - got[0]).abs() < 1e-15 && (plain.1 - got[1]).abs() < 1e-15);
+        }
     }
 }

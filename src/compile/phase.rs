@@ -181,7 +181,7 @@ pub fn combine(
 pub const BOOK_PARALLEL_SHARE: usize = 16;
 
 /// Sequence (`sequence = true`) or Fallback composition of children's chains.
-fn concatenate(chains: Vec<PhaseChain>, sequence: bool) -> PhaseChain {
+pub fn concatenate(chains: Vec<PhaseChain>, sequence: bool) -> PhaseChain {
     let offsets: Vec<usize> = chains
         .iter()
         .scan(0, |acc, c| {

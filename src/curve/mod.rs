@@ -7,6 +7,10 @@
 //!   exponentials in double-double ([`solve::expm`](crate::solve::expm)); for subtrees whose actions all have deterministic
 //!   times, the exact finitely many return instants ([`compile::atoms`],
 //!   Prop. 9.2's zero-order hold without rounding to a grid).
+//! * nodes whose chain exceeds the budget (wide Parallels and everything
+//!   above them): Parallels with the book's thresholds by counting their
+//!   children's curves, and every other node from composed outcome laws
+//!   (interpolated densities, `law`).
 //! * **book**: the chapter's recursion: the node's CTMC over its MRG with
 //!   every child replaced by an exponential ([`compile::book_ctmc`]).
 //! * **`Timing::Deterministic`**: every exponential time becomes a fixed
@@ -21,7 +25,7 @@ use crate::tree::{Duration, NodeId, NodeKind, Tree};
 
 pub use crate::solve::transient::CurvePoint;
 
-mod compose;
+mod law;
 
 /// How action times are taken.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -178,7 +182,7 @@ pub fn curve(
                 })
             }
             Err(e @ AnalysisError::StateBudget { .. }) if options.method == Method::Exact => {
-                return compose::with_opaque_child(tree, id, times, options).unwrap_or(Err(e));
+                return law::curve_by_laws(tree, id, times, options, e);
             }
             Err(e) => return Err(e),
         },

@@ -1,0 +1,403 @@
+//! `π(t)` of nodes without a phase chain within the budget — wide Parallels
+//! and every node above them — from their *outcome laws*: the probabilities
+//! of an instant Success or Failure, and the sub-densities `s(t)`, `f(t)` of
+//! the return time with each outcome, as piecewise Chebyshev interpolants on
+//! `[0, T]` ([`crate::solve::interpolant`]), T the last requested time.
+//!
+//! Laws compose exactly as the tick semantics do; only the interpolation of
+//! each density is approximate (an error estimate of 1e-15 in probability
+//! mass per panel):
+//!
+//! * a subtree with a phase chain: its densities `π(t)·exit` sampled by
+//!   uniformization ([`transient_weighted`]);
+//! * a Parallel with the book's thresholds (`F = N − M + 1`): until it
+//!   returns its children run independently and the thresholds cannot both
+//!   be met, so it has succeeded by t iff at least M children have
+//!   ([`super::parallel_by_counts`]); its densities are the time derivatives
+//!   of that count programme, computed in dual numbers from the children's
+//!   probabilities and densities
+//!   ([`counts::status_and_densities_by_counts`]);
+//! * a Sequence runs its children one after the other, each independent of
+//!   the others and started at the previous one's return: with `G_k` the
+//!   law of the time at which the first k children have all succeeded
+//!   (`G_0 = δ₀`), `G_k = G_{k−1} ⊛ S_k` and the Sequence fails with density
+//!   `Σ_k G_{k−1} ⊛ F_k` and succeeds with `G_n` — where `⊛` convolves
+//!   measures with an atom at 0 and a density, `(a δ₀ + g) ⊛ (b δ₀ + h) =
+//!   ab δ₀ + a h + b g + g * h`. A Fallback is the same with the outcomes
+//!   exchanged. Consecutive children with phase chains are concatenated
+//!   into one chain first (exact, and fewer convolutions);
+//! * Retry N and Repeat N are a Fallback and a Sequence of N copies (the
+//!   fold stops once the mass still going on within `[0, T]` is below
+//!   1e-17); inverter and force decorators exchange or merge the outcomes.
+//!
+//! A Parallel with independent failure threshold has no such decomposition
+//! (which threshold is met first depends on the joint times) and keeps its
+//! product-chain error; laws with atoms after 0 (deterministic times) are
+//! refused as mixed timing.
+
+use super::CurveOptions;
+use crate::compile::{counts, phase, AnalysisError};
+use crate::solve::chain::PhaseChain;
+use crate::solve::interpolant::{build, BuildError, Interpolant};
+use crate::solve::transient::{transient_weighted, CurvePoint};
+use crate::tree::{Decorator, NodeId, NodeKind, Tree};
+
+/// Dropped Poisson mass in each sampled density.
+const SAMPLE_TOLERANCE: f64 = 1e-16;
+
+/// Mass below which a Retry/Repeat fold stops.
+const NEGLIGIBLE: f64 = 1e-17;
+
+const SUCCESS: usize = 0;
+const FAILURE: usize = 1;
+
+/// A node's outcome law on `[0, T]`.
+#[derive(Debug, Clone)]
+struct Law {
+    /// Probability of Success (index 0) and Failure (1) at time 0.
+    atom: [f64; 2],
+    /// Sub-densities of the return time with Success and with Failure.
+    density: [Interpolant; 2],
+}
+
+impl Law {
+    /// P(returned outcome `o` by t).
+    fn cdf(&self, o: usize, t: f64) -> f64 {
+        self.atom[o] + self.density[o].integral_to(t)
+    }
+}
+
+/// A child as its chain (when it has one) or its law.
+enum Piece {
+    Chain(PhaseChain),
+    Law(Law),
+}
+
+/// `π(t)` of `id`, a node whose phase chain exceeds the budget, at `times`.
+pub(super) fn curve_by_laws(
+    tree: &Tree,
+    id: NodeId,
+    times: &[f64],
+    options: &CurveOptions,
+    budget_error: AnalysisError,
+) -> Result<Vec<CurvePoint>, AnalysisError> {
+    let end = times.iter().copied().fold(0.0, f64::max);
+    let law = Builder {
+        tree,
+        end,
+        max_states: options.max_states,
+    }
+    .opaque(id, budget_error)?;
+    Ok(times
+        .iter()
+        .map(|&t| {
+            let success = law.cdf(SUCCESS, t).clamp(0.0, 1.0);
+            let failure = law.cdf(FAILURE, t).clamp(0.0, 1.0);
+            CurvePoint {
+                t,
+                success,
+                failure,
+                running: (1.0 - success - failure).max(0.0),
+            }
+        })
+        .collect())
+}
+
+struct Builder<'a> {
+    tree: &'a Tree,
+    end: f64,
+    max_states: usize,
+}
+
+impl Builder<'_> {
+    fn name(&self, id: NodeId) -> String {
+        self.tree.node(id).name.clone()
+    }
+
+    fn interpolate(
+        &self,
+        id: NodeId,
+        k: usize,
+        sample: impl FnMut(&[f64]) -> Result<Vec<f64>, AnalysisError>,
+    ) -> Result<Vec<Interpolant>, AnalysisError> {
+        build(self.end, k, sample).map_err(|e| match e {
+            BuildError::Sample(e) => e,
+            BuildError::NotConverged => AnalysisError::Numerical {
+                node: self.name(id),
+                what: "the interpolated densities of its outcome times did not converge".into(),
+            },
+        })
+    }
+
+    /// The child's chain if it has one within the budget, else its law.
+    fn piece(&self, id: NodeId) -> Result<Piece, AnalysisError> {
+        match phase::phase_chain(self.tree, id, self.max_states) {
+            Ok(chain) => Ok(Piece::Chain(chain)),
+            Err(e @ AnalysisError::StateBudget { .. }) => Ok(Piece::Law(self.opaque(id, e)?)),
+            Err(AnalysisError::NotMarkovian { leaf }) => Err(AnalysisError::MixedTiming {
+                node: self.name(id),
+                leaf,
+            }),
+            Err(e) => Err(e),
+        }
+    }
+
+    /// Densities `π(t)·exit` of a chain, sampled by uniformization.
+    fn chain_law(&self, id: NodeId, chain: &PhaseChain) -> Result<Law, AnalysisError> {
+        let weights = [&chain.exit_success[..], &chain.exit_failure[..]];
+        let mut d =
+            self.interpolate(id, 2, |points| {
+                let rows = transient_weighted(chain, points, SAMPLE_TOLERANCE, &weights)
+                    .ok_or_else(|| AnalysisError::Stiff {
+                        node: self.name(id),
+                        work: f64::INFINITY,
+                        limit: super::DEFAULT_MAX_WORK,
+                    })?;
+                Ok(rows.iter().flat_map(|r| [r[2], r[3]]).collect())
+            })?;
+        let failure = d.pop().expect("two densities");
+        let success = d.pop().expect("two densities");
+        Ok(Law {
+            atom: [chain.initial_success, chain.initial_failure],
+            density: [success, failure],
+        })
+    }
+
+    /// The law of a node without a chain (`budget_error` is what its chain
+    /// construction reported, returned where laws cannot help).
+    fn opaque(&self, id: NodeId, budget_error: AnalysisError) -> Result<Law, AnalysisError> {
+        let node = self.tree.node(id);
+        match &node.kind {
+            NodeKind::Parallel {
+                success_threshold,
+                failure_threshold,
+                children,
+            } if *failure_threshold == children.len() + 1 - success_threshold => {
+                self.counted(id, children, *success_threshold)
+            }
+            NodeKind::Sequence { children } => self.in_turn(id, children, true),
+            NodeKind::Fallback { children } => self.in_turn(id, children, false),
+            NodeKind::Decorator { decorator, child } => {
+                let law = match self.piece(*child)? {
+                    Piece::Law(l) => l,
+                    // the child fits, so its copies are what exceeded the budget
+                    Piece::Chain(c) => self.chain_law(*child, &c)?,
+                };
+                match *decorator {
+                    Decorator::Inverter => {
+                        let [s, f] = law.density;
+                        Ok(Law {
+                            atom: [law.atom[FAILURE], law.atom[SUCCESS]],
+                            density: [f, s],
+                        })
+                    }
+                    Decorator::ForceSuccess | Decorator::ForceFailure => {
+                        let [s, f] = &law.density;
+                        let both = self
+                            .interpolate(id, 1, |points| {
+                                Ok(points.iter().map(|&t| s.eval(t) + f.eval(t)).collect())
+                            })?
+                            .remove(0);
+                        let atom = law.atom[SUCCESS] + law.atom[FAILURE];
+                        let zero = Interpolant::zero(self.end);
+                        Ok(if *decorator == Decorator::ForceSuccess {
+                            Law {
+                                atom: [atom, 0.0],
+                                density: [both, zero],
+                            }
+                        } else {
+                            Law {
+                                atom: [0.0, atom],
+                                density: [zero, both],
+                            }
+                        })
+                    }
+                    Decorator::Retry { attempts } => {
+                        self.fold(id, std::iter::repeat_n(&law, attempts), false)
+                    }
+                    Decorator::Repeat { times } => {
+                        self.fold(id, std::iter::repeat_n(&law, times), true)
+                    }
+                }
+            }
+            _ => Err(budget_error),
+        }
+    }
+
+    /// A Parallel with the book's thresholds, by counting its children.
+    fn counted(&self, id: NodeId, children: &[NodeId], m: usize) -> Result<Law, AnalysisError> {
+        let pieces = children
+            .iter()
+            .map(|&c| self.piece(c))
+            .collect::<Result<Vec<_>, _>>()?;
+        let f_cap = children.len() + 1 - m;
+        let atoms: Vec<(f64, f64)> = pieces
+            .iter()
+            .map(|p| match p {
+                Piece::Chain(c) => (c.initial_success, c.initial_failure),
+                Piece::Law(l) => (l.atom[SUCCESS], l.atom[FAILURE]),
+            })
+            .collect();
+        let (atom_s, atom_f) = counts::status_by_counts(&atoms, m, f_cap);
+        let mut d = self.interpolate(id, 2, |points| {
+            // per child and point: [S, F, s, f]
+            let columns = pieces
+                .iter()
+                .zip(children)
+                .map(|(p, &c)| match p {
+                    Piece::Chain(chain) => {
+                        let weights = [&chain.exit_success[..], &chain.exit_failure[..]];
+                        transient_weighted(chain, points, SAMPLE_TOLERANCE, &weights)
+                            .map(|rows| rows.iter().map(|r| [r[0], r[1], r[2], r[3]]).collect())
+                            .ok_or_else(|| AnalysisError::Stiff {
+                                node: self.name(c),
+                                work: f64::INFINITY,
+                                limit: super::DEFAULT_MAX_WORK,
+                            })
+                    }
+                    Piece::Law(l) => Ok(points
+                        .iter()
+                        .map(|&t| {
+                            [
+                                l.cdf(SUCCESS, t),
+                                l.cdf(FAILURE, t),
+                                l.density[SUCCESS].eval(t),
+                                l.density[FAILURE].eval(t),
+                            ]
+                        })
+                        .collect::<Vec<[f64; 4]>>()),
+                })
+                .collect::<Result<Vec<_>, _>>()?;
+            let mut row = vec![[0.0; 4]; children.len()];
+            let mut out = Vec::with_capacity(2 * points.len());
+            for k in 0..points.len() {
+                for (r, col) in row.iter_mut().zip(&columns) {
+                    *r = col[k];
+                }
+                let [_, _, s, f] = counts::status_and_densities_by_counts(&row, m, f_cap);
+                out.extend([s, f]);
+            }
+            Ok(out)
+        })?;
+        let failure = d.pop().expect("two densities");
+        let success = d.pop().expect("two densities");
+        Ok(Law {
+            atom: [atom_s, atom_f],
+            density: [success, failure],
+        })
+    }
+
+    /// A Sequence (`sequence`) or Fallback: runs of children with chains
+    /// concatenated, then the laws folded in order.
+    fn in_turn(
+        &self,
+        id: NodeId,
+        children: &[NodeId],
+        sequence: bool,
+    ) -> Result<Law, AnalysisError> {
+        let mut laws = Vec::new();
+        let mut run: Vec<PhaseChain> = Vec::new();
+        for &c in children {
+            match self.piece(c)? {
+                Piece::Chain(chain) => run.push(chain),
+                Piece::Law(l) => {
+                    if !run.is_empty() {
+                        let chain = phase::concatenate(std::mem::take(&mut run), sequence);
+                        laws.push(self.chain_law(id, &chain)?);
+                    }
+                    laws.push(l);
+                }
+            }
+        }
+        if !run.is_empty() {
+            laws.push(self.chain_law(id, &phase::concatenate(run, sequence))?);
+        }
+        self.fold(id, laws.iter(), sequence)
+    }
+
+    /// Children's laws run in turn; a Sequence (`sequence`) goes on after a
+    /// Success and stops at a Failure, a Fallback the other way round.
+    fn fold<'l>(
+        &self,
+        id: NodeId,
+        laws: impl Iterator<Item = &'l Law>,
+        sequence: bool,
+    ) -> Result<Law, AnalysisError> {
+        let (go, stop) = if sequence {
+            (SUCCESS, FAILURE)
+        } else {
+            (FAILURE, SUCCESS)
+        };
+        // the law of reaching the next child: atom and density (None = 0)
+        let (mut atom, mut density): (f64, Option<Interpolant>) = (1.0, None);
+        let mut stop_atom = 0.0;
+        // stopping terms: (reach atom, reach density, child's stop law)
+        let mut stops: Vec<(f64, Option<Interpolant>, &Law)> = Vec::new();
+        for law in laws {
+            let going = atom + density.as_ref().map_or(0.0, Interpolant::total);
+            if going < NEGLIGIBLE {
+                break;
+            }
+            stop_atom += atom * law.atom[stop];
+            stops.push((atom, density.clone(), law));
+            density =
+                Some(self.convolve(id, atom, density.as_ref(), law.atom[go], &law.density[go])?);
+            atom *= law.atom[go];
+        }
+        let stop_density = self
+            .interpolate(id, 1, |points| {
+                let mut out = vec![0.0; points.len()];
+                for (a, g, law) in &stops {
+                    let h = &law.density[stop];
+                    let b = law.atom[stop];
+                    let conv = g.as_ref().map(|g| g.convolve_many(h, points));
+                    for (k, &t) in points.iter().enumerate() {
+                        let mut v = a * h.eval(t);
+                        if let Some(g) = g {
+                            v += b * g.eval(t);
+                        }
+                        if let Some(c) = &conv {
+                            v += c[k];
+                        }
+                        out[k] += v;
+                    }
+                }
+                Ok(out)
+            })?
+            .remove(0);
+        let go_density = density.unwrap_or_else(|| Interpolant::zero(self.end));
+        let mut law = Law {
+            atom: [0.0; 2],
+            density: [Interpolant::zero(self.end), Interpolant::zero(self.end)],
+        };
+        law.atom[go] = atom;
+        law.atom[stop] = stop_atom;
+        law.density[go] = go_density;
+        law.density[stop] = stop_density;
+        Ok(law)
+    }
+
+    /// The density of `(a δ₀ + g) ⊛ (b δ₀ + h)`: `a h + b g + g * h`.
+    fn convolve(
+        &self,
+        id: NodeId,
+        a: f64,
+        g: Option<&Interpolant>,
+        b: f64,
+        h: &Interpolant,
+    ) -> Result<Interpolant, AnalysisError> {
+        let Some(g) = g else {
+            return Ok(h.scaled(a));
+        };
+        Ok(self
+            .interpolate(id, 1, |points| {
+                let conv = g.convolve_many(h, points);
+                Ok(points
+                    .iter()
+                    .zip(conv)
+                    .map(|(&t, c)| a * h.eval(t) + b * g.eval(t) + c)
+                    .collect())
+            })?
+            .remove(0))
+    }
+}

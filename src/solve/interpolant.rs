@@ -1,0 +1,449 @@
+//! Piecewise Chebyshev interpolants of functions on `[0, T]`: built
+//! adaptively from batched samples, integrated exactly, and convolved with
+//! Gauss–Legendre rules that are exact for products of the panels'
+//! polynomials.
+//!
+//! This is the representation of outcome densities that have no phase chain
+//! (`crate::curve`'s laws). On each panel the function is sampled at the
+//! [`POINTS`] Chebyshev points of the second kind and represented by the
+//! interpolating polynomial (barycentric formula). A panel is accepted when
+//! the last two Chebyshev coefficients, times the panel's width, are below
+//! [`MASS_TOLERANCE`]: for an analytic function the coefficients decay
+//! geometrically, so the tail is an *estimate* of the interpolation error
+//! (the usual Chebfun criterion, not a bound), and width × error bounds the
+//! error of the probability mass carried by the panel. Otherwise the panel
+//! is halved. For the densities of phase-type laws and their compositions,
+//! which are entire, a few dozen panels reach that tolerance; tests check
+//! integrals and convolutions against closed forms.
+//!
+//! Given the polynomial pieces, integrals are exact (Clenshaw–Curtis
+//! weights on whole panels, Gauss–Legendre with enough points on partial
+//! ones), and so is the convolution `∫_0^t f(v) g(t − v) dv` up to
+//! rounding: `[0, t]` is cut at the panel edges of `f` and at `t` minus
+//! those of `g`, and on each piece both factors are polynomials of degree
+//! `POINTS − 1`, integrated exactly by the `POINTS`-point Gauss rule.
+
+use std::sync::OnceLock;
+
+use rayon::prelude::*;
+
+use super::quadrature::GaussLegendre;
+
+/// Chebyshev points per panel (polynomial degree `POINTS − 1`).
+pub const POINTS: usize = 17;
+
+/// Accepted estimate of a panel's error in probability mass.
+pub const MASS_TOLERANCE: f64 = 1e-15;
+
+/// Most rounds of halving before giving up.
+const MAX_ROUNDS: usize = 64;
+
+/// Shared constants of the panel basis.
+struct Basis {
+    /// Chebyshev points of the second kind on `[-1, 1]`, decreasing.
+    nodes: [f64; POINTS],
+    /// Barycentric weights.
+    bary: [f64; POINTS],
+    /// Row k: the map from values to the k-th Chebyshev coefficient.
+    coefficients: Vec<[f64; POINTS]>,
+    /// Clenshaw–Curtis weights on `[-1, 1]` (exact for the interpolant).
+    integral: [f64; POINTS],
+    /// Gauss–Legendre rule with `POINTS` points.
+    gauss: GaussLegendre,
+}
+
+fn basis() -> &'static Basis {
+    static BASIS: OnceLock<Basis> = OnceLock::new();
+    BASIS.get_or_init(|| {
+        let n = POINTS - 1;
+        let pi = std::f64::consts::PI;
+        let nodes: [f64; POINTS] = std::array::from_fn(|j| (pi * j as f64 / n as f64).cos());
+        let bary: [f64; POINTS] = std::array::from_fn(|j| {
+            let s = if j % 2 == 0 { 1.0 } else { -1.0 };
+            if j == 0 || j == n {
+                s / 2.0
+            } else {
+                s
+            }
+        });
+        // c_k = (2/n) Σ_j'' f_j cos(π j k / n), halved for k = 0 and k = n
+        let coefficients: Vec<[f64; POINTS]> = (0..POINTS)
+            .map(|k| {
+                std::array::from_fn(|j| {
+                    let mut w = 2.0 / n as f64 * (pi * (j * k) as f64 / n as f64).cos();
+                    if j == 0 || j == n {
+                        w /= 2.0;
+                    }
+                    if k == 0 || k == n {
+                        w /= 2.0;
+                    }
+                    w
+                })
+            })
+            .collect();
+        // ∫ T_k = 2 / (1 − k²) for even k, 0 for odd k
+        let integral: [f64; POINTS] = std::array::from_fn(|j| {
+            (0..POINTS)
+                .step_by(2)
+                .map(|k| coefficients[k][j] * 2.0 / (1.0 - (k * k) as f64))
+                .sum()
+        });
+        Basis {
+            nodes,
+            bary,
+            coefficients,
+            integral,
+            gauss: GaussLegendre::new(POINTS),
+        }
+    })
+}
+
+/// The Chebyshev points of panel `[a, b]`.
+pub fn panel_points(a: f64, b: f64) -> [f64; POINTS] {
+    let (c, h) = ((a + b) / 2.0, (b - a) / 2.0);
+    let nodes = &basis().nodes;
+    std::array::from_fn(|j| {
+        if j == 0 {
+            b
+        } else if j == POINTS - 1 {
+            a
+        } else {
+            c + h * nodes[j]
+        }
+    })
+}
+
+/// A function on `[edges[0], edges[last]]`, one polynomial per panel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Interpolant {
+    /// Panel end points, increasing.
+    edges: Vec<f64>,
+    /// Values at each panel's [`panel_points`], `POINTS` per panel.
+    values: Vec<f64>,
+    /// `∫` from `edges[0]` to `edges[k]`.
+    prefix: Vec<f64>,
+    /// Largest absolute value on each panel's points.
+    scale: Vec<f64>,
+}
+
+/// Why an interpolant could not be built.
+#[derive(Debug, Clone, PartialEq)]
+pub enum BuildError<E> {
+    /// The sampler failed.
+    Sample(E),
+    /// Some panel did not converge after [`MAX_ROUNDS`] halvings, or a
+    /// sample was not finite.
+    NotConverged,
+}
+
+impl Interpolant {
+    /// The zero function on `[0, end]`.
+    pub fn zero(end: f64) -> Interpolant {
+        Interpolant {
+            edges: vec![0.0, end],
+            values: vec![0.0; POINTS],
+            prefix: vec![0.0, 0.0],
+            scale: vec![0.0],
+        }
+    }
+
+    fn from_panels(mut panels: Vec<(f64, f64, [f64; POINTS])>) -> Interpolant {
+        panels.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let b = basis();
+        let mut edges = Vec::with_capacity(panels.len() + 1);
+        let mut values = Vec::with_capacity(panels.len() * POINTS);
+        let mut prefix = vec![0.0];
+        let mut scale = Vec::with_capacity(panels.len());
+        let mut acc = 0.0;
+        for (a, bb, v) in &panels {
+            edges.push(*a);
+            values.extend_from_slice(v);
+            acc += (bb - a) / 2.0 * v.iter().zip(&b.integral).map(|(x, w)| x * w).sum::<f64>();
+            prefix.push(acc);
+            scale.push(v.iter().fold(0.0f64, |m, x| m.max(x.abs())));
+        }
+        edges.push(panels.last().map_or(0.0, |p| p.1));
+        Interpolant {
+            edges,
+            values,
+            prefix,
+            scale,
+        }
+    }
+
+    /// Panel end points.
+    pub fn edges(&self) -> &[f64] {
+        &self.edges
+    }
+
+    /// Number of panels.
+    pub fn panels(&self) -> usize {
+        self.edges.len() - 1
+    }
+
+    /// Right end of the domain.
+    pub fn end(&self) -> f64 {
+        self.edges[self.edges.len() - 1]
+    }
+
+    /// Integral over the whole domain.
+    pub fn total(&self) -> f64 {
+        self.prefix[self.prefix.len() - 1]
+    }
+
+    /// The panel holding `t` (clamped to the domain).
+    fn panel_of(&self, t: f64) -> usize {
+        let k = self.edges.partition_point(|&e| e <= t);
+        k.clamp(1, self.panels()) - 1
+    }
+
+    /// The interpolant of panel `k` at `t` (barycentric formula).
+    fn eval_in(&self, k: usize, t: f64) -> f64 {
+        if self.scale[k] == 0.0 {
+            return 0.0;
+        }
+        let (a, b) = (self.edges[k], self.edges[k + 1]);
+        let x = if b > a {
+            (2.0 * t - a - b) / (b - a)
+        } else {
+            0.0
+        };
+        let basis = basis();
+        let v = &self.values[k * POINTS..(k + 1) * POINTS];
+        let (mut num, mut den) = (0.0, 0.0);
+        for ((&node, &bary), &value) in basis.nodes.iter().zip(&basis.bary).zip(v) {
+            let d = x - node;
+            if d == 0.0 {
+                return value;
+            }
+            let w = bary / d;
+            num += w * value;
+            den += w;
+        }
+        num / den
+    }
+
+    /// The value at `t` (0 outside the domain).
+    pub fn eval(&self, t: f64) -> f64 {
+        if !(t >= self.edges[0] && t <= self.end()) {
+            return 0.0;
+        }
+        self.eval_in(self.panel_of(t), t)
+    }
+
+    /// `∫` from the domain's start to `t` (clamped to the domain).
+    pub fn integral_to(&self, t: f64) -> f64 {
+        if t <= self.edges[0] {
+            return 0.0;
+        }
+        if t >= self.end() {
+            return self.total();
+        }
+        let k = self.panel_of(t);
+        let a = self.edges[k];
+        let (c, h) = ((a + t) / 2.0, (t - a) / 2.0);
+        let g = &basis().gauss;
+        let part: f64 = g
+            .nodes
+            .iter()
+            .zip(&g.weights)
+            .map(|(x, w)| w * self.eval_in(k, c + h * x))
+            .sum();
+        self.prefix[k] + h * part
+    }
+
+    /// `c · self`.
+    pub fn scaled(&self, c: f64) -> Interpolant {
+        Interpolant {
+            edges: self.edges.clone(),
+            values: self.values.iter().map(|v| c * v).collect(),
+            prefix: self.prefix.iter().map(|v| c * v).collect(),
+            scale: self.scale.iter().map(|v| c.abs() * v).collect(),
+        }
+    }
+
+    /// `∫_0^t self(v) g(t − v) dv` (both functions taken as 0 outside their
+    /// domains, which start at 0): exact for the polynomial pieces, up to
+    /// rounding.
+    pub fn convolve_at(&self, g: &Interpolant, t: f64) -> f64 {
+        if t <= 0.0 {
+            return 0.0;
+        }
+        let rule = &basis().gauss;
+        // cuts: own edges and t − g's edges, inside (0, t)
+        let mut cuts: Vec<f64> = Vec::with_capacity(self.edges.len() + g.edges.len() + 2);
+        cuts.push(0.0);
+        cuts.extend(self.edges.iter().copied().filter(|&e| e > 0.0 && e < t));
+        cuts.extend(g.edges.iter().map(|&e| t - e).filter(|&e| e > 0.0 && e < t));
+        cuts.push(t.min(self.end()));
+        cuts.sort_by(f64::total_cmp);
+        let mut total = 0.0;
+        for w in cuts.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            if b <= a {
+                continue;
+            }
+            let mid = (a + b) / 2.0;
+            if mid > self.end() || t - mid > g.end() {
+                continue;
+            }
+            let (kf, kg) = (self.panel_of(mid), g.panel_of(t - mid));
+            if self.scale[kf] == 0.0 || g.scale[kg] == 0.0 {
+                continue;
+            }
+            let (c, h) = (mid, (b - a) / 2.0);
+            let part: f64 = rule
+                .nodes
+                .iter()
+                .zip(&rule.weights)
+                .map(|(x, wt)| {
+                    let v = c + h * x;
+                    wt * self.eval_in(kf, v) * g.eval_in(kg, t - v)
+                })
+                .sum();
+            total += h * part;
+        }
+        total
+    }
+
+    /// [`Self::convolve_at`] at many times (in parallel).
+    pub fn convolve_many(&self, g: &Interpolant, times: &[f64]) -> Vec<f64> {
+        times
+            .par_iter()
+            .with_min_len(64)
+            .map(|&t| self.convolve_at(g, t))
+            .collect()
+    }
+}
+
+/// Builds `k` interpolants on shared panels of `[0, end]`. `sample` gets a
+/// batch of points and returns `k` values per point (row-major). Panels
+/// start from a grid graded towards 0 and are halved until every
+/// component's Chebyshev tail, times the panel's width, is below
+/// [`MASS_TOLERANCE`] (or its rounding floor).
+pub fn build<E>(
+    end: f64,
+    k: usize,
+    mut sample: impl FnMut(&[f64]) -> Result<Vec<f64>, E>,
+) -> Result<Vec<Interpolant>, BuildError<E>> {
+    if end <= 0.0 {
+        return Ok(vec![Interpolant::zero(end.max(0.0)); k]);
+    }
+    const GRID: [f64; 16] = [
+        0.0, 1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 0.03, 0.1, 0.2, 0.35, 0.5, 0.65, 0.8, 1.0,
+    ];
+    let mut pending: Vec<(f64, f64)> = GRID.windows(2).map(|g| (g[0] * end, g[1] * end)).collect();
+    let mut done: Vec<Vec<(f64, f64, [f64; POINTS])>> = vec![Vec::new(); k];
+    let basis = basis();
+    for _ in 0..MAX_ROUNDS {
+        if pending.is_empty() {
+            return Ok(done.into_iter().map(Interpolant::from_panels).collect());
+        }
+        let points: Vec<f64> = pending
+            .iter()
+            .flat_map(|&(a, b)| panel_points(a, b))
+            .collect();
+        let values = sample(&points).map_err(BuildError::Sample)?;
+        if values.len() != points.len() * k || values.iter().any(|v| !v.is_finite()) {
+            return Err(BuildError::NotConverged);
+        }
+        let mut next = Vec::new();
+        for (p, &(a, b)) in pending.iter().enumerate() {
+            let width = b - a;
+            let panel: Vec<[f64; POINTS]> = (0..k)
+                .map(|c| std::array::from_fn(|j| values[(p * POINTS + j) * k + c]))
+                .collect();
+            let converged = panel.iter().all(|v| {
+                let coefficient = |i: usize| {
+                    basis.coefficients[i]
+                        .iter()
+                        .zip(v)
+                        .map(|(w, x)| w * x)
+                        .sum::<f64>()
+                        .abs()
+                };
+                let tail = coefficient(POINTS - 1) + coefficient(POINTS - 2);
+                let scale = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+                tail * width <= MASS_TOLERANCE || tail <= 64.0 * f64::EPSILON * scale
+            });
+            // panels narrower than rounding can resolve are taken as they are
+            if converged || width <= 1e-13 * end {
+                for (c, v) in panel.into_iter().enumerate() {
+                    done[c].push((a, b, v));
+                }
+            } else {
+                let m = (a + b) / 2.0;
+                next.push((a, m));
+                next.push((m, b));
+            }
+        }
+        pending = next;
+    }
+    Err(BuildError::NotConverged)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn build1(end: f64, f: impl Fn(f64) -> f64) -> Interpolant {
+        build::<()>(end, 1, |pts| Ok(pts.iter().map(|&t| f(t)).collect()))
+            .unwrap()
+            .remove(0)
+    }
+
+    #[test]
+    fn interpolates_and_integrates_exponential_densities() {
+        // density of Exp(3) on [0, 10]: CDF 1 − e^{−3t}
+        let f = build1(10.0, |t| 3.0 * (-3.0 * t).exp());
+        for t in [0.0, 1e-6, 0.01, 0.3, 1.0, 2.5, 9.99, 10.0] {
+            assert!((f.eval(t) - 3.0 * (-3.0 * t).exp()).abs() < 1e-12, "t={t}");
+            let cdf = -(-3.0 * t).exp_m1();
+            assert!((f.integral_to(t) - cdf).abs() < 1e-13, "t={t}");
+        }
+        assert!(f.panels() < 40, "{} panels", f.panels());
+    }
+
+    #[test]
+    fn stiff_density_is_resolved_near_zero() {
+        // a mixture of rates 1e5 and 1e-3 on [0, 1e4]
+        let f = build1(1e4, |t| {
+            0.5 * 1e5 * (-1e5 * t).exp() + 0.5 * 1e-3 * (-1e-3 * t).exp()
+        });
+        for t in [1e-6f64, 1e-5, 1e-3, 1.0, 100.0, 1e4] {
+            let cdf = 0.5 * -(-1e5 * t).exp_m1() + 0.5 * -(-1e-3 * t).exp_m1();
+            assert!((f.integral_to(t) - cdf).abs() < 1e-12, "t={t}");
+        }
+    }
+
+    #[test]
+    fn convolution_of_two_exponentials_is_hypoexponential() {
+        // Exp(1) * Exp(2): density 2(e^{−t} − e^{−2t})
+        let (a, b) = (1.0, 2.0);
+        let f = build1(20.0, |t| a * (-a * t).exp());
+        let g = build1(20.0, |t| b * (-b * t).exp());
+        for t in [0.0, 0.1, 1.0, 3.0, 7.5, 20.0] {
+            let exact = a * b / (b - a) * ((-a * t).exp() - (-b * t).exp());
+            assert!((f.convolve_at(&g, t) - exact).abs() < 1e-13, "t={t}");
+            assert!((g.convolve_at(&f, t) - exact).abs() < 1e-13, "t={t}");
+        }
+    }
+
+    #[test]
+    fn outside_the_domain_is_zero() {
+        let f = build1(2.0, |_| 1.0);
+        assert_eq!(f.eval(-1.0), 0.0);
+        assert_eq!(f.eval(2.5), 0.0);
+        assert!((f.integral_to(5.0) - 2.0).abs() < 1e-14);
+        assert!((f.total() - 2.0).abs() < 1e-14);
+        assert_eq!(Interpolant::zero(1.0).integral_to(1.0), 0.0);
+    }
+
+    #[test]
+    fn sampler_errors_and_non_finite_values_are_reported() {
+        let e = build::<&str>(1.0, 1, |_| Err("no")).unwrap_err();
+        assert_eq!(e, BuildError::Sample("no"));
+        let e = build::<()>(1.0, 1, |p| Ok(vec![f64::NAN; p.len()])).unwrap_err();
+        assert_eq!(e, BuildError::NotConverged);
+    }
+}
