@@ -135,22 +135,6 @@ pub enum AnalysisError {
         /// The budget.
         budget: usize,
     },
-    /// A Parallel counted for its mean times has a child without a phase
-    /// chain (typically one holding a wide Parallel).
-    #[error(
-        "the mean times of Parallel node '{node}' need its children's phase chains, but the \
-         chain of '{inner}' below it would have up to {states:.3e} states (a wide Parallel is \
-         counted, not multiplied out); `btrel curve` answers for this tree, `btrel simulate` \
-         estimates its mean times, or raise --max-states"
-    )]
-    NestedWideParallel {
-        /// The Parallel whose mean times are asked.
-        node: String,
-        /// The node below it whose chain is too large.
-        inner: String,
-        /// That chain's size bound.
-        states: f64,
-    },
     /// A subtree mixes deterministic (or hybrid) and stochastic times, which
     /// has neither a finite phase chain nor finitely many atoms.
     #[error(
@@ -317,7 +301,9 @@ fn node_figures(
             Method::Exact,
         ) => {
             if failure_threshold == children.len() + 1 - success_threshold {
-                if let Some(f) = parallel_by_counts(tree, id, success_threshold, options)? {
+                if let Some(f) =
+                    parallel_by_counts(tree, id, success_threshold, &child_figs, options)?
+                {
                     return Ok(f);
                 }
             }
@@ -348,12 +334,14 @@ pub const PRODUCT_LIMIT: f64 = 20_000.0;
 
 /// Figures of a Parallel node with the book's thresholds by counting its
 /// children ([`counts`]), when its product chain would be larger than
-/// [`PRODUCT_LIMIT`]. `Ok(None)` when the product is small enough, or when a
+/// [`PRODUCT_LIMIT`] (or than the budget's Parallel share). `Ok(None)` when
+/// the product is small enough, or when a
 /// child has no phase chain (deterministic times: the atoms path applies).
 fn parallel_by_counts(
     tree: &Tree,
     id: NodeId,
     m: usize,
+    child_figs: &[Figures],
     options: &Options,
 ) -> Result<Option<Figures>, AnalysisError> {
     let node = tree.node(id);
@@ -363,22 +351,35 @@ fn parallel_by_counts(
         match phase::phase_chain(tree, c, options.max_states) {
             Ok(chain) => chains.push(chain),
             Err(AnalysisError::NotMarkovian { .. }) => return Ok(None),
-            Err(AnalysisError::StateBudget {
-                node: inner,
-                states,
-                ..
-            }) => {
-                return Err(AnalysisError::NestedWideParallel {
-                    node: node.name.clone(),
-                    inner,
-                    states,
-                })
+            Err(AnalysisError::StateBudget { .. }) => {
+                // a child holds a wide Parallel itself: the outcome
+                // probabilities by counting the children's, the mean times
+                // from the node's composed law
+                let outcomes: Vec<(f64, f64)> = child_figs.iter().map(|f| (f.ps, f.pf)).collect();
+                let (ps, pf) = counts::status_by_counts(&outcomes, m, children.len() + 1 - m);
+                let means: Vec<f64> = child_figs.iter().map(Figures::mean_time).collect();
+                let [ts, tf] = crate::curve::law::counted_parallel_times(
+                    tree,
+                    id,
+                    m,
+                    &means,
+                    options.max_states,
+                )?;
+                return Ok(Some(Figures {
+                    ps,
+                    pf,
+                    mtts: (ps > 0.0).then(|| ts / ps),
+                    mttf: (pf > 0.0).then(|| tf / pf),
+                }));
             }
             Err(e) => return Err(e),
         }
     }
     let product: f64 = chains.iter().map(|c| (c.len() + 2) as f64).product();
-    if product <= PRODUCT_LIMIT {
+    // the product chain is built only where it is both small and within the
+    // budget's Parallel share (beyond which `phase` refuses it)
+    let share = (options.max_states / phase::BOOK_PARALLEL_SHARE) as f64;
+    if product <= PRODUCT_LIMIT.min(share) {
         return Ok(None);
     }
     let laws: Vec<counts::ChildLaw> = chains.into_iter().map(counts::ChildLaw::new).collect();

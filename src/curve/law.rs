@@ -39,7 +39,9 @@ use super::CurveOptions;
 use crate::compile::{counts, phase, AnalysisError};
 use crate::solve::chain::PhaseChain;
 use crate::solve::interpolant::{build, BuildError, Interpolant};
-use crate::solve::transient::{transient_weighted, CurvePoint};
+use crate::solve::transient::{
+    absorption_by_phase, transient_split, transient_weighted, CurvePoint,
+};
 use crate::tree::{Decorator, NodeId, NodeKind, Tree};
 
 /// Dropped Poisson mass in each sampled density.
@@ -101,6 +103,87 @@ pub(super) fn curve_by_laws(
             }
         })
         .collect())
+}
+
+/// Accepted bound on the time the children may still run beyond the
+/// horizon, relative to the node's mean time.
+const MEAN_TOLERANCE: f64 = 1e-11;
+
+/// Most doublings of the horizon for [`counted_parallel_times`].
+const MAX_DOUBLINGS: usize = 40;
+
+/// `[E[T·1{S}], E[T·1{F}]]` of Parallel `id` with the book's thresholds
+/// (success threshold `m`), some of whose children have no chain, given the
+/// children's exact mean times `E[T_h]` (`ps·MTTS + pf·MTTF`).
+///
+/// The node's law is built on `[0, T]` and its first moments taken. What
+/// they miss is `E[T·1{o}; T_node > T] ≤ ∫_T^∞ P(T_node > t) dt ≤ Σ_h
+/// E[(T_h − T)⁺]` (the node returns by the time all its children have),
+/// and each child's `E[(T_h − T)⁺]` is known: `∫_T^∞ P(running)` by
+/// uniformization for a child with a chain, `E[T_h] − E[min(T_h, T)]` from
+/// its law otherwise. `T` starts at 4 × the largest `E[T_h]` and doubles
+/// until that remainder is below 1e-11 of the node's mean time (or at the
+/// rounding floor of the children's mean times). The error of the result is
+/// that remainder plus the interpolation's estimate.
+pub(crate) fn counted_parallel_times(
+    tree: &Tree,
+    id: NodeId,
+    m: usize,
+    child_mean_times: &[f64],
+    max_states: usize,
+) -> Result<[f64; 2], AnalysisError> {
+    let children = tree.node(id).kind.children();
+    let longest = child_mean_times.iter().copied().fold(0.0, f64::max);
+    if longest == 0.0 {
+        return Ok([0.0, 0.0]);
+    }
+    let floor = 64.0 * f64::EPSILON * child_mean_times.iter().sum::<f64>();
+    let mut end = 4.0 * longest;
+    for _ in 0..MAX_DOUBLINGS {
+        let b = Builder {
+            tree,
+            end,
+            max_states,
+        };
+        let pieces = children
+            .iter()
+            .map(|&c| b.piece(c))
+            .collect::<Result<Vec<_>, _>>()?;
+        let law = b.counted_from(id, children, &pieces, m)?;
+        let moments = [
+            law.density[SUCCESS].first_moment(),
+            law.density[FAILURE].first_moment(),
+        ];
+        let mut beyond = 0.0;
+        for ((piece, &mean), &c) in pieces.iter().zip(child_mean_times).zip(children) {
+            beyond += match piece {
+                Piece::Chain(chain) => {
+                    let absorption = absorption_by_phase(chain);
+                    let p = transient_split(chain, &[end], SAMPLE_TOLERANCE, &absorption)
+                        .ok_or_else(|| AnalysisError::Stiff {
+                            node: b.name(c),
+                            work: f64::INFINITY,
+                            limit: super::DEFAULT_MAX_WORK,
+                        })?;
+                    p[0].time_to_success + p[0].time_to_failure
+                }
+                Piece::Law(l) => {
+                    let done =
+                        l.density[SUCCESS].first_moment() + l.density[FAILURE].first_moment();
+                    let running = 1.0 - l.cdf(SUCCESS, end) - l.cdf(FAILURE, end);
+                    (mean - done - end * running.max(0.0)).max(0.0)
+                }
+            };
+        }
+        if beyond <= MEAN_TOLERANCE * (moments[0] + moments[1]) || beyond <= floor {
+            return Ok(moments);
+        }
+        end *= 2.0;
+    }
+    Err(AnalysisError::Numerical {
+        node: tree.node(id).name.clone(),
+        what: "its mean times did not converge on growing horizons".into(),
+    })
 }
 
 struct Builder<'a> {
@@ -230,6 +313,17 @@ impl Builder<'_> {
             .iter()
             .map(|&c| self.piece(c))
             .collect::<Result<Vec<_>, _>>()?;
+        self.counted_from(id, children, &pieces, m)
+    }
+
+    /// [`Self::counted`] from the children's pieces.
+    fn counted_from(
+        &self,
+        id: NodeId,
+        children: &[NodeId],
+        pieces: &[Piece],
+        m: usize,
+    ) -> Result<Law, AnalysisError> {
         let f_cap = children.len() + 1 - m;
         let atoms: Vec<(f64, f64)> = pieces
             .iter()

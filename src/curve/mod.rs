@@ -25,7 +25,7 @@ use crate::tree::{Duration, NodeId, NodeKind, Tree};
 
 pub use crate::solve::transient::CurvePoint;
 
-mod law;
+pub(crate) mod law;
 
 /// How action times are taken.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
