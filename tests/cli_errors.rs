@@ -970,15 +970,28 @@ fn analysis_errors_exit_1() {
         .success();
     btrel().arg("check").arg(&f.path).assert().success();
 
-    // a state budget too small for the 3-child Parallel
+    // a state budget too small for a Parallel whose independent failure
+    // threshold needs its product chain
+    let f = fixture(
+        "independent.yaml",
+        b"tree: {parallel: {success_threshold: 2, failure_threshold: 1, children: \
+          [{action: {ps: 0.9, mu: 1, nu: 2}}, {action: {ps: 0.8, mu: 2, nu: 1}}, {action: {ps: 0.7, mu: 1, nu: 1}}]}}\n",
+    );
     let out = btrel()
         .args(["report", "--max-states", "2"])
-        .arg(repo("trees/two-arm-parallel.yaml"))
+        .arg(&f.path)
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(1));
     assert!(out.stdout.is_empty());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--max-states"));
+    // with the book's thresholds the same budget is enough: the Parallels
+    // are counted, not multiplied out
+    btrel()
+        .args(["report", "--max-states", "2"])
+        .arg(repo("trees/two-arm-parallel.yaml"))
+        .assert()
+        .success();
 }
 
 #[test]

@@ -576,6 +576,11 @@ fn run(args: &[&str]) -> Run {
     }
 }
 
+/// A Parallel whose failure threshold (1) is below N − M + 1: whichever
+/// threshold is met first wins, so it needs its product chain (16 states).
+const INDEPENDENT_PARALLEL: &str = "tree: {parallel: {success_threshold: 2, failure_threshold: 1, \
+    children: [{action: {ps: 0.9, mu: 1, nu: 2}}, {action: {ps: 0.8, mu: 2, nu: 1}}, {action: {ps: 0.7, mu: 1, nu: 1}}]}}\n";
+
 fn temp_tree(yaml: &str) -> (tempfile::TempDir, String) {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("t.yaml");
@@ -775,18 +780,12 @@ fn a_failed_command_leaves_the_existing_output_untouched() {
     let out = dir.path().join("existing.txt");
     let bad = dir.path().join("bad.yaml");
     std::fs::write(&bad, "tree: {action: {ps: 2}}\n").unwrap();
+    let (_independent_dir, independent) = temp_tree(INDEPENDENT_PARALLEL);
     let o = out.to_str().unwrap();
     let b = bad.to_str().unwrap();
     for args in [
         vec!["report", b, "-o", o],
-        vec![
-            "report",
-            "trees/two-arm-parallel.yaml",
-            "--max-states",
-            "2",
-            "-o",
-            o,
-        ],
+        vec!["report", &independent, "--max-states", "2", "-o", o],
         vec![
             "curve",
             SG,
@@ -920,14 +919,17 @@ fn exit_codes_follow_the_readme() {
         assert_eq!(r.code, 2, "{args:?}: {}", r.stderr);
         assert!(r.stdout.is_empty(), "{args:?}");
     }
-    // 1: the analysis cannot be done as asked
-    let r = run(&["report", "trees/two-arm-parallel.yaml", "--max-states", "2"]);
+    // 1: the analysis cannot be done as asked (an independent failure
+    // threshold needs the product chain)
+    let (_dir, independent) = temp_tree(INDEPENDENT_PARALLEL);
+    let r = run(&["report", &independent, "--max-states", "2"]);
     assert_eq!(r.code, 1, "{}", r.stderr);
     assert!(r.stdout.is_empty());
 }
 
 #[test]
 fn every_error_says_what_to_do() {
+    let (_independent_dir, independent) = temp_tree(INDEPENDENT_PARALLEL);
     let dir = tempfile::tempdir().unwrap();
     let write = |name: &str, text: &str| {
         let p = dir.path().join(name);
@@ -967,7 +969,7 @@ fn every_error_says_what_to_do() {
         vec!["curve", SG, "--times", "-1"],
         vec!["curve", SG, "--node", "no such node", "--times", "1"],
         vec!["simulate", SG, "--runs", "ten"],
-        vec!["report", "trees/two-arm-parallel.yaml", "--max-states", "2"],
+        vec!["report", &independent, "--max-states", "2"],
         vec!["report", SG, "--mc", "100", "--format", "csv"],
         vec!["report", SG, "--bogus-flag"],
     ];

@@ -26,9 +26,10 @@
 //!   ab δ₀ + a h + b g + g * h`. A Fallback is the same with the outcomes
 //!   exchanged. Consecutive children with phase chains are concatenated
 //!   into one chain first (exact, and fewer convolutions);
-//! * Retry N and Repeat N are a Fallback and a Sequence of N copies (the
-//!   fold stops once the mass still going on within `[0, T]` is below
-//!   1e-17); inverter and force decorators exchange or merge the outcomes.
+//! * Retry N and Repeat N are a Fallback and a Sequence of N copies,
+//!   composed by binary powering (O(log N) convolutions, stopped once the
+//!   mass still going on within `[0, T]` is negligible); inverter and force
+//!   decorators exchange or merge the outcomes.
 //!
 //! A Parallel with independent failure threshold has no such decomposition
 //! (which threshold is met first depends on the joint times) and keeps its
@@ -47,7 +48,7 @@ use crate::tree::{Decorator, NodeId, NodeKind, Tree};
 /// Dropped Poisson mass in each sampled density.
 const SAMPLE_TOLERANCE: f64 = 1e-16;
 
-/// Mass below which a Retry/Repeat fold stops.
+/// Mass below which the rest of a fold is dropped.
 const NEGLIGIBLE: f64 = 1e-17;
 
 const SUCCESS: usize = 0;
@@ -63,6 +64,14 @@ struct Law {
 }
 
 impl Law {
+    /// The part of the law with outcome `o`.
+    fn measure(&self, o: usize) -> Measure {
+        Measure {
+            atom: self.atom[o],
+            density: Some(self.density[o].clone()),
+        }
+    }
+
     /// P(returned outcome `o` by t).
     fn cdf(&self, o: usize, t: f64) -> f64 {
         self.atom[o] + self.density[o].integral_to(t)
@@ -295,12 +304,8 @@ impl Builder<'_> {
                             }
                         })
                     }
-                    Decorator::Retry { attempts } => {
-                        self.fold(id, std::iter::repeat_n(&law, attempts), false)
-                    }
-                    Decorator::Repeat { times } => {
-                        self.fold(id, std::iter::repeat_n(&law, times), true)
-                    }
+                    Decorator::Retry { attempts } => self.repeated(id, &law, attempts, false),
+                    Decorator::Repeat { times } => self.repeated(id, &law, times, true),
                 }
             }
             _ => Err(budget_error),
@@ -406,92 +411,147 @@ impl Builder<'_> {
         if !run.is_empty() {
             laws.push(self.chain_law(id, &phase::concatenate(run, sequence))?);
         }
-        self.fold(id, laws.iter(), sequence)
+        self.fold(id, &laws, sequence)
     }
 
     /// Children's laws run in turn; a Sequence (`sequence`) goes on after a
-    /// Success and stops at a Failure, a Fallback the other way round.
-    fn fold<'l>(
-        &self,
-        id: NodeId,
-        laws: impl Iterator<Item = &'l Law>,
-        sequence: bool,
-    ) -> Result<Law, AnalysisError> {
-        let (go, stop) = if sequence {
-            (SUCCESS, FAILURE)
-        } else {
-            (FAILURE, SUCCESS)
-        };
-        // the law of reaching the next child: atom and density (None = 0)
-        let (mut atom, mut density): (f64, Option<Interpolant>) = (1.0, None);
-        let mut stop_atom = 0.0;
-        // stopping terms: (reach atom, reach density, child's stop law)
-        let mut stops: Vec<(f64, Option<Interpolant>, &Law)> = Vec::new();
+    /// Success and stops at a Failure, a Fallback the other way round:
+    /// `G_0 = δ₀`, `G_k = G_{k−1} ⊛ go_k`, stopping with `Σ_k G_{k−1} ⊛ stop_k`.
+    fn fold(&self, id: NodeId, laws: &[Law], sequence: bool) -> Result<Law, AnalysisError> {
+        let (go, stop) = outcomes(sequence);
+        let mut reach = Measure::unit();
+        let mut stopped = Measure::zero();
         for law in laws {
-            let going = atom + density.as_ref().map_or(0.0, Interpolant::total);
-            if going < NEGLIGIBLE {
+            if reach.mass() < NEGLIGIBLE {
                 break;
             }
-            stop_atom += atom * law.atom[stop];
-            stops.push((atom, density.clone(), law));
-            density =
-                Some(self.convolve(id, atom, density.as_ref(), law.atom[go], &law.density[go])?);
-            atom *= law.atom[go];
+            let here = self.convolve(id, &reach, &law.measure(stop))?;
+            stopped = self.add(id, &stopped, &here)?;
+            reach = self.convolve(id, &reach, &law.measure(go))?;
         }
-        let stop_density = self
-            .interpolate(id, 1, |points| {
-                let mut out = vec![0.0; points.len()];
-                for (a, g, law) in &stops {
-                    let h = &law.density[stop];
-                    let b = law.atom[stop];
-                    let conv = g.as_ref().map(|g| g.convolve_many(h, points));
-                    for (k, &t) in points.iter().enumerate() {
-                        let mut v = a * h.eval(t);
-                        if let Some(g) = g {
-                            v += b * g.eval(t);
-                        }
-                        if let Some(c) = &conv {
-                            v += c[k];
-                        }
-                        out[k] += v;
-                    }
-                }
-                Ok(out)
-            })?
-            .remove(0);
-        let go_density = density.unwrap_or_else(|| Interpolant::zero(self.end));
-        let mut law = Law {
-            atom: [0.0; 2],
-            density: [Interpolant::zero(self.end), Interpolant::zero(self.end)],
-        };
-        law.atom[go] = atom;
-        law.atom[stop] = stop_atom;
-        law.density[go] = go_density;
-        law.density[stop] = stop_density;
-        Ok(law)
+        Ok(self.law_from(go, reach, stopped))
     }
 
-    /// The density of `(a δ₀ + g) ⊛ (b δ₀ + h)`: `a h + b g + g * h`.
-    fn convolve(
+    /// `n` fresh runs of one law in turn (Repeat: a Sequence; Retry: a
+    /// Fallback), by binary powering: with `P_k = go^{⊛k}` and `Q_k = Σ_{j<k}
+    /// go^{⊛j}`, the node goes on with `P_n` and stops with `Q_n ⊛ stop`;
+    /// `P_{2k} = P_k ⊛ P_k`, `Q_{2k} = Q_k + P_k ⊛ Q_k`, `P_{k+1} = P_k ⊛ go`,
+    /// `Q_{k+1} = Q_k + P_k` — O(log n) convolutions. Once `P_k` carries
+    /// less than 1e-17 within the horizon, later runs change nothing there.
+    fn repeated(
         &self,
         id: NodeId,
-        a: f64,
-        g: Option<&Interpolant>,
-        b: f64,
-        h: &Interpolant,
-    ) -> Result<Interpolant, AnalysisError> {
-        let Some(g) = g else {
-            return Ok(h.scaled(a));
+        law: &Law,
+        n: usize,
+        sequence: bool,
+    ) -> Result<Law, AnalysisError> {
+        let (go, stop) = outcomes(sequence);
+        let step = law.measure(go);
+        let (mut p, mut q) = (Measure::unit(), Measure::zero());
+        for bit in (0..usize::BITS - n.leading_zeros()).rev() {
+            // the runs still to add are at most n, each within P_k's mass
+            if p.mass() * (n as f64) < NEGLIGIBLE {
+                break;
+            }
+            let pq = self.convolve(id, &p, &q)?;
+            q = self.add(id, &q, &pq)?;
+            p = self.convolve(id, &p, &p)?;
+            if n >> bit & 1 == 1 {
+                q = self.add(id, &q, &p)?;
+                p = self.convolve(id, &p, &step)?;
+            }
+        }
+        let stopped = self.convolve(id, &q, &law.measure(stop))?;
+        Ok(self.law_from(go, p, stopped))
+    }
+
+    fn law_from(&self, go: usize, going: Measure, stopped: Measure) -> Law {
+        let zero = || Interpolant::zero(self.end);
+        let mut law = Law {
+            atom: [0.0; 2],
+            density: [zero(), zero()],
         };
-        Ok(self
-            .interpolate(id, 1, |points| {
-                let conv = g.convolve_many(h, points);
-                Ok(points
-                    .iter()
-                    .zip(conv)
-                    .map(|(&t, c)| a * h.eval(t) + b * g.eval(t) + c)
-                    .collect())
-            })?
-            .remove(0))
+        law.atom[go] = going.atom;
+        law.atom[1 - go] = stopped.atom;
+        law.density[go] = going.density.unwrap_or_else(zero);
+        law.density[1 - go] = stopped.density.unwrap_or_else(zero);
+        law
+    }
+
+    /// `(a δ₀ + g) ⊛ (b δ₀ + h) = ab δ₀ + a h + b g + g * h`.
+    fn convolve(&self, id: NodeId, x: &Measure, y: &Measure) -> Result<Measure, AnalysisError> {
+        let atom = x.atom * y.atom;
+        let density = match (&x.density, &y.density) {
+            (None, None) => None,
+            (None, Some(h)) => Some(h.scaled(x.atom)),
+            (Some(g), None) => Some(g.scaled(y.atom)),
+            (Some(g), Some(h)) => Some(
+                self.interpolate(id, 1, |points| {
+                    let conv = g.convolve_many(h, points);
+                    Ok(points
+                        .iter()
+                        .zip(conv)
+                        .map(|(&t, c)| x.atom * h.eval(t) + y.atom * g.eval(t) + c)
+                        .collect())
+                })?
+                .remove(0),
+            ),
+        };
+        Ok(Measure { atom, density })
+    }
+
+    fn add(&self, id: NodeId, x: &Measure, y: &Measure) -> Result<Measure, AnalysisError> {
+        let density = match (&x.density, &y.density) {
+            (None, d) | (d, None) => d.clone(),
+            (Some(g), Some(h)) => Some(
+                self.interpolate(id, 1, |points| {
+                    Ok(points.iter().map(|&t| g.eval(t) + h.eval(t)).collect())
+                })?
+                .remove(0),
+            ),
+        };
+        Ok(Measure {
+            atom: x.atom + y.atom,
+            density,
+        })
+    }
+}
+
+/// `(go, stop)`: the outcome on which a Sequence (`sequence`) or Fallback
+/// goes on to its next child, and the one on which it returns.
+fn outcomes(sequence: bool) -> (usize, usize) {
+    if sequence {
+        (SUCCESS, FAILURE)
+    } else {
+        (FAILURE, SUCCESS)
+    }
+}
+
+/// A measure on `[0, T]`: an atom at 0 and a density (`None` = 0).
+#[derive(Debug, Clone)]
+struct Measure {
+    atom: f64,
+    density: Option<Interpolant>,
+}
+
+impl Measure {
+    /// `δ₀`.
+    fn unit() -> Measure {
+        Measure {
+            atom: 1.0,
+            density: None,
+        }
+    }
+
+    fn zero() -> Measure {
+        Measure {
+            atom: 0.0,
+            density: None,
+        }
+    }
+
+    /// Mass within the horizon.
+    fn mass(&self) -> f64 {
+        self.atom.abs() + self.density.as_ref().map_or(0.0, Interpolant::total)
     }
 }
