@@ -3,6 +3,10 @@ use std::time::Instant;
 
 use btrel::report::Exporter;
 
+// as in the `btrel` binary
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() {
     let path = std::env::args().nth(1).expect("usage: phase_timing FILE");
     let t0 = Instant::now();

@@ -62,6 +62,30 @@ const NODE_KINDS: &[&str] = &[
     "repeat",
 ];
 
+impl NodeDef {
+    /// Number of nodes in the definition (iterative: any depth).
+    fn count(&self) -> usize {
+        let mut stack = vec![self];
+        let mut n = 0;
+        while let Some(d) = stack.pop() {
+            n += 1;
+            match d {
+                NodeDef::Sequence(c) | NodeDef::Fallback(c) => {
+                    stack.extend(c.children.value.iter().map(|c| &c.value))
+                }
+                NodeDef::Parallel(p) => stack.extend(p.children.value.iter().map(|c| &c.value)),
+                NodeDef::Action(_) | NodeDef::Condition(_) => {}
+                NodeDef::Inverter(d) | NodeDef::ForceSuccess(d) | NodeDef::ForceFailure(d) => {
+                    stack.push(&d.child.value)
+                }
+                NodeDef::Retry(r) => stack.push(&r.child.value),
+                NodeDef::Repeat(r) => stack.push(&r.child.value),
+            }
+        }
+        n
+    }
+}
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct FileDef {
@@ -306,12 +330,14 @@ pub fn parse_full(source: &str, file: &str, limits: ParseLimits) -> Result<Tree,
 }
 
 fn build(def: FileDef, source: &str, file: &str, limits: &ParseLimits) -> Result<Tree, TreeError> {
+    // one allocation for a million-node tree instead of repeated doubling
+    let count = def.tree.value.count();
     let mut b = Builder {
         source,
         file,
-        nodes: Vec::new(),
+        nodes: Vec::with_capacity(count),
         max_depth: limits.max_depth,
-        locations: Vec::new(),
+        locations: Vec::with_capacity(count),
     };
     b.node(&def.tree, None, 0, "0".into())?;
     b.check_names()?;
@@ -710,7 +736,8 @@ impl Builder<'_> {
     }
 
     fn check_names(&self) -> Result<(), TreeError> {
-        let mut seen: std::collections::HashMap<&str, usize> = std::collections::HashMap::new();
+        let mut seen: std::collections::HashMap<&str, usize> =
+            std::collections::HashMap::with_capacity(self.nodes.len());
         for (i, n) in self.nodes.iter().enumerate() {
             if let Some(&j) = seen.get(n.name.as_str()) {
                 let (l, c) = self.locations[j];
