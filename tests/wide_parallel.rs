@@ -446,6 +446,51 @@ fn three_phase_mission_agrees_with_simulation() {
     }
 }
 
+/// Stiff children (a slow and a fast phase in turn, rates 0.01 and 500):
+/// eight identical Sequences that always succeed, so the node's success
+/// time is the minimum (M = 1) or maximum (M = 8) of eight hypoexponential
+/// times with survival `S(t) = (b e^{−at} − a e^{−bt})/(b − a)`. Expanding
+/// `S^j` binomially gives `∫ S^j = Σ_k C(j,k) (b/(b−a))^{j−k} (−a/(b−a))^k
+/// / ((j−k)a + kb)`, hence `E[min] = ∫ S^8` and `E[max] = Σ_j C(8,j)
+/// (−1)^{j+1} ∫ S^j`. These children take the composed-law path
+/// (largest rate × 32 × mean > 1e5).
+#[test]
+fn stiff_children_match_order_statistics() {
+    fn binom(n: usize, k: usize) -> f64 {
+        (0..k).fold(1.0, |acc, j| acc * (n - j) as f64 / (j + 1) as f64)
+    }
+    let (a, b) = (0.01f64, 500.0f64);
+    let power = |j: usize| -> f64 {
+        (0..=j)
+            .map(|k| {
+                binom(j, k) * (b / (b - a)).powi((j - k) as i32) * (-a / (b - a)).powi(k as i32)
+                    / ((j - k) as f64 * a + k as f64 * b)
+            })
+            .sum()
+    };
+    let child = format!("{{sequence: {{children: [{{action: {{ps: 1, mu: {a}}}}}, {{action: {{ps: 1, mu: {b}}}}}]}}}}");
+    let kids = vec![child; 8].join(", ");
+    for (m, expected) in [
+        (1, power(8)),
+        (
+            8,
+            (1..=8)
+                .map(|j| binom(8, j) * if j % 2 == 1 { 1.0 } else { -1.0 } * power(j))
+                .sum::<f64>(),
+        ),
+    ] {
+        let yaml = format!("tree: {{parallel: {{success_threshold: {m}, children: [{kids}]}}}}");
+        let tree = parse_str(&yaml, "stiff.yaml").unwrap();
+        let a = btrel::analyze(&tree, &Default::default()).unwrap().nodes[0];
+        assert!((a.ps - 1.0).abs() < 1e-14, "{a:?}");
+        let mtts = a.mtts.unwrap();
+        assert!(
+            (mtts - expected).abs() <= 1e-9 * expected,
+            "M = {m}: {mtts} vs {expected}"
+        );
+    }
+}
+
 /// Identical children: given that k of N succeed, the node's success time
 /// is the M-th order statistic of k exponentials of rate mu, with mean
 /// `(1/mu) Σ_{j<M} 1/(k − j)`; so `E[T·1{S}] = Σ_{k≥M} C(N,k) ps^k pf^(N−k)

@@ -351,26 +351,9 @@ fn parallel_by_counts(
         match phase::phase_chain(tree, c, options.max_states) {
             Ok(chain) => chains.push(chain),
             Err(AnalysisError::NotMarkovian { .. }) => return Ok(None),
+            // a child holds a wide Parallel itself
             Err(AnalysisError::StateBudget { .. }) => {
-                // a child holds a wide Parallel itself: the outcome
-                // probabilities by counting the children's, the mean times
-                // from the node's composed law
-                let outcomes: Vec<(f64, f64)> = child_figs.iter().map(|f| (f.ps, f.pf)).collect();
-                let (ps, pf) = counts::status_by_counts(&outcomes, m, children.len() + 1 - m);
-                let means: Vec<f64> = child_figs.iter().map(Figures::mean_time).collect();
-                let [ts, tf] = crate::curve::law::counted_parallel_times(
-                    tree,
-                    id,
-                    m,
-                    &means,
-                    options.max_states,
-                )?;
-                return Ok(Some(Figures {
-                    ps,
-                    pf,
-                    mtts: (ps > 0.0).then(|| ts / ps),
-                    mttf: (pf > 0.0).then(|| tf / pf),
-                }));
+                return means_from_laws(tree, id, m, child_figs, options).map(Some)
             }
             Err(e) => return Err(e),
         }
@@ -381,6 +364,20 @@ fn parallel_by_counts(
     let share = (options.max_states / phase::BOOK_PARALLEL_SHARE) as f64;
     if product <= PRODUCT_LIMIT.min(share) {
         return Ok(None);
+    }
+    // stiff children (fast and slow phases over a long horizon) make the
+    // certified quadrature's uniformization passes and its ellipse bounds
+    // (which grow like e^{Λ·width}) very costly: composed laws instead
+    let longest = child_figs
+        .iter()
+        .map(Figures::mean_time)
+        .fold(0.0, f64::max);
+    let fastest = chains
+        .iter()
+        .flat_map(|c| (0..c.len()).map(|i| c.total_rate(i)))
+        .fold(0.0, f64::max);
+    if fastest * 32.0 * longest > STIFF_STEPS {
+        return means_from_laws(tree, id, m, child_figs, options).map(Some);
     }
     let laws: Vec<counts::ChildLaw> = chains.into_iter().map(counts::ChildLaw::new).collect();
     let (s, f) = counts::parallel_means(&laws, m).map_err(|what| AnalysisError::Numerical {
@@ -393,6 +390,36 @@ fn parallel_by_counts(
         mtts: (s.probability > 0.0).then(|| s.time / s.probability),
         mttf: (f.probability > 0.0).then(|| f.time / f.probability),
     }))
+}
+
+/// Uniformization steps over 32 × the longest child mean beyond which a
+/// counted Parallel's mean times come from composed laws rather than the
+/// certified quadrature (see [`parallel_by_counts`]).
+pub const STIFF_STEPS: f64 = 1e5;
+
+/// Figures of a counted Parallel from composed laws: P(S), P(F) by counting
+/// the children's exact figures, the mean times as first moments of the
+/// node's outcome law ([`crate::curve::law::counted_parallel_times`]; an
+/// error estimate, not a bound). Used when a child holds a wide Parallel
+/// itself, or when the children are stiff.
+fn means_from_laws(
+    tree: &Tree,
+    id: NodeId,
+    m: usize,
+    child_figs: &[Figures],
+    options: &Options,
+) -> Result<Figures, AnalysisError> {
+    let outcomes: Vec<(f64, f64)> = child_figs.iter().map(|f| (f.ps, f.pf)).collect();
+    let (ps, pf) = counts::status_by_counts(&outcomes, m, child_figs.len() + 1 - m);
+    let means: Vec<f64> = child_figs.iter().map(Figures::mean_time).collect();
+    let [ts, tf] =
+        crate::curve::law::counted_parallel_times(tree, id, m, &means, options.max_states)?;
+    Ok(Figures {
+        ps,
+        pf,
+        mtts: (ps > 0.0).then(|| ts / ps),
+        mttf: (pf > 0.0).then(|| tf / pf),
+    })
 }
 
 /// Figures of a decorator from its child's (exact under both methods: the

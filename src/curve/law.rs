@@ -147,13 +147,25 @@ pub(crate) fn counted_parallel_times(
         return Ok([0.0, 0.0]);
     }
     let floor = 64.0 * f64::EPSILON * child_mean_times.iter().sum::<f64>();
-    let mut end = 4.0 * longest;
+    // a start that usually needs no doubling: the slowest phase of the
+    // children with chains has decayed by e^{-30}
+    let slowest = children
+        .iter()
+        .filter_map(|&c| phase::phase_chain(tree, c, max_states).ok())
+        .filter_map(|c| (0..c.len()).map(|i| c.total_rate(i)).reduce(f64::min))
+        .fold(f64::INFINITY, f64::min);
+    let mut end = (4.0 * longest).max(if slowest.is_finite() {
+        30.0 / slowest
+    } else {
+        0.0
+    });
     for _ in 0..MAX_DOUBLINGS {
         let b = Builder {
             tree,
             end,
             max_states,
         };
+        // laws depend on the horizon
         let pieces = children
             .iter()
             .map(|&c| b.piece(c))

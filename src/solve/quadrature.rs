@@ -10,10 +10,10 @@
 //! ```
 //!
 //! (Trefethen, *Is Gauss quadrature better than Clenshaw–Curtis?*, SIAM
-//! Review 50 (2008), Theorem 4.5, stated there for `n + 1` points with
-//! `ρ^{-2n}`; we use the weaker exponent of `n − 1` so that the bound holds
-//! whichever convention is read). On a panel `[a, b]` with half-width `h` the
-//! ellipse is scaled by `h` and the bound multiplied by `h`.
+//! Review 50 (2008), Theorem 4.5: `64 M / (15 (1 − ρ^{-2}) ρ^{2n})` for the
+//! `n`-point rule, which is the same expression; there is no extra margin).
+//! On a panel `[a, b]` with half-width `h` the ellipse is scaled by `h` and
+//! the bound multiplied by `h`.
 
 /// Nodes and weights of the `n`-point Gauss–Legendre rule on `[-1, 1]`.
 #[derive(Debug, Clone, PartialEq)]
