@@ -426,24 +426,30 @@ fn mission_yaml() -> String {
     )
 }
 
+/// The root's π(t) at `times` and its report (ps within 5 binomial standard
+/// errors, MTTS and MTTF within 5 standard errors) against 400,000 runs.
+fn assert_root_agrees_with_simulation(tree: &btrel::Tree, times: &[f64], label: &str) {
+    let exact = curve(tree, 0, times, &CurveOptions::default()).unwrap();
+    let runs = 400_000;
+    let sim = simulated(tree, times, runs);
+    assert_curve_close(&exact, &sim, label);
+    let a = btrel::analyze(tree, &Default::default()).unwrap().nodes[0];
+    let s = &sim.nodes[0];
+    assert!(
+        (a.ps - s.ps.mean).abs() <= 5.0 * binomial_se(a.ps, runs),
+        "{label}: {a:?} vs {s:?}"
+    );
+    for (x, e) in [(a.mtts, s.mtts), (a.mttf, s.mttf)] {
+        let (x, e) = (x.unwrap(), e.unwrap());
+        assert!((x - e.mean).abs() <= 5.0 * e.se, "{label}: {a:?} vs {s:?}");
+    }
+}
+
 #[test]
 fn three_phase_mission_agrees_with_simulation() {
     let tree = parse_str(&mission_yaml(), "mission.yaml").unwrap();
     let times = [2.0, 5.0, 10.0, 20.0];
-    let exact = curve(&tree, 0, &times, &CurveOptions::default()).unwrap();
-    let runs = 400_000;
-    let sim = simulated(&tree, &times, runs);
-    assert_curve_close(&exact, &sim, "mission");
-    let a = btrel::analyze(&tree, &Default::default()).unwrap().nodes[0];
-    let s = &sim.nodes[0];
-    assert!(
-        (a.ps - s.ps.mean).abs() <= 5.0 * binomial_se(a.ps, runs),
-        "{a:?} vs {s:?}"
-    );
-    for (x, e) in [(a.mtts, s.mtts), (a.mttf, s.mttf)] {
-        let (x, e) = (x.unwrap(), e.unwrap());
-        assert!((x - e.mean).abs() <= 5.0 * e.se, "{a:?} vs {s:?}");
-    }
+    assert_root_agrees_with_simulation(&tree, &times, "mission");
 }
 
 /// Stiff children (a slow and a fast phase in turn, rates 0.01 and 500):
@@ -643,20 +649,7 @@ fn parallel_of_nested_wide_parallels() {
     );
     let tree = parse_str(&yaml, "pp.yaml").unwrap();
     let times = [1.0, 2.0, 5.0];
-    let exact = curve(&tree, 0, &times, &CurveOptions::default()).unwrap();
-    let runs = 400_000;
-    let sim = simulated(&tree, &times, runs);
-    assert_curve_close(&exact, &sim, "parallel of nested");
-    let a = btrel::analyze(&tree, &Default::default()).unwrap().nodes[0];
-    let s = &sim.nodes[0];
-    assert!(
-        (a.ps - s.ps.mean).abs() <= 5.0 * binomial_se(a.ps, runs),
-        "{a:?} vs {s:?}"
-    );
-    for (x, e) in [(a.mtts, s.mtts), (a.mttf, s.mttf)] {
-        let (x, e) = (x.unwrap(), e.unwrap());
-        assert!((x - e.mean).abs() <= 5.0 * e.se, "{a:?} vs {s:?}");
-    }
+    assert_root_agrees_with_simulation(&tree, &times, "parallel of nested");
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("pp.yaml");
     std::fs::write(&path, &yaml).unwrap();
