@@ -308,3 +308,30 @@ fn outputs_sum_to_one_and_are_monotone() {
         }
     }
 }
+
+/// A lone action in closed form whatever its timing: hybrid with a fixed
+/// success time (Success w.p. ps at tau_s; Failure w.p. pf at min(X, tau_s),
+/// X ~ Exp(nu)), and hybrid with a fixed failure time, by hand.
+#[test]
+fn hybrid_actions_in_closed_form() {
+    let t = tree("tree: {action: {ps: 0.3, tau_s: 2, nu: 0.5}}");
+    let pts = curve(&t, 0, &[0.0, 1.0, 1.999, 2.0, 5.0], &exact()).unwrap();
+    let expected = [
+        (0.0, 0.0),
+        (0.0, 0.7 * (1.0 - (-0.5f64).exp())),
+        (0.0, 0.7 * (1.0 - (-0.5f64 * 1.999).exp())),
+        (0.3, 0.7),
+        (0.3, 0.7),
+    ];
+    for (p, (s, f)) in pts.iter().zip(expected) {
+        assert!(
+            (p.success - s).abs() < 1e-15 && (p.failure - f).abs() < 1e-15,
+            "{p:?}"
+        );
+    }
+    let t = tree("tree: {action: {ps: 0.6, mu: 2, tau_f: 1}}");
+    let pts = curve(&t, 0, &[0.5, 1.0], &exact()).unwrap();
+    assert!((pts[0].success - 0.6 * (1.0 - (-1.0f64).exp())).abs() < 1e-15);
+    assert_eq!(pts[0].failure, 0.0);
+    assert!((pts[1].success - 0.6).abs() < 1e-15 && (pts[1].failure - 0.4).abs() < 1e-15);
+}

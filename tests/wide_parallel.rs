@@ -541,8 +541,8 @@ fn identical_children_match_order_statistics() {
 }
 
 /// Random trees with Parallels of up to 12 leaves anywhere (children may be
-/// subtrees and conditions): wherever the analysis answers — counted,
-/// composed or multiplied out — the root's figures and π(t) agree with
+/// subtrees and conditions): the analysis answers every one — counted,
+/// composed or multiplied out — and the root's figures and π(t) agree with
 /// simulation within 5 standard errors.
 #[test]
 fn random_trees_with_wide_parallels_agree_with_simulation() {
@@ -556,16 +556,11 @@ fn random_trees_with_wide_parallels_agree_with_simulation() {
     };
     let times = [0.5, 2.0, 8.0];
     let runs = 200_000u64;
-    let mut answered = 0;
     for seed in 0..12 {
         let tree = parse_str(&random_tree_yaml(&shape, seed), "r.yaml").unwrap();
-        let (Ok(analysis), Ok(exact)) = (
-            btrel::analyze(&tree, &Default::default()),
-            curve(&tree, 0, &times, &CurveOptions::default()),
-        ) else {
-            continue;
-        };
-        answered += 1;
+        // every such tree is answered: counted, composed or multiplied out
+        let analysis = btrel::analyze(&tree, &Default::default()).unwrap();
+        let exact = curve(&tree, 0, &times, &CurveOptions::default()).unwrap();
         let sim = simulated(&tree, &times, runs);
         let (a, s) = (analysis.nodes[0], &sim.nodes[0]);
         assert!(
@@ -584,7 +579,6 @@ fn random_trees_with_wide_parallels_agree_with_simulation() {
         }
         assert_curve_close(&exact, &sim, &format!("seed {seed}"));
     }
-    assert!(answered >= 8, "only {answered} of 12 trees answered");
 }
 
 /// The bundled fleet example (a 12-of-16 Parallel of two-level subtrees

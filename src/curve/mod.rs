@@ -108,6 +108,22 @@ pub fn curve(
     }
     let node = tree.node(id);
     let is_control = !node.kind.children().is_empty();
+    // a leaf in closed form (any timing: exponential, fixed or hybrid)
+    if let NodeKind::Action(a) = &node.kind {
+        return Ok(times
+            .iter()
+            .map(|&t| {
+                let success = a.ps * time_cdf(a.success, t);
+                let failure = a.pf * time_cdf(a.failure, t);
+                CurvePoint {
+                    t,
+                    success,
+                    failure,
+                    running: (1.0 - success - failure).max(0.0),
+                }
+            })
+            .collect());
+    }
     if options.method == Method::Exact {
         if let NodeKind::Parallel {
             success_threshold,
@@ -188,6 +204,22 @@ pub fn curve(
         },
     };
     solve_chain(&chain, times, options, &node.name)
+}
+
+/// `P(duration ≤ t)` (an outcome without a duration has probability 0).
+fn time_cdf(d: Option<Duration>, t: f64) -> f64 {
+    match d {
+        None => 0.0,
+        Some(Duration::Exponential { rate }) => -(-rate * t).exp_m1(),
+        Some(Duration::Fixed { time }) => f64::from(u8::from(t >= time)),
+        Some(Duration::TruncatedExponential { rate, cap }) => {
+            if t >= cap {
+                1.0
+            } else {
+                -(-rate * t).exp_m1()
+            }
+        }
+    }
 }
 
 /// `π(t)` of a Parallel node with the book's thresholds (F = N − M + 1),
