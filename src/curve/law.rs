@@ -181,11 +181,7 @@ pub(crate) fn counted_parallel_times(
                 Piece::Chain(chain) => {
                     let absorption = absorption_by_phase(chain);
                     let p = transient_split(chain, &[end], SAMPLE_TOLERANCE, &absorption)
-                        .ok_or_else(|| AnalysisError::Stiff {
-                            node: b.name(c),
-                            work: f64::INFINITY,
-                            limit: super::DEFAULT_MAX_WORK,
-                        })?;
+                        .ok_or_else(|| stiff(tree, c))?;
                     p[0].time_to_success + p[0].time_to_failure
                 }
                 Piece::Law(l) => {
@@ -205,6 +201,15 @@ pub(crate) fn counted_parallel_times(
         node: tree.node(id).name.clone(),
         what: "its mean times did not converge on growing horizons".into(),
     })
+}
+
+/// Uniformization of `id`'s chain would need more steps than one pass keeps.
+fn stiff(tree: &Tree, id: NodeId) -> AnalysisError {
+    AnalysisError::Stiff {
+        node: tree.node(id).name.clone(),
+        work: f64::INFINITY,
+        limit: super::DEFAULT_MAX_WORK,
+    }
 }
 
 struct Builder<'a> {
@@ -249,16 +254,11 @@ impl Builder<'_> {
     /// Densities `π(t)·exit` of a chain, sampled by uniformization.
     fn chain_law(&self, id: NodeId, chain: &PhaseChain) -> Result<Law, AnalysisError> {
         let weights = [&chain.exit_success[..], &chain.exit_failure[..]];
-        let mut d =
-            self.interpolate(id, 2, |points| {
-                let rows = transient_weighted(chain, points, SAMPLE_TOLERANCE, &weights)
-                    .ok_or_else(|| AnalysisError::Stiff {
-                        node: self.name(id),
-                        work: f64::INFINITY,
-                        limit: super::DEFAULT_MAX_WORK,
-                    })?;
-                Ok(rows.iter().flat_map(|r| [r[2], r[3]]).collect())
-            })?;
+        let mut d = self.interpolate(id, 2, |points| {
+            let rows = transient_weighted(chain, points, SAMPLE_TOLERANCE, &weights)
+                .ok_or_else(|| stiff(self.tree, id))?;
+            Ok(rows.iter().flat_map(|r| [r[2], r[3]]).collect())
+        })?;
         let failure = d.pop().expect("two densities");
         let success = d.pop().expect("two densities");
         Ok(Law {
@@ -296,25 +296,13 @@ impl Builder<'_> {
                         })
                     }
                     Decorator::ForceSuccess | Decorator::ForceFailure => {
-                        let [s, f] = &law.density;
-                        let both = self
-                            .interpolate(id, 1, |points| {
-                                Ok(points.iter().map(|&t| s.eval(t) + f.eval(t)).collect())
-                            })?
-                            .remove(0);
-                        let atom = law.atom[SUCCESS] + law.atom[FAILURE];
-                        let zero = Interpolant::zero(self.end);
-                        Ok(if *decorator == Decorator::ForceSuccess {
-                            Law {
-                                atom: [atom, 0.0],
-                                density: [both, zero],
-                            }
+                        let both = self.add(id, &law.measure(SUCCESS), &law.measure(FAILURE))?;
+                        let to = if *decorator == Decorator::ForceSuccess {
+                            SUCCESS
                         } else {
-                            Law {
-                                atom: [0.0, atom],
-                                density: [zero, both],
-                            }
-                        })
+                            FAILURE
+                        };
+                        Ok(self.law_from(to, both, Measure::zero()))
                     }
                     Decorator::Retry { attempts } => self.repeated(id, &law, attempts, false),
                     Decorator::Repeat { times } => self.repeated(id, &law, times, true),
@@ -360,11 +348,7 @@ impl Builder<'_> {
                         let weights = [&chain.exit_success[..], &chain.exit_failure[..]];
                         transient_weighted(chain, points, SAMPLE_TOLERANCE, &weights)
                             .map(|rows| rows.iter().map(|r| [r[0], r[1], r[2], r[3]]).collect())
-                            .ok_or_else(|| AnalysisError::Stiff {
-                                node: self.name(c),
-                                work: f64::INFINITY,
-                                limit: super::DEFAULT_MAX_WORK,
-                            })
+                            .ok_or_else(|| stiff(self.tree, c))
                     }
                     Piece::Law(l) => Ok(points
                         .iter()
