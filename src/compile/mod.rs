@@ -394,7 +394,7 @@ fn parallel_by_counts(
 
 /// Uniformization steps over 32 × the longest child mean beyond which a
 /// counted Parallel's mean times come from composed laws rather than the
-/// certified quadrature (see [`parallel_by_counts`]).
+/// certified quadrature ([`counts`] module docs).
 pub const STIFF_STEPS: f64 = 1e5;
 
 /// Figures of a counted Parallel from composed laws: P(S), P(F) by counting

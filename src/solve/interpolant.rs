@@ -131,7 +131,7 @@ pub struct Interpolant {
 pub enum BuildError<E> {
     /// The sampler failed.
     Sample(E),
-    /// Some panel did not converge after [`MAX_ROUNDS`] halvings, or a
+    /// Some panel did not converge after 64 rounds of halving, or a
     /// sample was not finite.
     NotConverged,
 }
