@@ -86,25 +86,8 @@ pub const ACCEPTED: f64 = 1e-9;
 /// `(P(succeeded), P(failed))` at one time: the trinomial count programme
 /// with both counts capped at their thresholds (see the module docs).
 pub fn status_by_counts(points: &[(f64, f64)], m: usize, f_cap: usize) -> (f64, f64) {
-    let width = f_cap + 1;
-    let mut dp = vec![0.0f64; (m + 1) * width];
-    dp[0] = 1.0;
-    for &(ps, pf) in points {
-        let running = (1.0 - ps - pf).max(0.0);
-        for s in (0..m).rev() {
-            for f in (0..f_cap).rev() {
-                let here = dp[s * width + f];
-                if here == 0.0 {
-                    continue;
-                }
-                dp[s * width + f] = here * running;
-                dp[(s + 1) * width + f] += here * ps;
-                dp[s * width + f + 1] += here * pf;
-            }
-        }
-    }
-    let success: f64 = dp[m * width..].iter().sum();
-    let failure: f64 = (0..m).map(|s| dp[s * width + f_cap]).sum();
+    let with_densities: Vec<[f64; 4]> = points.iter().map(|&(s, f)| [s, f, 0.0, 0.0]).collect();
+    let [success, failure, _, _] = status_and_densities_by_counts(&with_densities, m, f_cap);
     (success, failure)
 }
 

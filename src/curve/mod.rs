@@ -113,8 +113,9 @@ pub fn curve(
         return Ok(times
             .iter()
             .map(|&t| {
-                let success = a.ps * time_cdf(a.success, t);
-                let failure = a.pf * time_cdf(a.failure, t);
+                // an outcome without a duration has probability 0
+                let cdf = |d: Option<Duration>| d.map_or(0.0, |d| d.cdf(t));
+                let (success, failure) = (a.ps * cdf(a.success), a.pf * cdf(a.failure));
                 CurvePoint {
                     t,
                     success,
@@ -204,22 +205,6 @@ pub fn curve(
         },
     };
     solve_chain(&chain, times, options, &node.name)
-}
-
-/// `P(duration ≤ t)` (an outcome without a duration has probability 0).
-fn time_cdf(d: Option<Duration>, t: f64) -> f64 {
-    match d {
-        None => 0.0,
-        Some(Duration::Exponential { rate }) => -(-rate * t).exp_m1(),
-        Some(Duration::Fixed { time }) => f64::from(u8::from(t >= time)),
-        Some(Duration::TruncatedExponential { rate, cap }) => {
-            if t >= cap {
-                1.0
-            } else {
-                -(-rate * t).exp_m1()
-            }
-        }
-    }
 }
 
 /// `π(t)` of a Parallel node with the book's thresholds (F = N − M + 1),

@@ -197,6 +197,16 @@ impl Duration {
         }
     }
 
+    /// `P(duration ≤ t)`.
+    pub fn cdf(&self, t: f64) -> f64 {
+        match *self {
+            Duration::Exponential { rate } => -(-rate * t).exp_m1(),
+            Duration::Fixed { time } => f64::from(u8::from(t >= time)),
+            Duration::TruncatedExponential { cap, .. } if t >= cap => 1.0,
+            Duration::TruncatedExponential { rate, .. } => -(-rate * t).exp_m1(),
+        }
+    }
+
     /// Whether the duration is a single exponential phase.
     pub fn is_exponential(&self) -> bool {
         matches!(self, Duration::Exponential { .. })
