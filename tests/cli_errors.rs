@@ -947,10 +947,12 @@ fn usage_errors_exit_2() {
 
 #[test]
 fn analysis_errors_exit_1() {
-    // exact analysis of a Parallel with a deterministic leaf is not supported
+    // exact analysis of a mixed-timing Parallel with an independent failure
+    // threshold is not supported (with the book's thresholds it is: see
+    // tests/mixed_timing.rs)
     let f = fixture(
         "det-parallel.yaml",
-        b"tree:\n  parallel:\n    success_threshold: 1\n    children:\n      \
+        b"tree:\n  parallel:\n    success_threshold: 1\n    failure_threshold: 1\n    children:\n      \
           - action: {name: timer, ps: 0.5, tau_s: 1, tau_f: 2}\n      \
           - action: {ps: 0.5, mu: 1, nu: 1}\n",
     );

@@ -185,7 +185,8 @@ pub fn atoms(
                         .enumerate()
                         .map(|(h, (&i, a))| (a[i].time, h, a[i].outcome)),
                 );
-                events.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                events.sort_by(|a, b| a.0.total_cmp(&b.0));
+                same_instants_in_child_order(&mut events);
                 let (mut s, mut f) = (0, 0);
                 for &(t, _, o) in &events {
                     match o {
@@ -222,6 +223,27 @@ pub fn atoms(
                 }
             }
         }
+    }
+}
+
+/// Within each run of events at the same instant (within
+/// [`TIME_TOLERANCE`]; `events` sorted by time), takes the run's first time
+/// for all of them and puts them in child order: a tick visits the children
+/// in order, so that is the order in which simultaneous returns count.
+fn same_instants_in_child_order(events: &mut [(f64, usize, Outcome)]) {
+    let mut start = 0;
+    while start < events.len() {
+        let t = events[start].0;
+        let end = start
+            + events[start..]
+                .iter()
+                .position(|e| !same_time(e.0, t))
+                .unwrap_or(events.len() - start);
+        for e in &mut events[start..end] {
+            e.0 = t;
+        }
+        events[start..end].sort_by_key(|e| e.1);
+        start = end;
     }
 }
 

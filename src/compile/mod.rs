@@ -311,13 +311,37 @@ fn node_figures(
                 Ok(chain) => chain.jump_chain(),
                 Err(AnalysisError::NotMarkovian { leaf }) => {
                     // all-deterministic subtrees have finitely many atoms
-                    return match atoms::atoms(tree, id, options.max_states)? {
-                        Some(a) => Ok(atoms::figures(&a)),
-                        None => Err(AnalysisError::MixedTiming {
-                            node: node.name.clone(),
-                            leaf,
-                        }),
-                    };
+                    if let Some(a) = atoms::atoms(tree, id, options.max_states)? {
+                        return Ok(atoms::figures(&a));
+                    }
+                    // mixed timing with the book's thresholds: ps, pf by
+                    // counting, mean times by quadrature of the curve
+                    if failure_threshold == children.len() + 1 - success_threshold {
+                        let outcomes: Vec<(f64, f64)> =
+                            child_figs.iter().map(|f| (f.ps, f.pf)).collect();
+                        let (ps, pf) = counts::status_by_counts(
+                            &outcomes,
+                            success_threshold,
+                            failure_threshold,
+                        );
+                        let [ts, tf] = crate::curve::parallel_times_by_quadrature(
+                            tree,
+                            id,
+                            success_threshold,
+                            &child_figs,
+                            options.max_states,
+                        )?;
+                        return Ok(Figures {
+                            ps,
+                            pf,
+                            mtts: (ps > 0.0).then(|| ts / ps),
+                            mttf: (pf > 0.0).then(|| tf / pf),
+                        });
+                    }
+                    return Err(AnalysisError::MixedTiming {
+                        node: node.name.clone(),
+                        leaf,
+                    });
                 }
                 Err(e) => return Err(e),
             }

@@ -308,7 +308,10 @@ fn product(chains: &[PhaseChain], policy: Policy, max_states: usize) -> Option<P
             Some(i)
         };
 
-    // initial distribution: product of the children's entries
+    // initial distribution: product of the children's entries. A tick
+    // visits the children in order and the node returns at the first
+    // threshold met (BehaviorTree.CPP): a prefix whose instantaneous outcomes
+    // already meet a threshold is absorbed there, whatever later children do.
     let mut partial: Vec<(Vec<u32>, f64)> = vec![(Vec::with_capacity(n), 1.0)];
     for c in chains {
         let mut next = Vec::new();
@@ -321,7 +324,11 @@ fn product(chains: &[PhaseChain], policy: Policy, max_states: usize) -> Option<P
                 if q > 0.0 {
                     let mut k = key.clone();
                     k.push(x);
-                    next.push((k, p * q));
+                    match status_of(&k) {
+                        Status::Success => out.initial_success += p * q,
+                        Status::Failure => out.initial_failure += p * q,
+                        Status::Running => next.push((k, p * q)),
+                    }
                 }
             }
         }
@@ -331,14 +338,8 @@ fn product(chains: &[PhaseChain], policy: Policy, max_states: usize) -> Option<P
         }
     }
     for (key, p) in partial {
-        match status_of(&key) {
-            Status::Success => out.initial_success += p,
-            Status::Failure => out.initial_failure += p,
-            Status::Running => {
-                let i = intern(key.into_boxed_slice(), &mut keys, &mut out)?;
-                out.initial.push((i, p));
-            }
-        }
+        let i = intern(key.into_boxed_slice(), &mut keys, &mut out)?;
+        out.initial.push((i, p));
     }
 
     // explore

@@ -129,6 +129,9 @@ enum DecoratorOp {
 pub(crate) struct Scratch {
     succ: Vec<f64>,
     fail: Vec<f64>,
+    /// `(success, time)` of each child in child order (Parallels with an
+    /// independent failure threshold, whose ties are replayed).
+    order: Vec<(bool, f64)>,
 }
 
 /// A subtree compiled for fast episodes; its root is `ops[root]`.
@@ -258,6 +261,7 @@ impl Program {
         Scratch {
             succ: Vec::with_capacity(self.parallel_kids),
             fail: Vec::with_capacity(self.parallel_kids),
+            order: Vec::with_capacity(self.parallel_kids),
         }
     }
 
@@ -345,7 +349,10 @@ impl Program {
     /// longer possible), and succeeds at the M-th success if that comes
     /// first. With the book's F = N − M + 1 the outcome vector alone decides
     /// (both thresholds cannot be met); with a smaller F the two times are
-    /// compared, a tie going to Success.
+    /// compared, and when they are the same instant (within
+    /// [`SAME_INSTANT`]) the returns at that instant are replayed in child
+    /// order, the node returning at the first threshold met (a tick visits
+    /// the children in order, as in BehaviorTree.CPP).
     #[inline(never)]
     fn parallel<R: Rng>(
         &self,
@@ -356,7 +363,11 @@ impl Program {
         rng: &mut R,
         scratch: &mut Scratch,
     ) -> (bool, f64) {
-        let (s0, f0) = (scratch.succ.len(), scratch.fail.len());
+        let (s0, f0, o0) = (scratch.succ.len(), scratch.fail.len(), scratch.order.len());
+        let n = (end - first) as usize;
+        let m = m as usize;
+        let f = (f as usize).min(n - m + 1);
+        let book = f == n - m + 1;
         for &c in &self.kids[first as usize..end as usize] {
             let (ok, d) = self.run(c, rng, scratch);
             if ok {
@@ -364,15 +375,18 @@ impl Program {
             } else {
                 scratch.fail.push(d);
             }
+            if !book {
+                scratch.order.push((ok, d));
+            }
         }
-        let n = (end - first) as usize;
-        let m = m as usize;
-        let f = (f as usize).min(n - m + 1);
         let successes = scratch.succ.len() - s0;
         let failures = scratch.fail.len() - f0;
         let t_success = (successes >= m).then(|| kth_smallest(&mut scratch.succ[s0..], m - 1));
         let t_failure = (failures >= f).then(|| kth_smallest(&mut scratch.fail[f0..], f - 1));
         let result = match (t_success, t_failure) {
+            (Some(ts), Some(tf)) if same_instant(ts, tf) => {
+                replay_instant(&scratch.order[o0..], ts.min(tf), m, f)
+            }
             (Some(ts), Some(tf)) if tf < ts => (false, tf),
             (Some(ts), _) => (true, ts),
             (None, Some(tf)) => (false, tf),
@@ -380,8 +394,49 @@ impl Program {
         };
         scratch.succ.truncate(s0);
         scratch.fail.truncate(f0);
+        scratch.order.truncate(o0);
         result
     }
+}
+
+/// Relative tolerance under which two return times are the same instant:
+/// deterministic times are decimal numbers whose sums are rounded in binary
+/// (0.1 + 0.2 ≠ 0.3), so `|a − b| ≤ 1e-12 · max(|a|, |b|, 1 s)` counts as a tie.
+pub const SAME_INSTANT: f64 = 1e-12;
+
+fn same_instant(a: f64, b: f64) -> bool {
+    (a - b).abs() <= SAME_INSTANT * a.abs().max(b.abs()).max(1.0)
+}
+
+/// The outcome of a Parallel whose success and failure thresholds are both
+/// reached at instant `t`: the children's returns (`(success, time)` in child
+/// order) before `t` count first, then those at `t` in child order until a
+/// threshold is met.
+fn replay_instant(returns: &[(bool, f64)], t: f64, m: usize, f: usize) -> (bool, f64) {
+    let before = |want: bool| {
+        returns
+            .iter()
+            .filter(|&&(ok, d)| ok == want && d < t && !same_instant(d, t))
+            .count()
+    };
+    let (mut s, mut fl) = (before(true), before(false));
+    for &(ok, d) in returns {
+        if !same_instant(d, t) {
+            continue;
+        }
+        if ok {
+            s += 1;
+        } else {
+            fl += 1;
+        }
+        if s >= m {
+            return (true, t);
+        }
+        if fl >= f {
+            return (false, t);
+        }
+    }
+    unreachable!("both thresholds are met by instant t")
 }
 
 /// The `k`-th smallest (0-based) of non-empty `xs`; reorders `xs`.
