@@ -627,24 +627,24 @@ tree:
 ";
 
 #[test]
-fn parallel_exact_with_deterministic_leaf_is_an_error() {
-    // The exact Parallel analysis needs exponential times: a deterministic
-    // leaf mixed with stochastic ones is refused (NotMarkovian, or a more
-    // specific error naming the same leaf), never a number.
+fn parallel_exact_with_deterministic_leaf_matches_hand_calculation() {
+    // par: M = 1 of [det: ps 0.5 at 1 s, else Failure at 2 s; sto: ps 0.5,
+    // Exp(1) either way]. Success (0.75): det S & sto S at min(1, X), mean
+    // 1 − e^{-1}; det S & sto F at 1; det F & sto S at X, mean 1 →
+    // MTTS = (0.75 − 0.25/e)/0.75 = 1 − 1/(3e). Failure (0.25): both fail,
+    // at max(2, X), mean 2 + e^{-2}. The root Sequence(cond 0.9, par) fails
+    // at 0 w.p. 0.1 and with par w.p. 0.225.
     let tree = parse_str(PARALLEL_DET, "p.yaml").unwrap();
-    let err = analyze(&tree, &Options::default()).unwrap_err();
-    match &err {
-        AnalysisError::NotMarkovian { leaf } => assert_eq!(leaf, "det"),
-        AnalysisError::StateBudget { .. } | AnalysisError::Numerical { .. } => {
-            panic!("expected an unsupported-timing error, got {err:?}")
-        }
-        #[allow(unreachable_patterns)]
-        other => assert!(
-            other.to_string().contains("'det'"),
-            "the error must name the leaf: {other}"
-        ),
-    }
-    assert!(err.to_string().contains("det"));
+    let a = analyze(&tree, &Options::default()).unwrap();
+    let e = std::f64::consts::E;
+    let par = a.nodes[tree.find("par").unwrap()];
+    assert!((par.ps - 0.75).abs() < 1e-12);
+    assert!((par.mtts.unwrap() - (1.0 - 1.0 / (3.0 * e))).abs() < 1e-10);
+    assert!((par.mttf.unwrap() - (2.0 + (-2.0f64).exp())).abs() < 1e-10);
+    let root = a.nodes[0];
+    assert!((root.ps - 0.675).abs() < 1e-12);
+    let mttf = 0.225 * (2.0 + (-2.0f64).exp()) / 0.325;
+    assert!((root.mttf.unwrap() - mttf).abs() < 1e-10);
 }
 
 #[test]

@@ -401,7 +401,24 @@ fn parallel_by_counts(
         .flat_map(|c| (0..c.len()).map(|i| c.total_rate(i)))
         .fold(0.0, f64::max);
     if fastest * 32.0 * longest > STIFF_STEPS {
-        return means_from_laws(tree, id, m, child_figs, options).map(Some);
+        let (ps, pf) = counts::status_by_counts(
+            &child_figs.iter().map(|f| (f.ps, f.pf)).collect::<Vec<_>>(),
+            m,
+            children.len() + 1 - m,
+        );
+        let [ts, tf] = crate::curve::parallel_times_by_quadrature(
+            tree,
+            id,
+            m,
+            child_figs,
+            options.max_states,
+        )?;
+        return Ok(Some(Figures {
+            ps,
+            pf,
+            mtts: (ps > 0.0).then(|| ts / ps),
+            mttf: (pf > 0.0).then(|| tf / pf),
+        }));
     }
     let laws: Vec<counts::ChildLaw> = chains.into_iter().map(counts::ChildLaw::new).collect();
     let (s, f) = counts::parallel_means(&laws, m).map_err(|what| AnalysisError::Numerical {

@@ -311,14 +311,16 @@ const MAX_REFINEMENTS: usize = 40;
 /// `[E[T·1{S}], E[T·1{F}]]` of Parallel `id` with the book's thresholds
 /// (success threshold `m`) whose children have curves but not all phase
 /// chains — deterministic or hybrid actions beside stochastic ones, e.g. the
-/// book's Example 9.2 — by quadrature of its curve:
+/// book's Example 9.2 — or whose children are stiff (their curves then come
+/// from dense exponentials), by quadrature of its curve:
 /// `E[T·1{S}] = ∫₀^∞ (P(S) − S(t)) dt`, with `S(t)` the count programme over
 /// the children's exact curves ([`parallel_by_counts`]).
 ///
 /// The integrand jumps or kinks only where a child's curve does — at the
 /// deterministic instants of its actions and atoms — and is smooth (a sum of
 /// exponential polynomials) between them, so the panels start at those
-/// instants; beyond the last one they double in width until the probability
+/// instants (and, for fast phases, at 8^k / the fastest rate up to the
+/// longest child mean); beyond the last one they double in width until the probability
 /// still running times the next width is below 1e-16 of the integral. Each
 /// panel's `MEAN_RULE`-point Gauss–Legendre sum is accepted when it agrees
 /// with the half-order rule to 1e-13 of the integral (panels are halved
@@ -357,6 +359,20 @@ pub(crate) fn parallel_times_by_quadrature(
     let mut cuts = vec![0.0];
     for &c in children {
         breakpoints(tree, c, max_states, &mut cuts)?;
+    }
+    // fast phases make boundary layers of width ~1/rate near 0: cut there
+    // too, geometrically up to the longest mean
+    let fastest = children
+        .iter()
+        .filter_map(|&c| phase::phase_chain(tree, c, max_states).ok())
+        .flat_map(|c| (0..c.len()).map(move |i| c.total_rate(i)))
+        .fold(0.0, f64::max);
+    if fastest > 0.0 {
+        let mut t = 1.0 / fastest;
+        while t < longest {
+            cuts.push(t);
+            t *= 8.0;
+        }
     }
     cuts.retain(|t| t.is_finite() && *t >= 0.0);
     cuts.sort_by(f64::total_cmp);
