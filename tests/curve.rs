@@ -285,9 +285,39 @@ fn deterministic_parallel_by_hand() {
 }
 
 #[test]
-fn mixed_timing_is_refused_with_a_pointer_to_simulation() {
+fn mixed_timing_sequence_is_exact() {
+    // Sequence(d: ps 0.5 at 3 s, else Failure at 1 s; s: ps 0.8, Exp(2) /
+    // Exp(4)): S(t) = 0.4 (1 − e^{-2(t−3)}) and F(t) = 0.5 + 0.1 (1 −
+    // e^{-4(t−3)}) for t ≥ 3; F = 0.5 on [1, 3).
     let t = tree(
         "tree: {sequence: {children: [{action: {ps: 0.5, tau_s: 3, tau_f: 1}}, {action: {ps: 0.8, mu: 2, nu: 4}}]}}",
+    );
+    let pts = curve(&t, 0, &[0.5, 1.0, 2.9, 3.0, 3.5, 10.0], &exact()).unwrap();
+    for p in pts {
+        let u = (p.t - 3.0).max(0.0);
+        let s = if p.t >= 3.0 {
+            0.4 * (1.0 - (-2.0 * u).exp())
+        } else {
+            0.0
+        };
+        let f = if p.t >= 1.0 { 0.5 } else { 0.0 }
+            + if p.t >= 3.0 {
+                0.1 * (1.0 - (-4.0 * u).exp())
+            } else {
+                0.0
+            };
+        assert!(
+            (p.success - s).abs() < 1e-14 && (p.failure - f).abs() < 1e-14,
+            "{p:?}"
+        );
+    }
+}
+
+#[test]
+fn mixed_parallel_inside_a_sequence_is_refused_with_a_pointer_to_simulation() {
+    let t = tree(
+        "tree: {sequence: {children: [{action: {ps: 0.9, mu: 1, nu: 1}}, {parallel: {children: [\
+         {action: {ps: 0.5, tau_s: 3, tau_f: 1}}, {action: {ps: 0.8, mu: 2, nu: 4}}]}}]}}",
     );
     let err = curve(&t, 0, &[1.0], &exact()).unwrap_err().to_string();
     assert!(err.contains("simulate"), "{err}");

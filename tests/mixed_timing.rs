@@ -99,3 +99,205 @@ fn mixed_parallels_nested_in_sequences_and_parallels() {
     assert!((p.success - a.nodes[id].ps).abs() < 1e-9);
     assert!((p.failure - a.nodes[id].pf).abs() < 1e-9);
 }
+
+#[test]
+fn deterministic_then_fallback_with_a_hybrid_matches_closed_form() {
+    // Sequence(d: ps 0.9 at 1 s, else Failure at 0.5 s;
+    //          Fallback(a: ps 0.8, Exp(2) / Exp(1); h: ps 0.6 at 3 s, else
+    //          Failure at U = min(Y, 3), Y ~ Exp(0.5))).
+    // With u = t − 1 the Fallback's time:
+    //   S(t) = 0.9 [0.8 (1 − e^{-2u}) + 0.12 (1 − e^{-(u−3)}) 1{u ≥ 3}]
+    //   F(t) = 0.1·1{t ≥ 0.5} + 0.9 · 0.08 · P(X + U ≤ u), X ~ Exp(1), and
+    //   P(X + U ≤ u) = 1 − e^{-u} − 2e^{-u/2}(e^{-max(u−3, 0)/2} − e^{-u/2}).
+    let yaml = "tree: {sequence: {children: [{action: {ps: 0.9, tau_s: 1.0, tau_f: 0.5}}, \
+                {fallback: {children: [{action: {ps: 0.8, mu: 2.0, nu: 1.0}}, \
+                {action: {ps: 0.6, tau_s: 3.0, nu: 0.5}}]}}]}}";
+    let t = tree(yaml);
+    let exact = |t: f64| -> (f64, f64) {
+        let u = t - 1.0;
+        let f_d = if t >= 0.5 { 0.1 } else { 0.0 };
+        if u < 0.0 {
+            return (0.0, f_d);
+        }
+        let s = 0.9
+            * (0.8 * (1.0 - (-2.0 * u).exp())
+                + if u >= 3.0 {
+                    0.12 * (1.0 - (-(u - 3.0)).exp())
+                } else {
+                    0.0
+                });
+        let p = 1.0
+            - (-u).exp()
+            - 2.0 * (-u / 2.0).exp() * ((-(u - 3.0).max(0.0) / 2.0).exp() - (-u / 2.0).exp());
+        (s, f_d + 0.9 * 0.08 * p)
+    };
+    let times = [0.2, 0.5, 0.7, 1.0, 1.5, 2.5, 3.9, 4.0, 4.1, 6.0, 12.0, 60.0];
+    let pts = btrel::curve::curve(&t, 0, &times, &Default::default()).expect("curve");
+    for p in &pts {
+        let (s, f) = exact(p.t);
+        assert!(
+            (p.success - s).abs() < 1e-12,
+            "t = {}: S {} vs {s}",
+            p.t,
+            p.success
+        );
+        assert!(
+            (p.failure - f).abs() < 1e-12,
+            "t = {}: F {} vs {f}",
+            p.t,
+            p.failure
+        );
+    }
+    // and against simulation
+    let sim = simulate_root(&t, 400_000, &times);
+    for (p, e) in pts.iter().zip(&sim.curve) {
+        assert_within_z("S(t)", &e.success, p.success);
+        assert_within_z("F(t)", &e.failure, p.failure);
+    }
+}
+
+/// Whether every action below `id` is Markovian / deterministic.
+fn timing(t: &btrel::Tree, id: usize) -> (bool, bool) {
+    use btrel::tree::{Duration, NodeKind};
+    let mut markov = true;
+    let mut det = true;
+    for n in &t.nodes[t.subtree(id)] {
+        if let NodeKind::Action(a) = &n.kind {
+            markov &= a.is_markovian();
+            det &= [a.success, a.failure]
+                .iter()
+                .flatten()
+                .all(|d| matches!(d, Duration::Fixed { .. }));
+        }
+    }
+    (markov, det)
+}
+
+fn is_mixed_parallel(t: &btrel::Tree, id: usize) -> Option<bool> {
+    use btrel::tree::NodeKind;
+    if let NodeKind::Parallel {
+        success_threshold,
+        failure_threshold,
+        children,
+    } = &t.nodes[id].kind
+    {
+        let (markov, det) = timing(t, id);
+        if !markov && !det {
+            return Some(*failure_threshold == children.len() + 1 - success_threshold);
+        }
+    }
+    None
+}
+
+/// The rule the engine follows (README): a node's curve is exact unless a
+/// mixed-timing Parallel below it has an independent failure threshold or
+/// sits under a Sequence, Fallback or decorator (within the node's subtree);
+/// its report unless a mixed Parallel's children lack curves or it has an
+/// independent threshold.
+fn curve_expected(t: &btrel::Tree, id: usize) -> bool {
+    use btrel::tree::NodeKind;
+    match is_mixed_parallel(t, id) {
+        Some(false) => false,
+        Some(true) => t.nodes[id]
+            .kind
+            .children()
+            .iter()
+            .all(|&c| curve_expected(t, c)),
+        None => {
+            t.subtree(id).all(|d| is_mixed_parallel(t, d).is_none())
+                || matches!(t.nodes[id].kind, NodeKind::Parallel { .. })
+                    && t.nodes[id]
+                        .kind
+                        .children()
+                        .iter()
+                        .all(|&c| curve_expected(t, c))
+        }
+    }
+}
+
+fn report_expected(t: &btrel::Tree, id: usize) -> bool {
+    t.subtree(id).all(|d| match is_mixed_parallel(t, d) {
+        Some(false) => false,
+        Some(true) => t.nodes[d]
+            .kind
+            .children()
+            .iter()
+            .all(|&c| curve_expected(t, c)),
+        None => true,
+    })
+}
+
+#[test]
+fn random_mixed_trees_report_and_curve_agree_on_every_node() {
+    let (mut nodes, mut curves, mut reports) = (0, 0, 0);
+    for seed in 0..80 {
+        let yaml = random_mixed_tree(seed, 3);
+        let t = tree(&yaml);
+        let report = btrel::analyze(&t, &Default::default());
+        for id in 0..t.nodes.len() {
+            nodes += 1;
+            // (a refused report has no figures to compare with)
+            let figures = report.as_ref().ok().map(|a| a.nodes[id]);
+            if report_expected(&t, id) && id == 0 {
+                assert!(
+                    report.is_ok(),
+                    "seed {seed}: report refused {yaml}: {:?}",
+                    report.err()
+                );
+            }
+            let expected = curve_expected(&t, id);
+            let pts = btrel::curve::curve(&t, id, &[600.0], &Default::default());
+            match &pts {
+                Ok(p) => {
+                    curves += 1;
+                    assert!(p[0].running < 1e-9, "seed {seed} node {id}: {p:?}");
+                    if let Some(f) = figures {
+                        assert!(
+                            (p[0].success - f.ps).abs() < 1e-9
+                                && (p[0].failure - f.pf).abs() < 1e-9,
+                            "seed {seed} node {id}: curve {p:?} vs report {f:?} in {yaml}"
+                        );
+                    }
+                }
+                Err(e) => assert!(
+                    !expected,
+                    "seed {seed} node {id}: curve refused: {e} in {yaml}"
+                ),
+            }
+        }
+        reports += usize::from(report.is_ok());
+    }
+    println!("{curves} of {nodes} node curves answered; {reports} of 80 reports");
+}
+
+#[test]
+fn random_mixed_trees_agree_with_simulation() {
+    let mut checked = 0;
+    for seed in 100..160 {
+        let yaml = random_mixed_tree(seed, 3);
+        let t = tree(&yaml);
+        let Ok(a) = btrel::analyze(&t, &Default::default()) else {
+            continue;
+        };
+        let times = [0.5, 1.5, 4.0];
+        let Ok(pts) = btrel::curve::curve(&t, 0, &times, &Default::default()) else {
+            continue;
+        };
+        checked += 1;
+        let sim = simulate_root(&t, 100_000, &times);
+        let r = &sim.nodes[0];
+        let f = a.nodes[0];
+        assert_within_z(&format!("seed {seed} ps"), &r.ps, f.ps);
+        if let (Some(e), Some(m)) = (&r.mtts, f.mtts) {
+            assert_within_z(&format!("seed {seed} MTTS"), e, m);
+        }
+        if let (Some(e), Some(m)) = (&r.mttf, f.mttf) {
+            assert_within_z(&format!("seed {seed} MTTF"), e, m);
+        }
+        for (p, e) in pts.iter().zip(&sim.curve) {
+            assert_within_z(&format!("seed {seed} S({})", p.t), &e.success, p.success);
+            assert_within_z(&format!("seed {seed} F({})", p.t), &e.failure, p.failure);
+        }
+    }
+    assert!(checked >= 40, "only {checked} of 60 random trees answered");
+}

@@ -22,6 +22,7 @@ pub mod book_ctmc;
 pub mod counts;
 pub mod mrg;
 pub mod phase;
+pub mod shifted;
 
 use crate::solve::chain::{AbsorbingChain, Edge, Target};
 use crate::solve::{solve_absorbing, Absorption};
@@ -183,6 +184,7 @@ pub struct Analysis {
 /// Analyses every node of the tree, bottom-up.
 pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError> {
     let mut figures: Vec<Option<Figures>> = vec![None; tree.nodes.len()];
+    let memo = crate::curve::law::LawMemo::default();
     // pre-order: children come after their parent, so reverse order is bottom-up
     for id in (0..tree.nodes.len()).rev() {
         let f = node_figures(
@@ -190,6 +192,7 @@ pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError
             id,
             &|c| figures[c].expect("children are analysed first"),
             options,
+            &memo,
         )?;
         check(&f, &tree.node(id).name)?;
         figures[id] = Some(f);
@@ -220,8 +223,9 @@ pub fn reanalyze(
     }
     dirty.sort_unstable();
     dirty.dedup();
+    let memo = crate::curve::law::LawMemo::default();
     for &id in dirty.iter().rev() {
-        let f = node_figures(tree, id, &|c| analysis.nodes[c], options)?;
+        let f = node_figures(tree, id, &|c| analysis.nodes[c], options, &memo)?;
         check(&f, &tree.node(id).name)?;
         analysis.nodes[id] = f;
     }
@@ -252,6 +256,7 @@ fn node_figures(
     id: NodeId,
     done: &dyn Fn(NodeId) -> Figures,
     options: &Options,
+    memo: &crate::curve::law::LawMemo,
 ) -> Result<Figures, AnalysisError> {
     let node = tree.node(id);
     if let Some(f) = leaf_figures(&node.kind) {
@@ -302,7 +307,7 @@ fn node_figures(
         ) => {
             if failure_threshold == children.len() + 1 - success_threshold {
                 if let Some(f) =
-                    parallel_by_counts(tree, id, success_threshold, &child_figs, options)?
+                    parallel_by_counts(tree, id, success_threshold, &child_figs, options, memo)?
                 {
                     return Ok(f);
                 }
@@ -367,6 +372,7 @@ fn parallel_by_counts(
     m: usize,
     child_figs: &[Figures],
     options: &Options,
+    memo: &crate::curve::law::LawMemo,
 ) -> Result<Option<Figures>, AnalysisError> {
     let node = tree.node(id);
     let children = node.kind.children();
@@ -377,7 +383,7 @@ fn parallel_by_counts(
             Err(AnalysisError::NotMarkovian { .. }) => return Ok(None),
             // a child holds a wide Parallel itself
             Err(AnalysisError::StateBudget { .. }) => {
-                return means_from_laws(tree, id, m, child_figs, options).map(Some)
+                return means_from_laws(tree, id, m, child_figs, options, memo).map(Some)
             }
             Err(e) => return Err(e),
         }
@@ -449,12 +455,13 @@ fn means_from_laws(
     m: usize,
     child_figs: &[Figures],
     options: &Options,
+    memo: &crate::curve::law::LawMemo,
 ) -> Result<Figures, AnalysisError> {
     let outcomes: Vec<(f64, f64)> = child_figs.iter().map(|f| (f.ps, f.pf)).collect();
     let (ps, pf) = counts::status_by_counts(&outcomes, m, child_figs.len() + 1 - m);
     let means: Vec<f64> = child_figs.iter().map(Figures::mean_time).collect();
     let [ts, tf] =
-        crate::curve::law::counted_parallel_times(tree, id, m, &means, options.max_states)?;
+        crate::curve::law::counted_parallel_times(tree, id, m, &means, options.max_states, memo)?;
     Ok(Figures {
         ps,
         pf,

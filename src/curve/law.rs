@@ -39,9 +39,11 @@
 use super::CurveOptions;
 use crate::compile::{counts, phase, AnalysisError};
 use crate::solve::chain::PhaseChain;
+use crate::solve::expm;
 use crate::solve::interpolant::{build, BuildError, Interpolant};
 use crate::solve::transient::{
-    absorption_by_phase, transient_split, transient_weighted, CurvePoint,
+    absorption_by_phase, transient_split, transient_weighted, uniformization_work, CurvePoint,
+    MAX_SINGLE_PASS_STEPS,
 };
 use crate::tree::{Decorator, NodeId, NodeKind, Tree};
 
@@ -93,10 +95,12 @@ pub(super) fn curve_by_laws(
     budget_error: AnalysisError,
 ) -> Result<Vec<CurvePoint>, AnalysisError> {
     let end = times.iter().copied().fold(0.0, f64::max);
+    let memo = LawMemo::default();
     let law = Builder {
         tree,
         end,
         max_states: options.max_states,
+        memo: &memo,
     }
     .opaque(id, budget_error)?;
     Ok(times
@@ -140,6 +144,7 @@ pub(crate) fn counted_parallel_times(
     m: usize,
     child_mean_times: &[f64],
     max_states: usize,
+    memo: &LawMemo,
 ) -> Result<[f64; 2], AnalysisError> {
     let children = tree.node(id).kind.children();
     let longest = child_mean_times.iter().copied().fold(0.0, f64::max);
@@ -154,16 +159,20 @@ pub(crate) fn counted_parallel_times(
         .filter_map(|&c| phase::phase_chain(tree, c, max_states).ok())
         .filter_map(|c| (0..c.len()).map(|i| c.total_rate(i)).reduce(f64::min))
         .fold(f64::INFINITY, f64::min);
-    let mut end = (4.0 * longest).max(if slowest.is_finite() {
+    let start = (4.0 * longest).max(if slowest.is_finite() {
         30.0 / slowest
     } else {
         0.0
     });
+    // a power of two, so that the ancestors of a nested Parallel meet the
+    // same horizons and reuse its memoised law
+    let mut end = 2f64.powi(start.log2().ceil() as i32);
     for _ in 0..MAX_DOUBLINGS {
         let b = Builder {
             tree,
             end,
             max_states,
+            memo,
         };
         // laws depend on the horizon
         let pieces = children
@@ -181,7 +190,7 @@ pub(crate) fn counted_parallel_times(
                 Piece::Chain(chain) => {
                     let absorption = absorption_by_phase(chain);
                     let p = transient_split(chain, &[end], SAMPLE_TOLERANCE, &absorption)
-                        .ok_or_else(|| stiff(tree, c))?;
+                        .ok_or_else(|| stiff(tree, c, chain, end))?;
                     p[0].time_to_success + p[0].time_to_failure
                 }
                 Piece::Law(l) => {
@@ -203,20 +212,48 @@ pub(crate) fn counted_parallel_times(
     })
 }
 
-/// Uniformization of `id`'s chain would need more steps than one pass keeps.
-fn stiff(tree: &Tree, id: NodeId) -> AnalysisError {
+/// Uniformization of `id`'s chain to `end` would need more steps than one
+/// pass keeps, and the chain is too large for dense exponentials.
+fn stiff(tree: &Tree, id: NodeId, chain: &PhaseChain, end: f64) -> AnalysisError {
+    let nnz: usize = chain.transitions.iter().map(Vec::len).sum::<usize>() + 2 * chain.len();
     AnalysisError::Stiff {
         node: tree.node(id).name.clone(),
-        work: f64::INFINITY,
-        limit: super::DEFAULT_MAX_WORK,
+        work: uniformization_work(chain, &[end]),
+        limit: MAX_SINGLE_PASS_STEPS as f64 * nnz.max(1) as f64,
     }
+}
+
+/// `[S, F, π·h₁, ...]` at `points` by one uniformization pass, or — when that
+/// would take too many steps (a stiff chain over a long horizon) and the
+/// chain is small — by dense exponentials whose bound is below the sampling
+/// tolerance; `None` otherwise.
+fn sample_weighted(
+    chain: &PhaseChain,
+    points: &[f64],
+    weights: &[&[f64]],
+) -> Option<Vec<Vec<f64>>> {
+    if let Some(rows) = transient_weighted(chain, points, SAMPLE_TOLERANCE, weights) {
+        return Some(rows);
+    }
+    if chain.len() + 2 > expm::MAX_DENSE_STATES {
+        return None;
+    }
+    let (rows, bound) = expm::transient_dense_weighted(chain, points, weights);
+    (bound <= super::DENSE_TOLERANCE).then_some(rows)
 }
 
 struct Builder<'a> {
     tree: &'a Tree,
     end: f64,
     max_states: usize,
+    memo: &'a LawMemo,
 }
+
+/// Laws already built, by node and horizon: a node's law is built once per
+/// horizon however many ancestors need it (nested wide Parallels would
+/// otherwise rebuild every subtree for every ancestor: quadratic in depth).
+#[derive(Default)]
+pub(crate) struct LawMemo(std::cell::RefCell<std::collections::HashMap<(NodeId, u64), Law>>);
 
 impl Builder<'_> {
     fn name(&self, id: NodeId) -> String {
@@ -242,7 +279,15 @@ impl Builder<'_> {
     fn piece(&self, id: NodeId) -> Result<Piece, AnalysisError> {
         match phase::phase_chain(self.tree, id, self.max_states) {
             Ok(chain) => Ok(Piece::Chain(chain)),
-            Err(e @ AnalysisError::StateBudget { .. }) => Ok(Piece::Law(self.opaque(id, e)?)),
+            Err(e @ AnalysisError::StateBudget { .. }) => {
+                let key = (id, self.end.to_bits());
+                if let Some(l) = self.memo.0.borrow().get(&key) {
+                    return Ok(Piece::Law(l.clone()));
+                }
+                let law = self.opaque(id, e)?;
+                self.memo.0.borrow_mut().insert(key, law.clone());
+                Ok(Piece::Law(law))
+            }
             Err(AnalysisError::NotMarkovian { leaf }) => Err(AnalysisError::MixedTiming {
                 node: self.name(id),
                 leaf,
@@ -255,8 +300,8 @@ impl Builder<'_> {
     fn chain_law(&self, id: NodeId, chain: &PhaseChain) -> Result<Law, AnalysisError> {
         let weights = [&chain.exit_success[..], &chain.exit_failure[..]];
         let mut d = self.interpolate(id, 2, |points| {
-            let rows = transient_weighted(chain, points, SAMPLE_TOLERANCE, &weights)
-                .ok_or_else(|| stiff(self.tree, id))?;
+            let rows = sample_weighted(chain, points, &weights)
+                .ok_or_else(|| stiff(self.tree, id, chain, self.end))?;
             Ok(rows.iter().flat_map(|r| [r[2], r[3]]).collect())
         })?;
         let failure = d.pop().expect("two densities");
@@ -346,9 +391,9 @@ impl Builder<'_> {
                 .map(|(p, &c)| match p {
                     Piece::Chain(chain) => {
                         let weights = [&chain.exit_success[..], &chain.exit_failure[..]];
-                        transient_weighted(chain, points, SAMPLE_TOLERANCE, &weights)
+                        sample_weighted(chain, points, &weights)
                             .map(|rows| rows.iter().map(|r| [r[0], r[1], r[2], r[3]]).collect())
-                            .ok_or_else(|| stiff(self.tree, c))
+                            .ok_or_else(|| stiff(self.tree, c, chain, self.end))
                     }
                     Piece::Law(l) => Ok(points
                         .iter()

@@ -17,7 +17,9 @@
 //!   time `τ = 1/rate` first (the book's Figs. 9.20–9.21 comparison).
 
 use crate::compile::mrg::{Mrg, Policy};
-use crate::compile::{self, analyze, atoms, book_ctmc, counts, phase, AnalysisError, Method};
+use crate::compile::{
+    self, analyze, atoms, book_ctmc, counts, phase, shifted, AnalysisError, Method,
+};
 use crate::solve::chain::PhaseChain;
 use crate::solve::transient::{self, uniformization_work};
 use crate::solve::{expm, quadrature};
@@ -193,10 +195,13 @@ pub fn curve(
         _ => match phase::phase_chain(tree, id, options.max_states) {
             Ok(c) => c,
             Err(AnalysisError::NotMarkovian { leaf }) => {
-                return Err(AnalysisError::MixedTiming {
-                    node: node.name.clone(),
-                    leaf,
-                })
+                return match shifted::shifted_law(tree, id, options.max_states)? {
+                    Some(law) => curve_by_shifted(&law, times, options, &node.name),
+                    None => Err(AnalysisError::MixedTiming {
+                        node: node.name.clone(),
+                        leaf,
+                    }),
+                };
             }
             Err(e @ AnalysisError::StateBudget { .. }) if options.method == Method::Exact => {
                 return law::curve_by_laws(tree, id, times, options, e);
@@ -251,6 +256,58 @@ fn parallel_by_counts(
             }
         })
         .collect())
+}
+
+/// `π(t)` from a shifted phase-type law ([`shifted`]): each outcome's
+/// `Σ w · A(t − τ)`, every component's chain solved like any chain.
+fn curve_by_shifted(
+    law: &shifted::ShiftedLaw,
+    times: &[f64],
+    options: &CurveOptions,
+    name: &str,
+) -> Result<Vec<CurvePoint>, AnalysisError> {
+    let mut sums = vec![[0.0f64; 2]; times.len()];
+    for (o, part) in [&law.success, &law.failure].into_iter().enumerate() {
+        for c in part {
+            let (idx, local): (Vec<usize>, Vec<f64>) = times
+                .iter()
+                .enumerate()
+                .filter(|&(_, &t)| t >= c.shift || atoms_same_time(t, c.shift))
+                .map(|(k, &t)| (k, (t - c.shift).max(0.0)))
+                .unzip();
+            if idx.is_empty() {
+                continue;
+            }
+            if c.chain.is_empty() {
+                for &k in &idx {
+                    sums[k][o] += c.weight * c.chain.initial_success;
+                }
+                continue;
+            }
+            let points = solve_chain(&c.chain, &local, options, name)?;
+            for (&k, p) in idx.iter().zip(&points) {
+                sums[k][o] += c.weight * p.success;
+            }
+        }
+    }
+    Ok(times
+        .iter()
+        .zip(sums)
+        .map(|(&t, [s, f])| {
+            let (success, failure) = (s.clamp(0.0, 1.0), f.clamp(0.0, 1.0));
+            CurvePoint {
+                t,
+                success,
+                failure,
+                running: (1.0 - success - failure).max(0.0),
+            }
+        })
+        .collect())
+}
+
+/// Whether two instants are the same (within [`atoms::TIME_TOLERANCE`]).
+fn atoms_same_time(a: f64, b: f64) -> bool {
+    (a - b).abs() <= atoms::TIME_TOLERANCE * a.abs().max(b.abs()).max(1.0)
 }
 
 fn solve_chain(
@@ -483,6 +540,8 @@ fn breakpoints(
                 for &c in kind.children() {
                     breakpoints(tree, c, max_states, out)?;
                 }
+            } else if let Some(law) = shifted::shifted_law(tree, id, max_states)? {
+                out.extend(law.shifts());
             }
         }
     }

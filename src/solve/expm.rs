@@ -161,15 +161,6 @@ pub fn dense_work(chain: &PhaseChain, times: &[f64]) -> f64 {
 /// exponential.
 pub fn transient_dense(chain: &PhaseChain, times: &[f64]) -> (Vec<CurvePoint>, f64) {
     let n = chain.len();
-    let m = n + 2;
-    let mut order: Vec<usize> = (0..times.len()).collect();
-    order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
-    let mut v = vec![Dd::ZERO; m];
-    for &(i, p) in &chain.initial {
-        v[i] = v[i] + Dd::from_f64(p);
-    }
-    v[n] = Dd::from_f64(chain.initial_success);
-    v[n + 1] = Dd::from_f64(chain.initial_failure);
     let mut out = vec![
         CurvePoint {
             t: 0.0,
@@ -179,6 +170,61 @@ pub fn transient_dense(chain: &PhaseChain, times: &[f64]) -> (Vec<CurvePoint>, f
         };
         times.len()
     ];
+    let bound = dense_pass(chain, times, |idx, v| {
+        let s = v[n].to_f64();
+        let f = v[n + 1].to_f64();
+        let running = v[..n].iter().fold(Dd::ZERO, |a, &b| a + b).to_f64();
+        out[idx] = CurvePoint {
+            t: times[idx],
+            success: s.clamp(0.0, 1.0),
+            failure: f.clamp(0.0, 1.0),
+            running: running.clamp(0.0, 1.0),
+        };
+    });
+    (out, bound)
+}
+
+/// Like [`crate::solve::transient::transient_weighted`] but by dense
+/// exponentials: at each time `[S(t), F(t), π(t)·h₁, ...]` for the weight
+/// vectors `h` (non-negative), and the rigorous bound on the error of the
+/// probabilities (an entry `π(t)·h` is within that times `max h`).
+pub fn transient_dense_weighted(
+    chain: &PhaseChain,
+    times: &[f64],
+    weights: &[&[f64]],
+) -> (Vec<Vec<f64>>, f64) {
+    let n = chain.len();
+    let mut out = vec![Vec::new(); times.len()];
+    let bound = dense_pass(chain, times, |idx, v| {
+        let mut row = Vec::with_capacity(2 + weights.len());
+        row.push(v[n].to_f64());
+        row.push(v[n + 1].to_f64());
+        for w in weights {
+            let dot = v[..n]
+                .iter()
+                .zip(w.iter())
+                .fold(Dd::ZERO, |a, (&x, &h)| a + x * Dd::from_f64(h));
+            row.push(dot.to_f64());
+        }
+        out[idx] = row;
+    });
+    (out, bound)
+}
+
+/// Walks `times` in increasing order, handing `visit` the index of each
+/// time and the distribution over phases, Success (index n) and Failure
+/// (n + 1) then; returns the error bound of every entry.
+fn dense_pass(chain: &PhaseChain, times: &[f64], mut visit: impl FnMut(usize, &[Dd])) -> f64 {
+    let n = chain.len();
+    let m = n + 2;
+    let mut order: Vec<usize> = (0..times.len()).collect();
+    order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
+    let mut v = vec![Dd::ZERO; m];
+    for &(i, p) in &chain.initial {
+        v[i] = v[i] + Dd::from_f64(p);
+    }
+    v[n] = Dd::from_f64(chain.initial_success);
+    v[n + 1] = Dd::from_f64(chain.initial_failure);
     let mut now = 0.0;
     let mut cached: Option<(f64, Exponential)> = None;
     let mut bound = 0.0;
@@ -208,17 +254,9 @@ pub fn transient_dense(chain: &PhaseChain, times: &[f64]) -> (Vec<CurvePoint>, f
             bound += e.bound + EPS * m as f64;
         }
         now = t;
-        let s = v[n].to_f64();
-        let f = v[n + 1].to_f64();
-        let running = v[..n].iter().fold(Dd::ZERO, |a, &b| a + b).to_f64();
-        out[idx] = CurvePoint {
-            t,
-            success: s.clamp(0.0, 1.0),
-            failure: f.clamp(0.0, 1.0),
-            running: running.clamp(0.0, 1.0),
-        };
+        visit(idx, &v);
     }
-    (out, bound)
+    bound
 }
 
 #[cfg(test)]

@@ -454,7 +454,13 @@ pub fn transient_weighted(
         return Some(vec![row; times.len()]);
     }
     let max_lt = lambda * horizon;
-    let inv = reciprocals((max_lt + 10.0 * max_lt.sqrt() + 64.0).min(1e8) as usize);
+    // refuse before allocating the Poisson tables: the pass needs at least
+    // Λt steps
+    let table = max_lt + 10.0 * max_lt.sqrt() + 64.0;
+    if max_lt > MAX_SINGLE_PASS_STEPS as f64 {
+        return None;
+    }
+    let inv = reciprocals(table.min(1e8) as usize);
     let windows: Vec<PoissonWindow> = times
         .iter()
         .map(|&t| poisson_window_with(lambda * t, tolerance, &inv))

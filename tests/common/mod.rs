@@ -55,3 +55,76 @@ pub fn assert_within_z(what: &str, est: &Estimate, exact: f64) {
         est.se
     );
 }
+
+/// A small random tree in YAML flow style, reproducible from `seed`: up to
+/// `depth` levels of Sequence / Fallback / Parallel (any M, the book's F or
+/// a smaller one) / decorators over leaves of every timing of Def. 9.11 —
+/// stochastic, deterministic, both hybrids — and conditions. Deterministic
+/// times are multiples of 0.1 s, so that decimal ties occur.
+pub fn random_mixed_tree(seed: u64, depth: usize) -> String {
+    use rand::SeedableRng;
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
+    format!("tree: {}\n", random_node(&mut rng, depth))
+}
+
+fn random_node(rng: &mut rand_xoshiro::Xoshiro256PlusPlus, depth: usize) -> String {
+    use rand::RngExt;
+    let ps = |rng: &mut rand_xoshiro::Xoshiro256PlusPlus| (rng.random_range(1..10) as f64) / 10.0;
+    let rate = |rng: &mut rand_xoshiro::Xoshiro256PlusPlus| 0.5 + 2.0 * rng.random::<f64>();
+    let tenth = |rng: &mut rand_xoshiro::Xoshiro256PlusPlus| rng.random_range(1..16) as f64 / 10.0;
+    if depth == 0 || rng.random::<f64>() < 0.3 {
+        let p = ps(rng);
+        return match rng.random_range(0..5) {
+            0 => format!(
+                "{{action: {{ps: {p}, mu: {}, nu: {}}}}}",
+                rate(rng),
+                rate(rng)
+            ),
+            1 => format!(
+                "{{action: {{ps: {p}, tau_s: {}, tau_f: {}}}}}",
+                tenth(rng),
+                tenth(rng)
+            ),
+            2 => format!(
+                "{{action: {{ps: {p}, tau_s: {}, nu: {}}}}}",
+                tenth(rng),
+                rate(rng)
+            ),
+            3 => format!(
+                "{{action: {{ps: {p}, mu: {}, tau_f: {}}}}}",
+                rate(rng),
+                tenth(rng)
+            ),
+            _ => format!("{{condition: {{ps: {p}}}}}"),
+        };
+    }
+    let n = rng.random_range(1..4usize);
+    let kids: Vec<String> = (0..n).map(|_| random_node(rng, depth - 1)).collect();
+    let kids = kids.join(", ");
+    match rng.random_range(0..6) {
+        0 | 1 => format!("{{sequence: {{children: [{kids}]}}}}"),
+        2 => format!("{{fallback: {{children: [{kids}]}}}}"),
+        3 => {
+            let m = rng.random_range(1..=n);
+            let f = if rng.random::<f64>() < 0.7 {
+                n - m + 1
+            } else {
+                rng.random_range(1..=n)
+            };
+            format!(
+                "{{parallel: {{success_threshold: {m}, failure_threshold: {f}, children: [{kids}]}}}}"
+            )
+        }
+        4 => {
+            let child = random_node(rng, depth - 1);
+            match rng.random_range(0..5) {
+                0 => format!("{{inverter: {{child: {child}}}}}"),
+                1 => format!("{{force_success: {{child: {child}}}}}"),
+                2 => format!("{{force_failure: {{child: {child}}}}}"),
+                3 => format!("{{retry: {{attempts: 2, child: {child}}}}}"),
+                _ => format!("{{repeat: {{times: 2, child: {child}}}}}"),
+            }
+        }
+        _ => format!("{{fallback: {{children: [{kids}]}}}}"),
+    }
+}

@@ -1,0 +1,321 @@
+//! Mixed timing in Sequences, Fallbacks and decorators: outcome laws as
+//! signed mixtures of **shifted phase-type** sub-distributions.
+//!
+//! A subtree that mixes deterministic or hybrid actions with stochastic
+//! ones has neither a finite phase chain nor finitely many return instants.
+//! But convolution commutes, so the time of a path through a Sequence of
+//! fixed delays and exponential phases is a deterministic shift plus a
+//! phase-type time. Each outcome of a node is kept as a list of components
+//! `w · (δ_τ ⊛ PH)`: weight `w` (signed), shift `τ` and a phase chain in
+//! *counted/lost* form — its Success exit (and `initial_success`) is the
+//! outcome counted, its Failure exit (and `initial_failure`) is every other
+//! way the run can end. Then `P(returned that outcome by t) = Σ w ·
+//! A(t − τ)`, `A` the chain's counted absorption by then.
+//!
+//! * a stochastic (or any Markovian) subtree: one component per outcome,
+//!   its exact phase chain, relabelled so that the outcome is counted;
+//! * a fixed time τ: an empty chain (an atom) shifted by τ;
+//! * a hybrid action's random side `min(X, τ)`, X ~ Exp(λ): by memorylessness
+//!   its law is `Exp(λ) − e^{−λτ}·(δ_τ ⊛ Exp(λ)) + e^{−λτ}·δ_τ` (the only
+//!   negative weights; they are bounded by 1);
+//! * Sequence: Success is `S₁ ⊛ S₂ ⊛ …`, Failure `F₁ + S₁ ⊛ F₂ + …`; a
+//!   Fallback likewise with the outcomes exchanged. `⊛` of two components
+//!   adds shifts, multiplies weights and concatenates the chains (the first
+//!   one's counted exit enters the second, its lost exit stays lost);
+//! * inverter: outcomes exchanged; force: both lists become one outcome;
+//!   Retry N / Repeat N: a Fallback / Sequence of N copies;
+//! * a Parallel is a component only when its whole subtree is Markovian (its
+//!   product chain) or deterministic (atoms); a mixed Parallel has no such
+//!   form and is answered where it is, by counting (see `crate::curve`).
+//!
+//! Every operation is exact; the only approximations are the transient
+//! solutions of the chains (with their own bounds) and the rounding of the
+//! signed sums. Atoms at the same instant (within 1e-12 relative) are merged.
+
+use super::atoms::{self, Atom};
+use super::mrg::Outcome;
+use super::phase;
+use super::AnalysisError;
+use crate::solve::chain::PhaseChain;
+use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
+
+/// One term `weight · (δ_shift ⊛ PH(chain))` of an outcome's law.
+#[derive(Debug, Clone)]
+pub struct Component {
+    /// Deterministic delay before the chain starts (s).
+    pub shift: f64,
+    /// Signed weight.
+    pub weight: f64,
+    /// Phase chain in counted/lost form (module docs).
+    pub chain: PhaseChain,
+}
+
+/// A node's outcome law: the components of its Success and its Failure.
+#[derive(Debug, Clone, Default)]
+pub struct ShiftedLaw {
+    /// Components of the Success sub-distribution.
+    pub success: Vec<Component>,
+    /// Components of the Failure sub-distribution.
+    pub failure: Vec<Component>,
+}
+
+impl ShiftedLaw {
+    /// Every shift, for the instants where the law's CDFs may jump or kink.
+    pub fn shifts(&self) -> impl Iterator<Item = f64> + '_ {
+        self.success.iter().chain(&self.failure).map(|c| c.shift)
+    }
+
+    fn phases(&self) -> usize {
+        self.success
+            .iter()
+            .chain(&self.failure)
+            .map(|c| c.chain.len().max(1))
+            .sum()
+    }
+}
+
+/// Exchanges the exits so that Failure is counted.
+fn count_failure(mut c: PhaseChain) -> PhaseChain {
+    std::mem::swap(&mut c.exit_success, &mut c.exit_failure);
+    std::mem::swap(&mut c.initial_success, &mut c.initial_failure);
+    c
+}
+
+/// An atom: an empty chain returning the counted outcome at once.
+fn atom(shift: f64, weight: f64) -> Component {
+    Component {
+        shift,
+        weight,
+        chain: PhaseChain {
+            initial_success: 1.0,
+            ..PhaseChain::default()
+        },
+    }
+}
+
+/// One exponential phase of `rate` ending in the counted outcome.
+fn exponential(rate: f64) -> PhaseChain {
+    let mut c = PhaseChain::default();
+    let i = c.push_phase();
+    c.exit_success[i] = rate;
+    c.initial.push((i, 1.0));
+    c
+}
+
+/// The components of an outcome of probability `p` taking `d`.
+fn leaf_side(p: f64, d: Option<Duration>) -> Vec<Component> {
+    if p <= 0.0 {
+        return Vec::new();
+    }
+    match d {
+        None => Vec::new(),
+        Some(Duration::Fixed { time }) => vec![atom(time, p)],
+        Some(Duration::Exponential { rate }) => vec![Component {
+            shift: 0.0,
+            weight: p,
+            chain: exponential(rate),
+        }],
+        Some(Duration::TruncatedExponential { rate, cap }) => {
+            let tail = (-rate * cap).exp();
+            vec![
+                Component {
+                    shift: 0.0,
+                    weight: p,
+                    chain: exponential(rate),
+                },
+                Component {
+                    shift: cap,
+                    weight: -p * tail,
+                    chain: exponential(rate),
+                },
+                atom(cap, p * tail),
+            ]
+        }
+    }
+}
+
+fn same_time(a: f64, b: f64) -> bool {
+    (a - b).abs() <= atoms::TIME_TOLERANCE * a.abs().max(b.abs()).max(1.0)
+}
+
+/// Merges atoms at the same instant and drops zero weights.
+fn tidy(mut comps: Vec<Component>) -> Vec<Component> {
+    comps.retain(|c| c.weight != 0.0);
+    let (mut atoms, mut rest): (Vec<Component>, Vec<Component>) =
+        comps.into_iter().partition(|c| c.chain.is_empty());
+    atoms.sort_by(|a, b| a.shift.total_cmp(&b.shift));
+    let mut merged: Vec<Component> = Vec::with_capacity(atoms.len());
+    for a in atoms {
+        match merged.last_mut() {
+            Some(l) if same_time(l.shift, a.shift) => {
+                l.weight += a.weight * a.chain.initial_success;
+            }
+            _ => {
+                let w = a.weight * a.chain.initial_success;
+                merged.push(atom(a.shift, w));
+            }
+        }
+    }
+    rest.extend(merged);
+    rest
+}
+
+/// `a ⊛ b` for every pair.
+fn convolve(a: &[Component], b: &[Component]) -> Vec<Component> {
+    let mut out = Vec::with_capacity(a.len() * b.len());
+    for x in a {
+        for y in b {
+            out.push(Component {
+                shift: x.shift + y.shift,
+                weight: x.weight * y.weight,
+                chain: phase::concatenate(vec![x.chain.clone(), y.chain.clone()], true),
+            });
+        }
+    }
+    out
+}
+
+/// The shifted phase-type law of the subtree at `id`, or `None` when it
+/// holds a Parallel that mixes timings (no such form). Fails when the
+/// components would hold more than `max_states` phases in all.
+fn budget(tree: &Tree, id: NodeId, states: f64, max_states: usize) -> AnalysisError {
+    AnalysisError::StateBudget {
+        node: tree.node(id).name.clone(),
+        states,
+        budget: max_states,
+    }
+}
+
+pub fn shifted_law(
+    tree: &Tree,
+    id: NodeId,
+    max_states: usize,
+) -> Result<Option<ShiftedLaw>, AnalysisError> {
+    let node = tree.node(id);
+    // Markovian subtrees: their exact chain, one component per outcome
+    match phase::phase_chain(tree, id, max_states) {
+        Ok(chain) => {
+            return Ok(Some(ShiftedLaw {
+                success: vec![Component {
+                    shift: 0.0,
+                    weight: 1.0,
+                    chain: chain.clone(),
+                }],
+                failure: vec![Component {
+                    shift: 0.0,
+                    weight: 1.0,
+                    chain: count_failure(chain),
+                }],
+            }))
+        }
+        Err(AnalysisError::NotMarkovian { .. }) => {}
+        Err(e) => return Err(e),
+    }
+    if let NodeKind::Action(a) = &node.kind {
+        return Ok(Some(ShiftedLaw {
+            success: leaf_side(a.ps, a.success),
+            failure: leaf_side(a.pf, a.failure),
+        }));
+    }
+    if let Some(list) = atoms::atoms(tree, id, max_states)? {
+        return Ok(Some(from_atoms(&list)));
+    }
+    let children = node.kind.children();
+    let mut laws = Vec::with_capacity(children.len());
+    for &c in children {
+        match shifted_law(tree, c, max_states)? {
+            Some(l) => laws.push(l),
+            None => return Ok(None),
+        }
+    }
+    let check = |l: ShiftedLaw| -> Result<ShiftedLaw, AnalysisError> {
+        let phases = l.phases();
+        if phases > max_states {
+            return Err(budget(tree, id, phases as f64, max_states));
+        }
+        Ok(l)
+    };
+    let law = match &node.kind {
+        NodeKind::Sequence { .. } => in_turn(laws, true, tree, id, max_states)?,
+        NodeKind::Fallback { .. } => in_turn(laws, false, tree, id, max_states)?,
+        NodeKind::Decorator { decorator, .. } => {
+            let l = laws.pop().expect("a decorator has a child");
+            match *decorator {
+                Decorator::Inverter => ShiftedLaw {
+                    success: l.failure,
+                    failure: l.success,
+                },
+                Decorator::ForceSuccess => ShiftedLaw {
+                    success: l.success.into_iter().chain(l.failure).collect(),
+                    failure: Vec::new(),
+                },
+                Decorator::ForceFailure => ShiftedLaw {
+                    success: Vec::new(),
+                    failure: l.success.into_iter().chain(l.failure).collect(),
+                },
+                Decorator::Retry { attempts } => {
+                    in_turn(vec![l; attempts], false, tree, id, max_states)?
+                }
+                Decorator::Repeat { times } => in_turn(vec![l; times], true, tree, id, max_states)?,
+            }
+        }
+        // a mixed Parallel: counted where it is, not a component
+        _ => return Ok(None),
+    };
+    check(law).map(Some)
+}
+
+fn from_atoms(list: &[Atom]) -> ShiftedLaw {
+    let mut law = ShiftedLaw::default();
+    for a in list {
+        let c = atom(a.time, a.prob);
+        match a.outcome {
+            Outcome::Success => law.success.push(c),
+            Outcome::Failure => law.failure.push(c),
+        }
+    }
+    law
+}
+
+/// Children run one after the other while they return the "continue"
+/// outcome (Success for a Sequence, Failure for a Fallback).
+fn in_turn(
+    laws: Vec<ShiftedLaw>,
+    sequence: bool,
+    tree: &Tree,
+    id: NodeId,
+    max_states: usize,
+) -> Result<ShiftedLaw, AnalysisError> {
+    // `going`: the law of having continued through the children so far
+    let mut going = vec![atom(0.0, 1.0)];
+    let mut stopped = Vec::new();
+    for l in laws {
+        let (cont, stop) = if sequence {
+            (l.success, l.failure)
+        } else {
+            (l.failure, l.success)
+        };
+        stopped.extend(convolve(&going, &stop));
+        going = tidy(convolve(&going, &cont));
+        let phases: usize = going
+            .iter()
+            .chain(&stopped)
+            .map(|c| c.chain.len().max(1))
+            .sum();
+        if phases > max_states {
+            return Err(budget(tree, id, phases as f64, max_states));
+        }
+    }
+    let stopped = tidy(stopped);
+    Ok(if sequence {
+        ShiftedLaw {
+            success: going,
+            failure: stopped,
+        }
+    } else {
+        ShiftedLaw {
+            success: stopped,
+            failure: going,
+        }
+    })
+}
