@@ -57,7 +57,10 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
         .map(PathBuf::from)
         .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/realworld"));
     let Ok(index) = std::fs::read_to_string(root.join("INDEX.md")) else {
-        println!("note: {} is absent; skipping the corpus test", root.display());
+        println!(
+            "note: {} is absent; skipping the corpus test",
+            root.display()
+        );
         return;
     };
     let trees: Vec<Row> = rows(&index)
@@ -84,7 +87,11 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
         match parse_xml_files(&xml, &params, &includes) {
             Ok(tree) => {
                 if let Err(e) = analyze(&tree, &Options::default()) {
-                    panic!("{}: read ({} nodes) but not analysed: {e}", row.file, tree.nodes.len());
+                    panic!(
+                        "{}: read ({} nodes) but not analysed: {e}",
+                        row.file,
+                        tree.nodes.len()
+                    );
                 }
                 parsed.push((row.file.clone(), tree.nodes.len()));
             }
@@ -106,7 +113,10 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
         println!("  read: {f} ({n} nodes)");
     }
     for (f, e) in &semantic {
-        println!("  node semantics: {f}: {}", e.lines().skip(1).next().unwrap_or(""));
+        println!(
+            "  node semantics: {f}: {}",
+            e.lines().nth(1).unwrap_or("")
+        );
     }
     assert!(
         front_end.is_empty(),

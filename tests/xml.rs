@@ -502,12 +502,24 @@ fn all_leaves_without_parameters_are_listed_at_once() {
     let src = wrap(
         "<Sequence>\n  <ComputePath/>\n  <FollowPath/>\n  <IsStuck/>\n  <Spin/>\n  <AlwaysSucess/>\n</Sequence>",
     );
-    let e = err(&src, "FollowPath: {ps: 0.9, mu: 1, nu: 1}\nIsStuck: {ps: 0.1}\n");
+    let e = err(
+        &src,
+        "FollowPath: {ps: 0.9, mu: 1, nu: 1}\nIsStuck: {ps: 0.1}\n",
+    );
     let lines: Vec<&str> = e.message.lines().skip(1).collect();
-    assert!(e.message.starts_with("missing parameters for 3 nodes"), "{e}");
-    assert!(lines[0].starts_with("  t.xml:4:3: leaf `ComputePath`"), "{e}");
+    assert!(
+        e.message.starts_with("missing parameters for 3 nodes"),
+        "{e}"
+    );
+    assert!(
+        lines[0].starts_with("  t.xml:4:3: leaf `ComputePath`"),
+        "{e}"
+    );
     assert!(lines[1].starts_with("  t.xml:7:3: leaf `Spin`"), "{e}");
-    assert!(lines[2].starts_with("  t.xml:8:3: leaf `AlwaysSucess`"), "{e}");
+    assert!(
+        lines[2].starts_with("  t.xml:8:3: leaf `AlwaysSucess`"),
+        "{e}"
+    );
     assert!(lines[2].contains("did you mean <AlwaysSuccess>"), "{e}");
     assert_eq!((e.line, e.column), (4, 3));
 }
@@ -544,9 +556,22 @@ fn node_types_without_a_meaning_are_listed_at_once() {
     let e = err(&src, "A: {ps: 0.5, mu: 1, nu: 1}");
     assert!(!is_unsupported(&e), "{e}");
     assert!(e.message.starts_with("2 nodes cannot be read:"), "{e}");
-    assert!(e.message.contains("t.xml:4:1: unknown node <Fallbak> with children (did you mean <Fallback>?)"), "{e}");
-    assert!(e.message.contains("t.xml:6:1: unknown node <Sequense> with children (did you mean <Sequence>?)"), "{e}");
-    assert!(e.message.contains("and btrel has no stochastic meaning yet for 1 node:\n  t.xml:5:1: <Delay>"), "{e}");
+    assert!(
+        e.message
+            .contains("t.xml:4:1: unknown node <Fallbak> with children (did you mean <Fallback>?)"),
+        "{e}"
+    );
+    assert!(
+        e.message.contains(
+            "t.xml:6:1: unknown node <Sequense> with children (did you mean <Sequence>?)"
+        ),
+        "{e}"
+    );
+    assert!(
+        e.message
+            .contains("and btrel has no stochastic meaning yet for 1 node:\n  t.xml:5:1: <Delay>"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -603,7 +628,10 @@ fn metadata_attributes_are_ignored_and_no_op_preconditions_read() {
         &src.replace("_skipIf=\"false\"", "_skipIf=\"busy\""),
         "Move: {ps: 0.9, mu: 1, nu: 1}\nGrab: {ps: 0.8, mu: 2, nu: 1}",
     );
-    assert!(is_unsupported(&e) && e.message.contains("`_skipIf` attribute on <Control>"), "{e}");
+    assert!(
+        is_unsupported(&e) && e.message.contains("`_skipIf` attribute on <Control>"),
+        "{e}"
+    );
     assert_eq!((e.line, e.column), (4, 58));
 }
 
@@ -674,10 +702,16 @@ fn bt_cpp_v3_files_are_read() {
     );
     assert!(e.message.contains("needs `success_threshold`"), "{e}");
     let e = err(
-        &v3(" BTCPP_format=\"3\"", "<Parallel success_count=\"1\"><A/></Parallel>"),
+        &v3(
+            " BTCPP_format=\"3\"",
+            "<Parallel success_count=\"1\"><A/></Parallel>",
+        ),
         params,
     );
-    assert!(e.message.contains("unknown attribute `success_count`"), "{e}");
+    assert!(
+        e.message.contains("unknown attribute `success_count`"),
+        "{e}"
+    );
     // without BTCPP_format and without attributes: v4 defaults (all must succeed)
     let t = ok(&v3("", "<Parallel><A/><A/></Parallel>"), params);
     assert!(matches!(
@@ -753,19 +787,34 @@ fn recovery_node_is_nav2s_retry_loop() {
         assert!((root.mttf.unwrap() - mttf).abs() < 1e-9 * mttf, "n = {n}");
     }
     // default: one retry; the copies are named by attempt
-    let t = ok(&wrap("<RecoveryNode name=\"Rec\"><M/><R/></RecoveryNode>"), params);
+    let t = ok(
+        &wrap("<RecoveryNode name=\"Rec\"><M/><R/></RecoveryNode>"),
+        params,
+    );
     assert_eq!(
         names(&t),
-        ["Rec", "M", "Rec/recovery 1", "Rec/recovery 1/R", "Rec/attempt 2/M"]
+        [
+            "Rec",
+            "M",
+            "Rec/recovery 1",
+            "Rec/recovery 1/R",
+            "Rec/attempt 2/M"
+        ]
     );
-    assert_eq!(kinds(&t), ["fallback", "action", "sequence", "action", "action"]);
+    assert_eq!(
+        kinds(&t),
+        ["fallback", "action", "sequence", "action", "action"]
+    );
     assert_eq!(t.nodes[4].path, "0.1.1");
     // memory in the main branch would resume instead of starting afresh
     let e = err(
         &wrap("<RecoveryNode><SequenceWithMemory><M/><M/></SequenceWithMemory><R/></RecoveryNode>"),
         params,
     );
-    assert!(is_unsupported(&e) && e.message.contains("below RecoveryNode"), "{e}");
+    assert!(
+        is_unsupported(&e) && e.message.contains("below RecoveryNode"),
+        "{e}"
+    );
     // ... but not in the recovery branch (ticked again only after a success)
     // nor below a single attempt
     ok(
@@ -799,7 +848,8 @@ fn included_texts_provide_subtrees_and_models() {
 </root>"#;
     let sub = r#"<root BTCPP_format="4"><BehaviorTree ID="Grasp"><Fallback><Hand/><Hand/></Fallback></BehaviorTree></root>"#;
     let model = r#"<root><TreeNodesModel><Condition ID="Ready"/><Action ID="Hand"/></TreeNodesModel></root>"#;
-    let params = "Hand: {ps: 0.5, mu: 1, nu: 2}\nReady: {ps: 0.9}\nElsewhere: {ps: 0.5, mu: 1, nu: 1}";
+    let params =
+        "Hand: {ps: 0.5, mu: 1, nu: 2}\nReady: {ps: 0.9}\nElsewhere: {ps: 0.5, mu: 1, nu: 1}";
     let t = parse_xml_str_with(
         main,
         "main.xml",
@@ -811,21 +861,54 @@ fn included_texts_provide_subtrees_and_models() {
     // a SubTree defined nowhere but with a params entry is one leaf
     assert_eq!(
         names(&t),
-        ["Sequence", "Grasp/Fallback", "Grasp/Hand", "Grasp/Hand#2", "Ready", "Elsewhere"]
+        [
+            "Sequence",
+            "Grasp/Fallback",
+            "Grasp/Hand",
+            "Grasp/Hand#2",
+            "Ready",
+            "Elsewhere"
+        ]
     );
     assert_eq!(kinds(&t)[5], "action");
     // without the file: the SubTree is reported, with the trees read
     let e = parse_xml_str_with(main, "main.xml", &[("model.xml", model)], params, "p.yaml")
         .unwrap_err();
-    assert!(e.message.contains("main.xml:2:37: no <BehaviorTree ID=\"Grasp\"> for this SubTree"), "{e}");
+    assert!(
+        e.message
+            .contains("main.xml:2:37: no <BehaviorTree ID=\"Grasp\"> for this SubTree"),
+        "{e}"
+    );
     // an error in an included file names that file
-    let e = parse_xml_str_with(main, "main.xml", &[("sub.xml", "<root><BehaviorTree ID=\"Grasp\"><Hand x=/></BehaviorTree></root>")], params, "p.yaml")
-        .unwrap_err();
-    assert_eq!((e.file.as_str(), e.line, e.column), ("sub.xml", 1, 40), "{e}");
+    let e = parse_xml_str_with(
+        main,
+        "main.xml",
+        &[(
+            "sub.xml",
+            "<root><BehaviorTree ID=\"Grasp\"><Hand x=/></BehaviorTree></root>",
+        )],
+        params,
+        "p.yaml",
+    )
+    .unwrap_err();
+    assert_eq!(
+        (e.file.as_str(), e.line, e.column),
+        ("sub.xml", 1, 40),
+        "{e}"
+    );
     // the main file's definition wins; two included definitions clash
-    let twice = parse_xml_str_with(main, "main.xml", &[("a.xml", sub), ("b.xml", sub)], params, "p.yaml")
-        .unwrap_err();
-    assert!(twice.message.contains("defined in several included files"), "{twice}");
+    let twice = parse_xml_str_with(
+        main,
+        "main.xml",
+        &[("a.xml", sub), ("b.xml", sub)],
+        params,
+        "p.yaml",
+    )
+    .unwrap_err();
+    assert!(
+        twice.message.contains("defined in several included files"),
+        "{twice}"
+    );
     assert!(twice.help.unwrap().contains("a.xml:1:24, b.xml:1:24"));
 }
 
@@ -853,9 +936,14 @@ fn include_elements_and_folders_are_read_from_disk() {
         r#"<root><BehaviorTree ID="Place"><Put/></BehaviorTree></root>"#,
     )
     .unwrap();
-    std::fs::write(p.join("main.params.yaml"), "Hand: {ps: 0.5, mu: 1, nu: 2}\nPut: {ps: 0.9}").unwrap();
-    let t = btrel::tree::xml::parse_xml_files(&p.join("main.xml"), &p.join("main.params.yaml"), &[])
-        .unwrap_or_else(|e| panic!("{e}"));
+    std::fs::write(
+        p.join("main.params.yaml"),
+        "Hand: {ps: 0.5, mu: 1, nu: 2}\nPut: {ps: 0.9}",
+    )
+    .unwrap();
+    let t =
+        btrel::tree::xml::parse_xml_files(&p.join("main.xml"), &p.join("main.params.yaml"), &[])
+            .unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(names(&t), ["Sequence", "Grasp/Hand", "Place/Put"]);
     // the same from the command line: --include a folder
     std::fs::write(
@@ -867,13 +955,27 @@ fn include_elements_and_folders_are_read_from_disk() {
     let out = assert_cmd::Command::cargo_bin("btrel")
         .unwrap()
         .current_dir(p)
-        .args(["report", "plain.xml", "--include", "lib", "--format", "json"])
+        .args([
+            "report",
+            "plain.xml",
+            "--include",
+            "lib",
+            "--format",
+            "json",
+        ])
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     // two independent conditions with ps 0.5 in a Sequence
-    assert!((json["nodes"][0]["ps"].as_f64().unwrap() - 0.25).abs() < 1e-12, "{json}");
+    assert!(
+        (json["nodes"][0]["ps"].as_f64().unwrap() - 0.25).abs() < 1e-12,
+        "{json}"
+    );
     // without it: exit 2 and the flag in the advice
     let out = assert_cmd::Command::cargo_bin("btrel")
         .unwrap()
@@ -883,7 +985,10 @@ fn include_elements_and_folders_are_read_from_disk() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("plain.xml:1:69: 2 nodes cannot be read"), "{stderr}");
+    assert!(
+        stderr.contains("plain.xml:1:69: 2 nodes cannot be read"),
+        "{stderr}"
+    );
     assert!(stderr.contains("--include FILE"), "{stderr}");
     // a tree refused for node semantics only exits with 1
     std::fs::write(

@@ -953,14 +953,7 @@ impl<'a> Builder<'a> {
     ) -> Result<Vec<usize>, TreeError> {
         let mut ids = Vec::with_capacity(e.children.len());
         for (i, &c) in e.children.iter().enumerate() {
-            ids.push(self.node(
-                c,
-                Some(id),
-                depth + 1,
-                format!("{path}.{i}"),
-                prefix,
-                retry,
-            )?);
+            ids.push(self.node(c, Some(id), depth + 1, format!("{path}.{i}"), prefix, retry)?);
         }
         Ok(ids)
     }
@@ -1046,7 +1039,11 @@ impl<'a> Builder<'a> {
             &["name"]
         };
         let attrs = |extra: &[&'static str]| -> Vec<&str> {
-            with_id.iter().copied().chain(extra.iter().copied()).collect()
+            with_id
+                .iter()
+                .copied()
+                .chain(extra.iter().copied())
+                .collect()
         };
         let canon = canonical(ty);
         let default_name = || ty.to_string();
@@ -1335,7 +1332,14 @@ impl<'a> Builder<'a> {
                     children: Vec::new(),
                 },
             )?;
-            let m = self.node(main, Some(fb), d + 1, format!("{p}.0"), &main_prefix, main_retry)?;
+            let m = self.node(
+                main,
+                Some(fb),
+                d + 1,
+                format!("{p}.0"),
+                &main_prefix,
+                main_retry,
+            )?;
             let sq = self.push(
                 e,
                 &format!("{base}/recovery {k}"),
@@ -1484,7 +1488,10 @@ impl<'a> Builder<'a> {
                 })
                 .collect();
             return Err(self
-                .err(at, format!("BehaviorTree `{id}` is defined in several included files"))
+                .err(
+                    at,
+                    format!("BehaviorTree `{id}` is defined in several included files"),
+                )
                 .with_help(format!(
                     "defined at {}; include only one of them",
                     places.join(", ")
@@ -1619,7 +1626,10 @@ impl<'a> Builder<'a> {
     /// `failure_count` (default 1); v3: `success_threshold` (required),
     /// `failure_threshold` (default 1). A negative count k means N + k + 1.
     fn thresholds(&self, e: &Elem, n: usize, version: Format) -> Result<(usize, usize), TreeError> {
-        let resolve = |key: &str, default: Option<i64>, meaning: &str| -> Result<usize, TreeError> {
+        let resolve = |key: &str,
+                       default: Option<i64>,
+                       meaning: &str|
+         -> Result<usize, TreeError> {
             let (k, at) = match (self.int_attr(e, key)?, default) {
                 (Some(v), _) => v,
                 (None, Some(d)) => (d, e.loc),
@@ -1721,8 +1731,10 @@ impl Files {
                 "4" => Format::V4,
                 "3" => Format::V3,
                 v => {
-                    return Err(err(a.loc, format!("BTCPP_format = \"{v}\" is not supported"))
-                        .with_help("btrel reads the BehaviorTree.CPP formats 3 and 4"))
+                    return Err(
+                        err(a.loc, format!("BTCPP_format = \"{v}\" is not supported"))
+                            .with_help("btrel reads the BehaviorTree.CPP formats 3 and 4"),
+                    )
                 }
             },
         };
@@ -1798,9 +1810,7 @@ impl Files {
             let mut files: Vec<std::path::PathBuf> = rd
                 .filter_map(|d| d.ok().map(|d| d.path()))
                 .filter(|p| {
-                    p.is_file()
-                        && p.extension()
-                            .is_some_and(|x| x.eq_ignore_ascii_case("xml"))
+                    p.is_file() && p.extension().is_some_and(|x| x.eq_ignore_ascii_case("xml"))
                 })
                 .collect();
             files.sort();
@@ -2011,14 +2021,11 @@ fn build(files: Files, params: &str, params_file: &str) -> Result<Tree, TreeErro
                     let defs = b.trees.entry(id).or_default();
                     if let Some(&prev) = defs.iter().find(|&&p| elems[p].doc == doc) {
                         let p = elems[prev].loc;
-                        return Err(
-                            err(e.loc, format!("duplicate BehaviorTree ID `{id}`")).with_help(
-                                format!(
-                                    "`{id}` is already defined at line {}, column {}",
-                                    p.0, p.1
-                                ),
-                            ),
-                        );
+                        return Err(err(e.loc, format!("duplicate BehaviorTree ID `{id}`"))
+                            .with_help(format!(
+                                "`{id}` is already defined at line {}, column {}",
+                                p.0, p.1
+                            )));
                     }
                     defs.push(c);
                     if doc == 0 {
@@ -2056,8 +2063,11 @@ fn build(files: Files, params: &str, params_file: &str) -> Result<Tree, TreeErro
                 // resolved when the file was read
                 "include" => {}
                 other => {
-                    return Err(err(e.loc, format!("unknown <{other}> in <root>"))
-                        .with_help("<root> holds <BehaviorTree>, <TreeNodesModel> and <include> elements"));
+                    return Err(
+                        err(e.loc, format!("unknown <{other}> in <root>")).with_help(
+                            "<root> holds <BehaviorTree>, <TreeNodesModel> and <include> elements",
+                        ),
+                    );
                 }
             }
         }
