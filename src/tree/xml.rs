@@ -1,7 +1,8 @@
-//! BehaviorTree.CPP v4 XML front end.
+//! BehaviorTree.CPP XML front end (formats 3 and 4), for trees as published.
 //!
-//! A tree is read from two files: the BT.CPP XML (structure) and a small YAML
-//! params file (the stochastic parameters of each action and condition):
+//! A tree is read from the BT.CPP XML (structure), optionally more XML files
+//! (SubTrees defined elsewhere, node models), and a small YAML params file
+//! (the stochastic parameters of each action and condition):
 //!
 //! ```yaml
 //! # keyed by the node's name attribute first, then its ID
@@ -14,41 +15,80 @@
 //! then its `name` attribute, then its `ID`; the first key present wins.
 //! Action parameters follow the YAML format's rules exactly. Every params
 //! key must be used by some node. All leaves whose parameters are missing are
-//! listed in one error, one line each with the node's XML location.
+//! listed in one error, one line each with the node's file, line and column.
 //!
-//! # Supported XML
+//! # Leaves
 //!
-//! * `<root BTCPP_format="4" main_tree_to_execute="X">`; without
-//!   `main_tree_to_execute` the only tree, or the first one, is analysed.
-//! * `<BehaviorTree ID="...">` holding exactly one node; `<SubTree ID="..."/>`
-//!   is expanded in place (recursion is an error naming the cycle).
-//! * `Sequence`, `SequenceWithMemory`, `ReactiveSequence` become a Sequence;
-//!   `Fallback`, `ReactiveFallback` become a Fallback. Under the SBT
-//!   assumptions (a condition is evaluated once per execution of its parent
-//!   and keeps its outcome; a running action is never interrupted by a
-//!   re-evaluated sibling) a reactive node runs exactly like its
-//!   non-reactive counterpart. `SequenceWithMemory` does not restart at its
-//!   first child after a failure, so below a `RetryUntilSuccessful` (where a
-//!   failed child is ticked again) it differs from a fresh Sequence: that
-//!   case is refused.
-//! * `Parallel success_count failure_count` (BT.CPP v4 defaults −1 and 1; a
-//!   negative count k means N + k + 1, so −1 is "all children").
-//! * `Inverter`, `ForceSuccess`, `ForceFailure`,
-//!   `RetryUntilSuccessful num_attempts="N"`, `Repeat num_cycles="N"`
-//!   (N from 1 to 1 000 000; −1, "forever", is refused).
-//! * `AlwaysSuccess` / `AlwaysFailure` become conditions with `ps` 1 / 0.
-//! * `<Action ID="X"/>`, `<Condition ID="X"/>` and the short form `<X/>` for
-//!   IDs declared in `<TreeNodesModel>` as `<Action ID="X"/>` or
-//!   `<Condition ID="X"/>`. Data ports of leaves and SubTrees (attributes
-//!   that do not start with `_`) are ignored: the params file already gives
-//!   the leaf's outcome distribution.
+//! An element without children that is not a known node type is a leaf. It
+//! is an action or a condition by, in this order: its explicit form
+//! (`<Action ID>` / `<Condition ID>`), a `<TreeNodesModel>` entry (in any file
+//! read), or its params entry: an entry with `ps` only is a condition (an
+//! action with `ps` alone would lack its outcome times), an entry with any
+//! of `pf`, `mu`, `nu`, `tau_s`, `tau_f` is an action. A `<SubTree ID>` that
+//! no file defines but that has a params entry is one such leaf (a black
+//! box).
 //!
-//! Everything else is refused with its line and column and a hint:
-//! scripting and blackboard nodes (`Script`, `Switch2`..`Switch6`, ...),
-//! time-based decorators (`Timeout`, `Delay`), `KeepRunningUntilFailure`,
-//! pre/post-condition attributes (`_skipIf`, `_while`, ...), blackboard
-//! references as counts (`num_attempts="{n}"`), text content, CDATA,
-//! DOCTYPE, processing instructions and unknown elements.
+//! # Files
+//!
+//! The main file's trees come first: a BehaviorTree ID defined there shadows
+//! included definitions; an ID defined by two included files is an error
+//! when used. `<include path="..."/>` is followed relative to the including
+//! file (`ros_pkg` is refused); each file is read once. Without
+//! `main_tree_to_execute` the first tree of the main file is analysed; a
+//! file's only `<BehaviorTree>` may have no ID (not in an included file).
+//!
+//! # Node types
+//!
+//! * `Sequence`, `SequenceWithMemory` (v3: `SequenceStar`),
+//!   `ReactiveSequence` become a Sequence; `Fallback`, `ReactiveFallback` a
+//!   Fallback. Under the SBT assumptions (a condition is evaluated once per
+//!   execution of its parent and keeps its outcome; a running action is never
+//!   interrupted by a re-evaluated sibling) a reactive node runs exactly like
+//!   its non-reactive counterpart. `SequenceWithMemory` resumes at the failed
+//!   child when ticked again after a failure, so below a node that ticks a
+//!   failed child again (`RetryUntilSuccessful` with more than one attempt,
+//!   the main branch of a `RecoveryNode`) it differs from a fresh Sequence:
+//!   that case is refused.
+//! * `Parallel`: v4 `success_count` (default −1), `failure_count` (default
+//!   1); v3 `success_threshold` (required), `failure_threshold` (default 1);
+//!   a negative count k means N + k + 1. A file without `BTCPP_format` uses
+//!   the v3 names if the node does, else the v4 rules.
+//! * `Inverter`, `ForceSuccess`, `ForceFailure`, `RetryUntilSuccessful` (v3:
+//!   `RetryUntilSuccesful`) `num_attempts`, `Repeat num_cycles` (1 to
+//!   1 000 000).
+//! * Nav2's `RecoveryNode(main, recovery) number_of_retries=n` (default 1,
+//!   0 to 1000): Fallback(main, Sequence(recovery, RecoveryNode(n − 1))) with
+//!   RecoveryNode(0) = main, built from fresh copies (named `R/recovery k/..`
+//!   and `R/attempt k/..`): Nav2's loop exactly, as long as the main branch
+//!   keeps no memory across its runs (checked).
+//! * `AlwaysSuccess` / `AlwaysFailure`: conditions with ps 1 / 0.
+//! * `Script`, `SetBlackboard`, `UnsetBlackboard`: BT.CPP runs them at once
+//!   and they return Success: a condition with ps 1, unless the params file
+//!   has an entry for them (then that entry models them, e.g. a run time).
+//! * The explicit forms `<Control ID="X">`, `<Decorator ID="X">`,
+//!   `<Action ID="X">`, `<Condition ID="X">` are the node type X;
+//!   `SubTreePlus` (v3) is `SubTree`.
+//!
+//! Known node types without a stochastic meaning yet (scripting conditions,
+//! Switch, IfThenElse, Timeout, Delay, KeepRunningUntilFailure, loops, Nav2's
+//! PipelineSequence, RateController, RoundRobin, ...), custom control nodes
+//! and decorators, counts from the blackboard or −1 (forever), and
+//! pre-conditions (`_skipIf`, `_failureIf`, `_successIf`, `_while`, unless
+//! constant no-ops such as `_skipIf="false"`) are all listed in one error
+//! (see [`is_unsupported`]); unknown nodes with children and SubTrees defined
+//! nowhere are listed in one error too, each with its file, line and column.
+//!
+//! # Accepted as BT.CPP's parser does
+//!
+//! Other attributes starting with `_` (Groot and MoveIt Pro metadata such as
+//! `_description`, `_collapsed`; `_autoremap`; the post-conditions
+//! `_onSuccess`, `_onFailure`, `_onHalted`, `_post`, which only write the
+//! blackboard after the node has returned) are ignored; data ports of leaves,
+//! SubTrees and BehaviorTrees are ignored (the params file gives the outcome
+//! distribution). Like tinyxml2, a `&` that does not start a known reference
+//! is kept as it is (`a && b`), text anywhere (also around the root element)
+//! is ignored, and a comment ends at the first `-->`. CDATA, DOCTYPE and
+//! processing instructions are refused.
 //!
 //! # Names
 //!
@@ -61,11 +101,12 @@
 //!
 //! # Limits
 //!
-//! Input up to 256 MiB, XML elements nested at most 202 deep (`root`,
-//! `BehaviorTree` and 200 tree levels), expanded trees at most 200 levels
-//! deep, at most 5 million nodes after SubTree expansion and 256 MiB of node
-//! names. The XML reader is iterative and the tree builder's recursion is
-//! bounded by those depths.
+//! Input up to 256 MiB (all XML files together), at most 10 000 files, XML
+//! elements nested at most 202 deep (`root`, `BehaviorTree` and 200 tree
+//! levels), expanded trees at most 200 levels deep, at most 5 million nodes
+//! after SubTree and RecoveryNode expansion (checked before building) and
+//! 256 MiB of node names. The XML reader is iterative and the tree builder's
+//! recursion is bounded by those depths.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::Path;
