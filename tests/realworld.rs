@@ -113,10 +113,7 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
         println!("  read: {f} ({n} nodes)");
     }
     for (f, e) in &semantic {
-        println!(
-            "  node semantics: {f}: {}",
-            e.lines().nth(1).unwrap_or("")
-        );
+        println!("  node semantics: {f}: {}", e.lines().nth(1).unwrap_or(""));
     }
     assert!(
         front_end.is_empty(),

@@ -2192,13 +2192,18 @@ fn build(files: Files, params: &str, params_file: &str) -> Result<Tree, TreeErro
                     problem_lines(&sources, &semantic)
                 ));
             }
-            (
-                front[0],
-                message,
-                "a leaf (an element without children) needs no declaration: its params entry \
-                 makes it an action or a condition"
-                    .to_string(),
-            )
+            let mut help = Vec::new();
+            if front.iter().any(|p| p.text.starts_with("unknown node")) {
+                help.push(
+                    "a leaf (an element without children) needs no declaration, its params entry \
+                     makes it an action or a condition; a node with children must be a known \
+                     control node or decorator",
+                );
+            }
+            if front.iter().any(|p| p.text.starts_with("no <BehaviorTree")) {
+                help.push("a SubTree's BehaviorTree may be defined in an included file");
+            }
+            (front[0], message, help.join("; "))
         };
         return Err(b.err_in(first.doc, first.loc, message).with_help(help));
     }
