@@ -832,6 +832,14 @@ fn recovery_node_is_nav2s_retry_loop() {
         params,
     );
     assert!(e.message.contains("not a valid count"), "{e}");
+    let e = err(
+        &wrap("<RecoveryNode number_of_retries=\"{n}\"><M/><R/></RecoveryNode>"),
+        params,
+    );
+    assert!(
+        is_unsupported(&e) && e.message.contains("blackboard reference"),
+        "{e}"
+    );
     // nested retries multiply; the size is checked before building
     let mut body = "<M/>".to_string();
     for _ in 0..4 {

@@ -1331,6 +1331,23 @@ impl<'a> Builder<'a> {
                 )
                 .with_help("Nav2's RecoveryNode throws at run time for any other number of children"));
         }
+        if let Some(a) = e
+            .attr("number_of_retries")
+            .filter(|a| a.value.trim().starts_with('{'))
+        {
+            self.problem(
+                e.doc,
+                a.loc,
+                format!(
+                    "<{ty}> with number_of_retries = \"{}\", a blackboard reference: the count is \
+                     only known at run time",
+                    a.value.trim()
+                ),
+                true,
+            );
+            let base = self.name_attr(e)?.unwrap_or_else(|| ty.to_string());
+            return self.placeholder(e, &base, parent, depth, &path, prefix, retry);
+        }
         let n = match self.int_attr(e, "number_of_retries")? {
             None => 1,
             Some((n, at)) => {
