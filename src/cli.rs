@@ -23,6 +23,7 @@ Examples:
   btrel report trees/two-arm-parallel.yaml --format csv -o figures.csv
   btrel check trees/search-and-grasp.yaml
   btrel report trees/search-and-grasp.xml --params trees/search-and-grasp.params.yaml
+  btrel report nav.xml --params nav.params.yaml --include nav2_tree_nodes.xml --include subtrees/
   btrel curve trees/search-and-grasp.yaml --t-end 1000 --points 101 -o curve.csv
   btrel curve trees/search-and-grasp.yaml --node search --node grasp --times 10,100,1000
 
@@ -48,6 +49,11 @@ struct Cli {
     /// the extension .params.yaml).
     #[arg(long, value_name = "PARAMS.yaml", global = true)]
     params: Option<PathBuf>,
+    /// More BehaviorTree.CPP XML for an XML tree: a file, or a folder whose .xml files are
+    /// all read, holding the BehaviorTrees its SubTrees refer to and node models
+    /// (<TreeNodesModel>). Repeatable.
+    #[arg(long, value_name = "FILE|DIR", global = true)]
+    include: Vec<PathBuf>,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -57,7 +63,7 @@ enum InputFormat {
 }
 
 /// How tree files are read (set once from the global options).
-static INPUT: std::sync::OnceLock<(Option<InputFormat>, Option<PathBuf>)> =
+static INPUT: std::sync::OnceLock<(Option<InputFormat>, Option<PathBuf>, Vec<PathBuf>)> =
     std::sync::OnceLock::new();
 
 #[derive(Subcommand)]
@@ -408,7 +414,7 @@ pub fn main() -> ExitCode {
             return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
         }
     };
-    let _ = INPUT.set((cli.input_format, cli.params.clone()));
+    let _ = INPUT.set((cli.input_format, cli.params.clone(), cli.include.clone()));
     let result = match cli.command {
         Command::Report(args) => report(args),
         Command::Check { tree } => check(&tree),
@@ -428,7 +434,7 @@ pub fn main() -> ExitCode {
 }
 
 fn load(path: &Path) -> Result<Tree, Failure> {
-    let (format, params) = INPUT.get().cloned().unwrap_or((None, None));
+    let (format, params, include) = INPUT.get().cloned().unwrap_or((None, None, Vec::new()));
     let xml = match format {
         Some(f) => f == InputFormat::Xml,
         None => path
@@ -441,6 +447,11 @@ fn load(path: &Path) -> Result<Tree, Failure> {
                 "--params goes with an XML tree (YAML trees carry their parameters): remove --params",
             ));
         }
+        if !include.is_empty() {
+            return Err(Failure::input(
+                "--include goes with an XML tree (a YAML tree is one file): remove --include",
+            ));
+        }
         return parse_file(path).map_err(Failure::input);
     }
     let params = params.unwrap_or_else(|| path.with_extension("params.yaml"));
@@ -451,7 +462,29 @@ fn load(path: &Path) -> Result<Tree, Failure> {
             params.display()
         )));
     }
-    btrel::tree::xml::parse_xml_file(path, &params).map_err(Failure::input)
+    for inc in &include {
+        if !inc.exists() {
+            return Err(Failure::input(format!(
+                "{}: --include {} does not exist",
+                path.display(),
+                inc.display()
+            )));
+        }
+    }
+    btrel::tree::xml::parse_xml_files(path, &params, &include).map_err(|mut e| {
+        if e.message.contains("for this SubTree") {
+            let h = e.help.take().unwrap_or_default();
+            e.help = Some(format!(
+                "{h}{}pass the file that defines it with --include FILE (or a folder: --include DIR)",
+                if h.is_empty() { "" } else { "; " }
+            ));
+        }
+        if btrel::tree::xml::is_unsupported(&e) {
+            Failure::analysis(e)
+        } else {
+            Failure::input(e)
+        }
+    })
 }
 
 fn check(path: &Path) -> Result<(), Failure> {

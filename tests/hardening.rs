@@ -951,7 +951,7 @@ fn every_error_says_what_to_do() {
     );
     let nonfinite = write("nan.yaml", "tree: {action: {ps: 0.5, mu: .nan, nu: 1}}\n");
     let binary = write("bin.yaml", "\u{0}\u{1}tree");
-    let xml = write("t.xml", "<root BTCPP_format=\"4\"><BehaviorTree ID=\"M\"><Script code=\"x:=1\"/></BehaviorTree></root>");
+    let xml = write("t.xml", "<root BTCPP_format=\"4\"><BehaviorTree ID=\"M\"><ScriptCondition code=\"x==1\"/></BehaviorTree></root>");
     let _ = write("t.params.yaml", "{}\n");
     let cases: Vec<Vec<&str>> = vec![
         vec!["report", &typo],

@@ -1,7 +1,8 @@
-//! BehaviorTree.CPP v4 XML front end.
+//! BehaviorTree.CPP XML front end (formats 3 and 4), for trees as published.
 //!
-//! A tree is read from two files: the BT.CPP XML (structure) and a small YAML
-//! params file (the stochastic parameters of each action and condition):
+//! A tree is read from the BT.CPP XML (structure), optionally more XML files
+//! (SubTrees defined elsewhere, node models), and a small YAML params file
+//! (the stochastic parameters of each action and condition):
 //!
 //! ```yaml
 //! # keyed by the node's name attribute first, then its ID
@@ -14,41 +15,80 @@
 //! then its `name` attribute, then its `ID`; the first key present wins.
 //! Action parameters follow the YAML format's rules exactly. Every params
 //! key must be used by some node. All leaves whose parameters are missing are
-//! listed in one error, one line each with the node's XML location.
+//! listed in one error, one line each with the node's file, line and column.
 //!
-//! # Supported XML
+//! # Leaves
 //!
-//! * `<root BTCPP_format="4" main_tree_to_execute="X">`; without
-//!   `main_tree_to_execute` the only tree, or the first one, is analysed.
-//! * `<BehaviorTree ID="...">` holding exactly one node; `<SubTree ID="..."/>`
-//!   is expanded in place (recursion is an error naming the cycle).
-//! * `Sequence`, `SequenceWithMemory`, `ReactiveSequence` become a Sequence;
-//!   `Fallback`, `ReactiveFallback` become a Fallback. Under the SBT
-//!   assumptions (a condition is evaluated once per execution of its parent
-//!   and keeps its outcome; a running action is never interrupted by a
-//!   re-evaluated sibling) a reactive node runs exactly like its
-//!   non-reactive counterpart. `SequenceWithMemory` does not restart at its
-//!   first child after a failure, so below a `RetryUntilSuccessful` (where a
-//!   failed child is ticked again) it differs from a fresh Sequence: that
-//!   case is refused.
-//! * `Parallel success_count failure_count` (BT.CPP v4 defaults −1 and 1; a
-//!   negative count k means N + k + 1, so −1 is "all children").
-//! * `Inverter`, `ForceSuccess`, `ForceFailure`,
-//!   `RetryUntilSuccessful num_attempts="N"`, `Repeat num_cycles="N"`
-//!   (N from 1 to 1 000 000; −1, "forever", is refused).
-//! * `AlwaysSuccess` / `AlwaysFailure` become conditions with `ps` 1 / 0.
-//! * `<Action ID="X"/>`, `<Condition ID="X"/>` and the short form `<X/>` for
-//!   IDs declared in `<TreeNodesModel>` as `<Action ID="X"/>` or
-//!   `<Condition ID="X"/>`. Data ports of leaves and SubTrees (attributes
-//!   that do not start with `_`) are ignored: the params file already gives
-//!   the leaf's outcome distribution.
+//! An element without children that is not a known node type is a leaf. It
+//! is an action or a condition by, in this order: its explicit form
+//! (`<Action ID>` / `<Condition ID>`), a `<TreeNodesModel>` entry (in any file
+//! read), or its params entry: an entry with `ps` only is a condition (an
+//! action with `ps` alone would lack its outcome times), an entry with any
+//! of `pf`, `mu`, `nu`, `tau_s`, `tau_f` is an action. A `<SubTree ID>` that
+//! no file defines but that has a params entry is one such leaf (a black
+//! box).
 //!
-//! Everything else is refused with its line and column and a hint:
-//! scripting and blackboard nodes (`Script`, `Switch2`..`Switch6`, ...),
-//! time-based decorators (`Timeout`, `Delay`), `KeepRunningUntilFailure`,
-//! pre/post-condition attributes (`_skipIf`, `_while`, ...), blackboard
-//! references as counts (`num_attempts="{n}"`), text content, CDATA,
-//! DOCTYPE, processing instructions and unknown elements.
+//! # Files
+//!
+//! The main file's trees come first: a BehaviorTree ID defined there shadows
+//! included definitions; an ID defined by two included files is an error
+//! when used. `<include path="..."/>` is followed relative to the including
+//! file (`ros_pkg` is refused); each file is read once. Without
+//! `main_tree_to_execute` the first tree of the main file is analysed; a
+//! file's only `<BehaviorTree>` may have no ID (not in an included file).
+//!
+//! # Node types
+//!
+//! * `Sequence`, `SequenceWithMemory` (v3: `SequenceStar`),
+//!   `ReactiveSequence` become a Sequence; `Fallback`, `ReactiveFallback` a
+//!   Fallback. Under the SBT assumptions (a condition is evaluated once per
+//!   execution of its parent and keeps its outcome; a running action is never
+//!   interrupted by a re-evaluated sibling) a reactive node runs exactly like
+//!   its non-reactive counterpart. `SequenceWithMemory` resumes at the failed
+//!   child when ticked again after a failure, so below a node that ticks a
+//!   failed child again (`RetryUntilSuccessful` with more than one attempt,
+//!   the main branch of a `RecoveryNode`) it differs from a fresh Sequence:
+//!   that case is refused.
+//! * `Parallel`: v4 `success_count` (default −1), `failure_count` (default
+//!   1); v3 `success_threshold` (required), `failure_threshold` (default 1);
+//!   a negative count k means N + k + 1. A file without `BTCPP_format` uses
+//!   the v3 names if the node does, else the v4 rules.
+//! * `Inverter`, `ForceSuccess`, `ForceFailure`, `RetryUntilSuccessful` (v3:
+//!   `RetryUntilSuccesful`) `num_attempts`, `Repeat num_cycles` (1 to
+//!   1 000 000).
+//! * Nav2's `RecoveryNode(main, recovery) number_of_retries=n` (default 1,
+//!   0 to 1000): Fallback(main, Sequence(recovery, RecoveryNode(n − 1))) with
+//!   RecoveryNode(0) = main, built from fresh copies (named `R/recovery k/..`
+//!   and `R/attempt k/..`): Nav2's loop exactly, as long as the main branch
+//!   keeps no memory across its runs (checked).
+//! * `AlwaysSuccess` / `AlwaysFailure`: conditions with ps 1 / 0.
+//! * `Script`, `SetBlackboard`, `UnsetBlackboard`: BT.CPP runs them at once
+//!   and they return Success: a condition with ps 1, unless the params file
+//!   has an entry for them (then that entry models them, e.g. a run time).
+//! * The explicit forms `<Control ID="X">`, `<Decorator ID="X">`,
+//!   `<Action ID="X">`, `<Condition ID="X">` are the node type X;
+//!   `SubTreePlus` (v3) is `SubTree`.
+//!
+//! Known node types without a stochastic meaning yet (scripting conditions,
+//! Switch, IfThenElse, Timeout, Delay, KeepRunningUntilFailure, loops, Nav2's
+//! PipelineSequence, RateController, RoundRobin, ...), custom control nodes
+//! and decorators, counts from the blackboard or −1 (forever), and
+//! pre-conditions (`_skipIf`, `_failureIf`, `_successIf`, `_while`, unless
+//! constant no-ops such as `_skipIf="false"`) are all listed in one error
+//! (see [`is_unsupported`]); unknown nodes with children and SubTrees defined
+//! nowhere are listed in one error too, each with its file, line and column.
+//!
+//! # Accepted as BT.CPP's parser does
+//!
+//! Other attributes starting with `_` (Groot and MoveIt Pro metadata such as
+//! `_description`, `_collapsed`; `_autoremap`; the post-conditions
+//! `_onSuccess`, `_onFailure`, `_onHalted`, `_post`, which only write the
+//! blackboard after the node has returned) are ignored; data ports of leaves,
+//! SubTrees and BehaviorTrees are ignored (the params file gives the outcome
+//! distribution). Like tinyxml2, a `&` that does not start a known reference
+//! is kept as it is (`a && b`), text anywhere (also around the root element)
+//! is ignored, and a comment ends at the first `-->`. CDATA, DOCTYPE and
+//! processing instructions are refused.
 //!
 //! # Names
 //!
@@ -61,18 +101,19 @@
 //!
 //! # Limits
 //!
-//! Input up to 256 MiB, XML elements nested at most 202 deep (`root`,
-//! `BehaviorTree` and 200 tree levels), expanded trees at most 200 levels
-//! deep, at most 5 million nodes after SubTree expansion and 256 MiB of node
-//! names. The XML reader is iterative and the tree builder's recursion is
-//! bounded by those depths.
+//! Input up to 256 MiB (all XML files together), at most 10 000 files, XML
+//! elements nested at most 202 deep (`root`, `BehaviorTree` and 200 tree
+//! levels), expanded trees at most 200 levels deep, at most 5 million nodes
+//! after SubTree and RecoveryNode expansion (checked before building) and
+//! 256 MiB of node names. The XML reader is iterative and the tree builder's
+//! recursion is bounded by those depths.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::Path;
 
 use super::action::{sloc, validate_action, ActionParams, At, Loc};
 use super::error::{nearest, TreeError};
-use super::{Action, Decorator, Node, NodeKind, Tree};
+use super::{Decorator, Node, NodeKind, Tree};
 
 /// Largest XML or params file, in bytes.
 pub const MAX_BYTES: usize = 256 << 20;
@@ -98,6 +139,8 @@ struct Attr {
 
 #[derive(Debug)]
 struct Elem {
+    /// Index of the source file (0: the main tree file).
+    doc: usize,
     name: String,
     loc: Loc,
     attrs: Vec<Attr>,
@@ -112,14 +155,10 @@ impl Elem {
     }
 }
 
-/// A parsed document: `elems[0]` is the root element.
-struct Doc {
-    elems: Vec<Elem>,
-}
-
 struct Reader<'a> {
     src: &'a str,
     file: &'a str,
+    doc: usize,
     pos: usize,
     line: usize,
     col: usize,
@@ -224,6 +263,9 @@ impl<'a> Reader<'a> {
             self.skip_ws();
             let at = self.loc();
             if self.starts_with("<!--") {
+                // BT.CPP (tinyxml2) accepts `--` inside comments: the
+                // comment ends at the first `-->` after `<!--`
+                self.eat("<!--");
                 self.skip_past("-->", at, "comment")?;
             } else if self.starts_with("<![CDATA[") {
                 return Err(self
@@ -243,65 +285,56 @@ impl<'a> Reader<'a> {
         }
     }
 
-    /// Decodes entity and character references in `raw`, which starts at
-    /// `at`.
-    fn decode(&self, raw: &str, at: Loc) -> Result<String, TreeError> {
+    /// Decodes entity and character references in `raw`. Like BT.CPP's
+    /// parser (tinyxml2), a `&` that does not start a known reference is
+    /// kept as it is (`a && b` in scripts).
+    fn decode(raw: &str) -> String {
         if !raw.contains('&') {
-            return Ok(raw.to_string());
+            return raw.to_string();
         }
         let mut out = String::with_capacity(raw.len());
         let mut rest = raw;
         while let Some(i) = rest.find('&') {
             out.push_str(&rest[..i]);
             let tail = &rest[i + 1..];
-            let bad = |what: String| {
-                let before = &raw[..raw.len() - rest.len() + i];
-                let (mut l, mut c) = at;
-                for ch in before.chars() {
-                    if ch == '\n' {
-                        l += 1;
-                        c = 1;
-                    } else {
-                        c += 1;
+            let ch = tail.find(';').filter(|&e| e <= 12).and_then(|end| {
+                let ent = &tail[..end];
+                let c = match ent {
+                    "lt" => Some('<'),
+                    "gt" => Some('>'),
+                    "amp" => Some('&'),
+                    "quot" => Some('"'),
+                    "apos" => Some('\''),
+                    _ => {
+                        let num = if let Some(h) = ent.strip_prefix("#x") {
+                            (!h.is_empty() && h.chars().all(|c| c.is_ascii_hexdigit()))
+                                .then(|| u32::from_str_radix(h, 16).ok())
+                                .flatten()
+                        } else if let Some(d) = ent.strip_prefix('#') {
+                            (!d.is_empty() && d.chars().all(|c| c.is_ascii_digit()))
+                                .then(|| d.parse::<u32>().ok())
+                                .flatten()
+                        } else {
+                            None
+                        };
+                        num.and_then(char::from_u32).filter(|&c| xml_char(c))
                     }
-                }
-                self.err((l, c), what).with_help(
-                    "use &lt; &gt; &amp; &quot; &apos; or &#N; / &#xH;, and write a literal `&` as &amp;",
-                )
-            };
-            let Some(end) = tail.find(';').filter(|&e| e <= 12) else {
-                return Err(bad("`&` does not start an entity reference".into()));
-            };
-            let ent = &tail[..end];
-            let ch = match ent {
-                "lt" => Some('<'),
-                "gt" => Some('>'),
-                "amp" => Some('&'),
-                "quot" => Some('"'),
-                "apos" => Some('\''),
-                _ => {
-                    let num = if let Some(h) = ent.strip_prefix("#x") {
-                        (!h.is_empty() && h.chars().all(|c| c.is_ascii_hexdigit()))
-                            .then(|| u32::from_str_radix(h, 16).ok())
-                            .flatten()
-                    } else if let Some(d) = ent.strip_prefix('#') {
-                        (!d.is_empty() && d.chars().all(|c| c.is_ascii_digit()))
-                            .then(|| d.parse::<u32>().ok())
-                            .flatten()
-                    } else {
-                        None
-                    };
-                    num.and_then(char::from_u32).filter(|&c| xml_char(c))
-                }
-            };
+                };
+                c.map(|c| (c, end))
+            });
             match ch {
-                Some(c) => out.push(c),
-                None => return Err(bad(format!("unknown or invalid entity `&{ent};`"))),
+                Some((c, end)) => {
+                    out.push(c);
+                    rest = &tail[end + 1..];
+                }
+                None => {
+                    out.push('&');
+                    rest = tail;
+                }
             }
-            rest = &tail[end + 1..];
         }
         out.push_str(rest);
-        Ok(out)
+        out
     }
 
     fn attr_value(&mut self) -> Result<String, TreeError> {
@@ -315,7 +348,6 @@ impl<'a> Reader<'a> {
             }
         };
         self.bump();
-        let vstart = self.loc();
         let start = self.pos;
         loop {
             match self.peek() {
@@ -338,11 +370,27 @@ impl<'a> Reader<'a> {
         let raw = &self.src[start..self.pos];
         self.bump();
         // attribute-value normalisation: white space characters become spaces
-        let v = self.decode(raw, vstart)?;
+        let v = Self::decode(raw);
         Ok(v.replace(['\t', '\n', '\r'], " "))
     }
 
-    fn parse(mut self) -> Result<Doc, TreeError> {
+    /// Skips comments, white space and stray text (which BT.CPP's parser
+    /// accepts outside the root element too, e.g. `// clang-format off`).
+    fn misc_and_text(&mut self) -> Result<(), TreeError> {
+        loop {
+            self.misc()?;
+            match self.peek() {
+                Some('<') | None => return Ok(()),
+                Some(_) => {
+                    while !matches!(self.peek(), Some('<') | None) {
+                        self.bump();
+                    }
+                }
+            }
+        }
+    }
+
+    fn parse(mut self) -> Result<Vec<Elem>, TreeError> {
         if let Some((i, c)) = self
             .src
             .char_indices()
@@ -363,16 +411,11 @@ impl<'a> Reader<'a> {
             let at = self.loc();
             self.skip_past("?>", at, "XML declaration")?;
         }
-        self.misc()?;
+        self.misc_and_text()?;
         if self.peek().is_none() {
             return Err(self
                 .err((1, 1), "the file has no root element")
-                .with_help("a BT.CPP file is `<root BTCPP_format=\"4\"> <BehaviorTree ID=\"Main\"> ... </BehaviorTree> </root>`"));
-        }
-        if self.peek() != Some('<') {
-            return Err(self
-                .err(self.loc(), "expected `<` to open the root element")
-                .with_help("is this really a BehaviorTree.CPP XML file?"));
+                .with_help("is this really a BehaviorTree.CPP XML file? It is `<root BTCPP_format=\"4\"> <BehaviorTree ID=\"Main\"> ... </BehaviorTree> </root>`"));
         }
         let mut elems: Vec<Elem> = Vec::new();
         let mut stack: Vec<usize> = Vec::new();
@@ -466,6 +509,7 @@ impl<'a> Reader<'a> {
                 };
                 let id = elems.len();
                 elems.push(Elem {
+                    doc: self.doc,
                     name,
                     loc: at,
                     attrs,
@@ -488,7 +532,6 @@ impl<'a> Reader<'a> {
                     stack.push(id);
                 }
             } else {
-                let start = self.pos;
                 let mut first: Option<Loc> = None;
                 while let Some(c) = self.peek() {
                     if c == '<' {
@@ -499,26 +542,19 @@ impl<'a> Reader<'a> {
                     }
                     self.bump();
                 }
-                if stack.is_empty() {
-                    return Err(self
-                        .err(at, "text outside the root element")
-                        .with_help("is this really a BehaviorTree.CPP XML file?"));
-                }
-                let raw = &self.src[start..self.pos];
-                self.decode(raw, at)?;
                 if let (Some(f), Some(&top)) = (first, stack.last()) {
                     elems[top].text.get_or_insert(f);
                 }
             }
         }
-        // after the root element: only comments and white space
-        self.misc()?;
+        // after the root element: only comments, white space and text
+        self.misc_and_text()?;
         if self.peek().is_some() {
             return Err(self
                 .err(self.loc(), "content after the root element")
                 .with_help("an XML file has exactly one root element"));
         }
-        Ok(Doc { elems })
+        Ok(elems)
     }
 }
 
@@ -569,68 +605,124 @@ fn parse_params(src: &str, file: &str) -> Result<BTreeMap<String, At<ActionParam
     })
 }
 
-/// Validates an action's parameters (the rules of the YAML format).
-/// `Ok(Err(missing))` describes missing parameters.
 // ---------------------------------------------------------------------------
 // Building the tree
 // ---------------------------------------------------------------------------
+
+/// The BehaviorTree.CPP format a file declares (`BTCPP_format`).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Format {
+    V3,
+    V4,
+    Unspecified,
+}
+
+/// One XML file of the tree: the main file is source 0, included files
+/// follow.
+struct Source {
+    name: String,
+    text: String,
+    format: Format,
+}
 
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Decl {
     Action,
     Condition,
-    /// A custom control node, decorator or SubTree declared in the model.
+    /// A custom control node or decorator declared in the model.
     Other(&'static str),
+}
+
+/// How a leaf's kind is decided.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum LeafKind {
+    Action,
+    Condition,
+    /// By its params entry: `ps` alone is a condition, anything else an
+    /// action.
+    Inferred,
+    /// A node BT.CPP runs as an immediate Success (Script, SetBlackboard,
+    /// UnsetBlackboard): its params entry if it has one (as `Inferred`),
+    /// else a condition with ps 1.
+    ZeroTime,
 }
 
 /// A leaf waiting for its parameters.
 struct Leaf {
     node: usize,
-    is_action: bool,
+    kind: LeafKind,
     id: String,
     name_attr: Option<String>,
+    doc: usize,
 }
 
-/// Known BT.CPP v4 nodes that have no meaning in a Stochastic Behavior Tree,
-/// with the reason.
-fn unsupported(tag: &str) -> Option<&'static str> {
-    Some(match tag {
-        "Script" | "ScriptCondition" | "SetBlackboard" | "UnsetBlackboard" | "WasEntryUpdated"
-        | "SkipUnlessUpdated" | "WaitValueUpdate" | "Precondition" | "EntryUpdated" => {
-            "scripting and blackboard nodes have no stochastic meaning; replace the node by an \
-             <Action> or <Condition> with parameters, or remove it"
+/// A node that cannot be read, collected so that all of them are reported
+/// at once. `semantic`: a known node type (or attribute) that btrel has no
+/// stochastic meaning for; otherwise a front-end problem (an unknown node, a
+/// SubTree defined nowhere).
+struct Problem {
+    doc: usize,
+    loc: Loc,
+    text: String,
+    semantic: bool,
+}
+
+/// The first line of the error that lists nodes without a stochastic
+/// meaning; [`is_unsupported`] tells such refusals from invalid input.
+pub const UNSUPPORTED: &str = "btrel has no stochastic meaning yet for";
+
+/// Whether `e` refuses a tree only because it uses node types (or
+/// pre-condition attributes) that btrel has no stochastic meaning for yet,
+/// as opposed to invalid or incomplete input.
+pub fn is_unsupported(e: &TreeError) -> bool {
+    e.message.starts_with(UNSUPPORTED)
+}
+
+/// Known node types of BehaviorTree.CPP v3/v4, Nav2 and MoveIt Pro that
+/// btrel has no stochastic meaning for yet, with what they depend on.
+fn unsupported(ty: &str) -> Option<&'static str> {
+    Some(match ty {
+        "ScriptCondition" | "Precondition" | "WasEntryUpdated" | "SkipUnlessUpdated"
+        | "WaitValueUpdate" | "EntryUpdated" | "BlackboardCheckInt" | "BlackboardCheckDouble"
+        | "BlackboardCheckString" | "BlackboardCheckBool" => {
+            "its outcome is computed from blackboard values"
         }
         "Switch2" | "Switch3" | "Switch4" | "Switch5" | "Switch6" | "IfThenElse"
-        | "WhileDoElse" | "ManualSelector" => {
-            "this control node branches on blackboard values or user input, which have no \
-             stochastic meaning; model the choice with a Fallback of Conditions"
+        | "WhileDoElse" | "ManualSelector" => "it branches on blackboard values or user input",
+        "Timeout" | "Delay" | "Sleep" => "its outcome depends on the clock",
+        "KeepRunningUntilFailure" | "RunOnce" | "LoopInt" | "LoopDouble" | "LoopString"
+        | "LoopBool" | "ConsumeQueue" | "ParallelAll" | "ForEach"
+        | "RepeatUnlessFailureEachTick"
+        // BT.CPP's LoopNode<Pose2D>, registered by its t18_waypoints example
+        | "LoopPose" => {
+            "it loops until a failure, over a queue, or runs its child at most once"
         }
-        "Timeout"
-        | "Delay"
-        | "Sleep"
-        | "RunOnce"
-        | "KeepRunningUntilFailure"
-        | "LoopInt"
-        | "LoopDouble"
-        | "LoopString"
-        | "LoopBool"
-        | "ParallelAll"
-        | "SubTreePlus"
-        | "RetryUntilSuccesful"
-        | "TestNode" => {
-            "this node's behaviour (time limits, delays, endless loops, queues, or a deprecated \
-             form) has no stochastic model; supported: Sequence, SequenceWithMemory, \
-             ReactiveSequence, Fallback, ReactiveFallback, Parallel, Inverter, ForceSuccess, \
-             ForceFailure, RetryUntilSuccessful, Repeat, Action, Condition, SubTree, \
-             AlwaysSuccess, AlwaysFailure"
+        "PipelineSequence" | "RoundRobin" | "NonblockingSequence" | "PersistentSequence"
+        | "PauseResumeController" => {
+            "Nav2 control node: it re-ticks running children or keeps state across executions"
+        }
+        "RateController" | "DistanceController" | "SpeedController" | "GoalUpdater"
+        | "GoalUpdatedController" | "PathLongerOnApproach" | "SingleTrigger" => {
+            "Nav2 decorator: it ticks its child depending on time, distance, speed or goal updates"
         }
         _ => return None,
     })
 }
 
+/// Pre-conditions (BT.CPP v4): they may skip a node or end it early
+/// depending on the blackboard. The value that makes each a no-op.
+const PRECONDITIONS: &[(&str, &str)] = &[
+    ("_skipIf", "false"),
+    ("_failureIf", "false"),
+    ("_successIf", "false"),
+    ("_while", "true"),
+];
+
+/// Node types btrel reads (for "did you mean").
 const BUILTINS: &[&str] = &[
     "Sequence",
     "SequenceWithMemory",
+    "SequenceStar",
     "ReactiveSequence",
     "Fallback",
     "ReactiveFallback",
@@ -640,23 +732,55 @@ const BUILTINS: &[&str] = &[
     "ForceFailure",
     "RetryUntilSuccessful",
     "Repeat",
+    "RecoveryNode",
     "Action",
     "Condition",
+    "Control",
+    "Decorator",
     "SubTree",
     "AlwaysSuccess",
     "AlwaysFailure",
+    "Script",
+    "SetBlackboard",
+    "UnsetBlackboard",
 ];
 
+/// Most retries of a RecoveryNode (each adds two levels to the tree).
+pub const MAX_RECOVERY_RETRIES: u64 = 1000;
+
+/// BT.CPP v3 spellings and their v4 names.
+fn canonical(ty: &str) -> &str {
+    match ty {
+        "SequenceStar" => "SequenceWithMemory",
+        "RetryUntilSuccesful" => "RetryUntilSuccessful",
+        t => t,
+    }
+}
+
+fn has_timing(p: &ActionParams) -> bool {
+    [&p.pf, &p.mu, &p.nu, &p.tau_s, &p.tau_f]
+        .into_iter()
+        .any(Option::is_some)
+}
+
+type Params = BTreeMap<String, At<ActionParams>>;
+
 struct Builder<'a> {
-    doc: &'a Doc,
-    src: &'a str,
-    file: &'a str,
-    trees: HashMap<&'a str, usize>,
+    sources: &'a [Source],
+    elems: &'a [Elem],
+    table: &'a Params,
+    /// BehaviorTree elements by ID; a definition in the main file comes
+    /// first.
+    trees: HashMap<&'a str, Vec<usize>>,
     model: HashMap<&'a str, Decl>,
     nodes: Vec<Node>,
     used: HashSet<String>,
     name_bytes: usize,
     leaves: Vec<Leaf>,
+    problems: Vec<Problem>,
+    seen_problems: HashSet<(usize, Loc, String)>,
+    /// The source of the element being built (for error locations).
+    cur: std::cell::Cell<usize>,
     /// SubTree IDs being expanded, outermost first, with the instance
     /// location.
     expanding: Vec<(&'a str, Loc)>,
@@ -666,28 +790,62 @@ struct Builder<'a> {
 }
 
 impl<'a> Builder<'a> {
+    fn err_in(&self, doc: usize, at: Loc, msg: impl Into<String>) -> TreeError {
+        let s = &self.sources[doc];
+        TreeError::at(&s.name, &s.text, at, msg)
+    }
+
     fn err(&self, at: Loc, msg: impl Into<String>) -> TreeError {
-        TreeError::at(self.file, self.src, at, msg)
+        self.err_in(self.cur.get(), at, msg)
     }
 
     fn elem(&self, i: usize) -> &'a Elem {
-        &self.doc.elems[i]
+        &self.elems[i]
+    }
+
+    fn problem(&mut self, doc: usize, loc: Loc, text: String, semantic: bool) {
+        if self.seen_problems.insert((doc, loc, text.clone())) {
+            self.problems.push(Problem {
+                doc,
+                loc,
+                text,
+                semantic,
+            });
+        }
     }
 
     /// Refuses attributes not in `allowed`; `ports` accepts data ports
-    /// (attributes not starting with `_`).
-    fn check_attrs(&self, e: &Elem, allowed: &[&str], ports: bool) -> Result<(), TreeError> {
+    /// (attributes not starting with `_`). Attributes starting with `_`
+    /// are metadata (`_description`, `_collapsed`, ...), `_autoremap`, or
+    /// post-conditions (`_onSuccess`, ...), which BT.CPP runs after the node
+    /// has returned and which only write the blackboard: all are ignored.
+    /// Pre-conditions (`_skipIf`, `_while`, ...) are recorded as problems
+    /// unless their value is the constant that makes them a no-op.
+    fn check_attrs(&mut self, e: &Elem, allowed: &[&str], ports: bool) -> Result<(), TreeError> {
         for a in &e.attrs {
-            if allowed.contains(&a.name.as_str()) || (ports && !a.name.starts_with('_')) {
+            if allowed.contains(&a.name.as_str()) {
                 continue;
             }
             if a.name.starts_with('_') {
-                return Err(self
-                    .err(a.loc, format!("attribute `{}` is not supported", a.name))
-                    .with_help(
-                        "pre/post conditions and other `_` attributes change the control flow \
-                         through the blackboard, which has no stochastic meaning; remove it",
-                    ));
+                if let Some(&(_, noop)) = PRECONDITIONS.iter().find(|(p, _)| *p == a.name) {
+                    if a.value.trim() != noop {
+                        self.problem(
+                            e.doc,
+                            a.loc,
+                            format!(
+                                "`{}` attribute on <{}>: a pre-condition skips the node or ends it \
+                                 early depending on blackboard values (only {}=\"{noop}\", a no-op, \
+                                 is read)",
+                                a.name, e.name, a.name
+                            ),
+                            true,
+                        );
+                    }
+                }
+                continue;
+            }
+            if ports {
+                continue;
             }
             let hint = match nearest(&a.name, allowed) {
                 Some(k) => format!(
@@ -706,20 +864,12 @@ impl<'a> Builder<'a> {
                 ),
             };
             return Err(self
-                .err(
+                .err_in(
+                    e.doc,
                     a.loc,
                     format!("unknown attribute `{}` on <{}>", a.name, e.name),
                 )
                 .with_help(hint));
-        }
-        Ok(())
-    }
-
-    fn no_text(&self, e: &Elem) -> Result<(), TreeError> {
-        if let Some(at) = e.text {
-            return Err(self
-                .err(at, format!("text inside <{}> has no meaning", e.name))
-                .with_help("tree nodes contain only other nodes; remove the text"));
         }
         Ok(())
     }
@@ -752,7 +902,7 @@ impl<'a> Builder<'a> {
     fn name_attr(&self, e: &Elem) -> Result<Option<String>, TreeError> {
         match e.attr("name") {
             Some(a) if a.value.trim().is_empty() => Err(self
-                .err(a.loc, "a node name must not be empty")
+                .err_in(e.doc, a.loc, "a node name must not be empty")
                 .with_help("omit `name` to name the node by its ID")),
             Some(a) => Ok(Some(a.value.clone())),
             None => Ok(None),
@@ -762,9 +912,9 @@ impl<'a> Builder<'a> {
     fn id_attr(&self, e: &'a Elem) -> Result<&'a str, TreeError> {
         match e.attr("ID") {
             Some(a) if !a.value.trim().is_empty() => Ok(a.value.as_str()),
-            Some(a) => Err(self.err(a.loc, format!("<{}> has an empty ID", e.name))),
+            Some(a) => Err(self.err_in(e.doc, a.loc, format!("<{}> has an empty ID", e.name))),
             None => Err(self
-                .err(e.loc, format!("<{}> needs an ID attribute", e.name))
+                .err_in(e.doc, e.loc, format!("<{}> needs an ID attribute", e.name))
                 .with_help(format!("write <{} ID=\"...\"/>", e.name))),
         }
     }
@@ -805,6 +955,11 @@ impl<'a> Builder<'a> {
                 .err(e.loc, "the tree has too many nodes after SubTree expansion")
                 .with_help(format!("btrel accepts at most {MAX_NODES} nodes")));
         }
+        if depth >= MAX_DEPTH {
+            return Err(self
+                .err(e.loc, "the tree is nested too deeply")
+                .with_help(format!("btrel accepts trees up to {MAX_DEPTH} levels deep")));
+        }
         let name = self.unique(format!("{prefix}{base}"), e.loc)?;
         self.nodes.push(Node {
             name,
@@ -817,7 +972,68 @@ impl<'a> Builder<'a> {
         Ok(self.nodes.len() - 1)
     }
 
+    fn set_children(&mut self, id: usize, ids: Vec<usize>) {
+        match &mut self.nodes[id].kind {
+            NodeKind::Sequence { children }
+            | NodeKind::Fallback { children }
+            | NodeKind::Parallel { children, .. } => *children = ids,
+            NodeKind::Decorator { child, .. } => *child = ids[0],
+            _ => {}
+        }
+    }
+
+    /// Builds the children of `e` below node `id`.
+    fn children(
+        &mut self,
+        e: &'a Elem,
+        id: usize,
+        depth: usize,
+        path: &str,
+        prefix: &str,
+        retry: Option<&'static str>,
+    ) -> Result<Vec<usize>, TreeError> {
+        let mut ids = Vec::with_capacity(e.children.len());
+        for (i, &c) in e.children.iter().enumerate() {
+            ids.push(self.node(c, Some(id), depth + 1, format!("{path}.{i}"), prefix, retry)?);
+        }
+        Ok(ids)
+    }
+
+    /// A stand-in for a node that is reported as a problem: its children
+    /// are still built, so that every problem of the tree is found.
     #[allow(clippy::too_many_arguments)]
+    fn placeholder(
+        &mut self,
+        e: &'a Elem,
+        base: &str,
+        parent: Option<usize>,
+        depth: usize,
+        path: &str,
+        prefix: &str,
+        retry: Option<&'static str>,
+    ) -> Result<usize, TreeError> {
+        if e.children.is_empty() {
+            return self.push(
+                e,
+                base,
+                prefix,
+                parent,
+                depth,
+                path,
+                NodeKind::Condition { ps: 1.0 },
+            );
+        }
+        let kind = NodeKind::Sequence {
+            children: Vec::new(),
+        };
+        let id = self.push(e, base, prefix, parent, depth, path, kind)?;
+        let ids = self.children(e, id, depth, path, prefix, retry)?;
+        self.set_children(id, ids);
+        Ok(id)
+    }
+
+    /// Builds element `ei`; `retry` names the nearest ancestor that ticks a
+    /// failed child again (RetryUntilSuccessful, RecoveryNode), if any.
     fn node(
         &mut self,
         ei: usize,
@@ -825,7 +1041,22 @@ impl<'a> Builder<'a> {
         depth: usize,
         path: String,
         prefix: &str,
-        under_retry: bool,
+        retry: Option<&'static str>,
+    ) -> Result<usize, TreeError> {
+        let saved = self.cur.replace(self.elem(ei).doc);
+        let r = self.node_here(ei, parent, depth, path, prefix, retry);
+        self.cur.set(saved);
+        r
+    }
+
+    fn node_here(
+        &mut self,
+        ei: usize,
+        parent: Option<usize>,
+        depth: usize,
+        path: String,
+        prefix: &str,
+        retry: Option<&'static str>,
     ) -> Result<usize, TreeError> {
         let e = self.elem(ei);
         if depth >= MAX_DEPTH {
@@ -833,33 +1064,62 @@ impl<'a> Builder<'a> {
                 .err(e.loc, "the tree is nested too deeply")
                 .with_help(format!("btrel accepts trees up to {MAX_DEPTH} levels deep")));
         }
-        self.no_text(e)?;
-        let tag = e.name.as_str();
-        match tag {
+        if matches!(e.name.as_str(), "SubTree" | "SubTreePlus") {
+            return self.subtree(e, parent, depth, path, prefix, retry);
+        }
+        // the explicit form <Control ID="Sequence">: the ID is the node type
+        let (ty, form) = match e.name.as_str() {
+            "Action" | "Condition" | "Control" | "Decorator" => {
+                (self.id_attr(e)?, Some(e.name.as_str()))
+            }
+            t => (t, None),
+        };
+        let with_id: &[&str] = if form.is_some() {
+            &["name", "ID"]
+        } else {
+            &["name"]
+        };
+        let attrs = |extra: &[&'static str]| -> Vec<&str> {
+            with_id
+                .iter()
+                .copied()
+                .chain(extra.iter().copied())
+                .collect()
+        };
+        let canon = canonical(ty);
+        let default_name = || ty.to_string();
+        match canon {
             "Sequence" | "SequenceWithMemory" | "ReactiveSequence" | "Fallback"
             | "ReactiveFallback" | "Parallel" => {
-                if tag == "SequenceWithMemory" && under_retry {
-                    return Err(self
-                        .err(e.loc, "SequenceWithMemory below RetryUntilSuccessful is not supported")
-                        .with_help(
-                            "after a failure SequenceWithMemory resumes at the failed child instead \
-                             of starting afresh, which the SBT model of retries does not cover; \
-                             use Sequence",
-                        ));
-                }
-                let parallel = tag == "Parallel";
-                if parallel {
-                    self.check_attrs(e, &["name", "success_count", "failure_count"], false)?;
-                } else {
-                    self.check_attrs(e, &["name"], false)?;
+                let parallel = canon == "Parallel";
+                let version = self.parallel_version(e);
+                let keys: &[&'static str] = match (parallel, version) {
+                    (false, _) => &[],
+                    (true, Format::V3) => &["success_threshold", "failure_threshold"],
+                    (true, _) => &["success_count", "failure_count"],
+                };
+                self.check_attrs(e, &attrs(keys), false)?;
+                if canon == "SequenceWithMemory" {
+                    if let Some(by) = retry {
+                        self.problem(
+                            e.doc,
+                            e.loc,
+                            format!(
+                                "<{ty}> below {by}: after a failure it resumes at the failed child \
+                                 when ticked again instead of starting afresh, which a fresh copy \
+                                 of the subtree (the SBT model of a retry) does not cover"
+                            ),
+                            true,
+                        );
+                    }
                 }
                 if e.children.is_empty() {
                     return Err(self
-                        .err(e.loc, format!("<{tag}> has no children"))
+                        .err(e.loc, format!("<{ty}> has no children"))
                         .with_help("a control node needs at least one child"));
                 }
-                let base = self.name_attr(e)?.unwrap_or_else(|| tag.to_string());
-                let kind = match tag {
+                let base = self.name_attr(e)?.unwrap_or_else(default_name);
+                let kind = match canon {
                     "Fallback" | "ReactiveFallback" => NodeKind::Fallback {
                         children: Vec::new(),
                     },
@@ -873,100 +1133,87 @@ impl<'a> Builder<'a> {
                     },
                 };
                 let id = self.push(e, &base, prefix, parent, depth, &path, kind)?;
-                let mut ids = Vec::with_capacity(e.children.len());
-                for (i, &c) in e.children.iter().enumerate() {
-                    ids.push(self.node(
-                        c,
-                        Some(id),
-                        depth + 1,
-                        format!("{path}.{i}"),
-                        prefix,
-                        under_retry,
-                    )?);
-                }
-                let thresholds = if parallel {
-                    Some(self.thresholds(e, ids.len())?)
-                } else {
-                    None
-                };
-                match &mut self.nodes[id].kind {
-                    NodeKind::Sequence { children } | NodeKind::Fallback { children } => {
-                        *children = ids
-                    }
-                    NodeKind::Parallel {
+                let ids = self.children(e, id, depth, &path, prefix, retry)?;
+                if parallel {
+                    let (m, f) = self.thresholds(e, ids.len(), version)?;
+                    if let NodeKind::Parallel {
                         success_threshold,
                         failure_threshold,
-                        children,
-                    } => {
-                        *children = ids;
-                        (*success_threshold, *failure_threshold) = thresholds.unwrap_or((0, 0));
+                        ..
+                    } = &mut self.nodes[id].kind
+                    {
+                        (*success_threshold, *failure_threshold) = (m, f);
                     }
-                    _ => {}
                 }
+                self.set_children(id, ids);
                 Ok(id)
             }
             "Inverter" | "ForceSuccess" | "ForceFailure" | "RetryUntilSuccessful" | "Repeat" => {
-                let (decorator, retry) = match tag {
+                let (decorator, child_retry) = match canon {
                     "Inverter" => {
-                        self.check_attrs(e, &["name"], false)?;
-                        (Decorator::Inverter, false)
+                        self.check_attrs(e, &attrs(&[]), false)?;
+                        (Decorator::Inverter, retry)
                     }
                     "ForceSuccess" => {
-                        self.check_attrs(e, &["name"], false)?;
-                        (Decorator::ForceSuccess, false)
+                        self.check_attrs(e, &attrs(&[]), false)?;
+                        (Decorator::ForceSuccess, retry)
                     }
                     "ForceFailure" => {
-                        self.check_attrs(e, &["name"], false)?;
-                        (Decorator::ForceFailure, false)
+                        self.check_attrs(e, &attrs(&[]), false)?;
+                        (Decorator::ForceFailure, retry)
                     }
                     "RetryUntilSuccessful" => {
-                        self.check_attrs(e, &["name", "num_attempts"], false)?;
-                        let attempts = self.count(e, "num_attempts")?;
-                        (Decorator::Retry { attempts }, true)
+                        self.check_attrs(e, &attrs(&["num_attempts"]), false)?;
+                        let Some(attempts) = self.count(e, "num_attempts")? else {
+                            let base = self.name_attr(e)?.unwrap_or_else(default_name);
+                            return self.placeholder(e, &base, parent, depth, &path, prefix, retry);
+                        };
+                        // one attempt never ticks a failed child again
+                        let r = if attempts > 1 {
+                            Some("RetryUntilSuccessful")
+                        } else {
+                            retry
+                        };
+                        (Decorator::Retry { attempts }, r)
                     }
                     _ => {
-                        self.check_attrs(e, &["name", "num_cycles"], false)?;
-                        let times = self.count(e, "num_cycles")?;
-                        (Decorator::Repeat { times }, false)
+                        self.check_attrs(e, &attrs(&["num_cycles"]), false)?;
+                        let Some(times) = self.count(e, "num_cycles")? else {
+                            let base = self.name_attr(e)?.unwrap_or_else(default_name);
+                            return self.placeholder(e, &base, parent, depth, &path, prefix, retry);
+                        };
+                        (Decorator::Repeat { times }, retry)
                     }
                 };
                 if e.children.len() != 1 {
                     return Err(self
                         .err(
                             e.loc,
-                            format!(
-                                "<{tag}> needs exactly one child, found {}",
-                                e.children.len()
-                            ),
+                            format!("<{ty}> needs exactly one child, found {}", e.children.len()),
                         )
                         .with_help(
                             "a decorator wraps exactly one node; wrap several in a <Sequence>",
                         ));
                 }
-                let base = self.name_attr(e)?.unwrap_or_else(|| tag.to_string());
+                let base = self.name_attr(e)?.unwrap_or_else(default_name);
                 let kind = NodeKind::Decorator {
                     decorator,
                     child: 0,
                 };
                 let id = self.push(e, &base, prefix, parent, depth, &path, kind)?;
-                let c = self.node(
-                    e.children[0],
-                    Some(id),
-                    depth + 1,
-                    format!("{path}.0"),
-                    prefix,
-                    under_retry || retry,
-                )?;
-                if let NodeKind::Decorator { child, .. } = &mut self.nodes[id].kind {
-                    *child = c;
-                }
+                let ids = self.children(e, id, depth, &path, prefix, child_retry)?;
+                self.set_children(id, ids);
                 Ok(id)
             }
+            "RecoveryNode" => {
+                self.check_attrs(e, &attrs(&["number_of_retries"]), false)?;
+                self.recovery(e, ty, parent, depth, path, prefix, retry)
+            }
             "AlwaysSuccess" | "AlwaysFailure" => {
-                self.check_attrs(e, &["name"], false)?;
+                self.check_attrs(e, &attrs(&[]), false)?;
                 self.no_children(e)?;
-                let base = self.name_attr(e)?.unwrap_or_else(|| tag.to_string());
-                let ps = if tag == "AlwaysSuccess" { 1.0 } else { 0.0 };
+                let base = self.name_attr(e)?.unwrap_or_else(default_name);
+                let ps = if canon == "AlwaysSuccess" { 1.0 } else { 0.0 };
                 self.push(
                     e,
                     &base,
@@ -977,49 +1224,214 @@ impl<'a> Builder<'a> {
                     NodeKind::Condition { ps },
                 )
             }
-            "Action" | "Condition" => {
-                self.check_attrs(e, &["name", "ID"], true)?;
-                let id = self.id_attr(e)?;
-                self.leaf(e, id, tag == "Action", parent, depth, &path, prefix)
+            "Script" | "SetBlackboard" | "UnsetBlackboard" => {
+                self.check_attrs(e, &attrs(&[]), true)?;
+                self.leaf(e, ty, LeafKind::ZeroTime, parent, depth, &path, prefix)
             }
-            "SubTree" => self.subtree(e, parent, depth, path, prefix, under_retry),
             _ => {
-                if let Some(why) = unsupported(tag) {
-                    return Err(self
-                        .err(e.loc, format!("<{tag}> is not supported"))
-                        .with_help(why));
+                self.check_attrs(e, &attrs(&[]), true)?;
+                let base = self.name_attr(e)?.unwrap_or_else(default_name);
+                if let Some(why) = unsupported(canon) {
+                    self.problem(e.doc, e.loc, format!("<{ty}>: {why}"), true);
+                    return self.placeholder(e, &base, parent, depth, &path, prefix, retry);
                 }
-                match self.model.get(tag).copied() {
-                    Some(Decl::Action) | Some(Decl::Condition) => {
-                        self.check_attrs(e, &["name"], true)?;
-                        let is_action = self.model.get(tag) == Some(&Decl::Action);
-                        let id: &'a str = &self.elem(ei).name;
-                        self.leaf(e, id, is_action, parent, depth, &path, prefix)
+                let decl = match form {
+                    Some("Action") => Some(Decl::Action),
+                    Some("Condition") => Some(Decl::Condition),
+                    Some("Control") => Some(Decl::Other("control node")),
+                    Some(_) => Some(Decl::Other("decorator")),
+                    None => self.model.get(ty).copied(),
+                };
+                match decl {
+                    Some(Decl::Action) => {
+                        self.leaf(e, ty, LeafKind::Action, parent, depth, &path, prefix)
                     }
-                    Some(Decl::Other(what)) => Err(self
-                        .err(e.loc, format!("custom {what} <{tag}> is not supported"))
-                        .with_help(
-                            "custom control nodes and decorators have no stochastic model; only \
-                             custom Actions and Conditions can be given parameters",
-                        )),
+                    Some(Decl::Condition) => {
+                        self.leaf(e, ty, LeafKind::Condition, parent, depth, &path, prefix)
+                    }
+                    Some(Decl::Other(what)) => {
+                        self.problem(
+                            e.doc,
+                            e.loc,
+                            format!(
+                                "<{ty}>: a custom {what}; btrel models only its own control nodes \
+                                 and decorators"
+                            ),
+                            true,
+                        );
+                        self.placeholder(e, &base, parent, depth, &path, prefix, retry)
+                    }
+                    None if e.children.is_empty() => {
+                        self.leaf(e, ty, LeafKind::Inferred, parent, depth, &path, prefix)
+                    }
                     None => {
-                        let hint = match nearest(tag, BUILTINS) {
-                            Some(k) => format!(
-                                "did you mean <{k}>? If <{tag}> is your own node, declare it in \
-                                 <TreeNodesModel> as <Action ID=\"{tag}\"/> or <Condition ID=\"{tag}\"/>"
-                            ),
-                            None => format!(
-                                "declare it in <TreeNodesModel> as <Action ID=\"{tag}\"/> or \
-                                 <Condition ID=\"{tag}\"/>, or write <Action ID=\"{tag}\"/>"
-                            ),
+                        let mut known: Vec<&str> = BUILTINS.to_vec();
+                        known.extend(self.model.keys().copied());
+                        let hint = match nearest(ty, &known) {
+                            Some(k) => format!(" (did you mean <{k}>?)"),
+                            None => String::new(),
                         };
-                        Err(self
-                            .err(e.loc, format!("unknown node <{tag}>"))
-                            .with_help(hint))
+                        self.problem(
+                            e.doc,
+                            e.loc,
+                            format!(
+                                "unknown node <{ty}> with children{hint}: a node with children must \
+                                 be a control node or decorator that btrel knows, or be declared \
+                                 in a <TreeNodesModel>"
+                            ),
+                            false,
+                        );
+                        self.placeholder(e, &base, parent, depth, &path, prefix, retry)
                     }
                 }
             }
         }
+    }
+
+    /// The format that decides a Parallel's attributes: the file's, or for
+    /// a file without `BTCPP_format`, v3 if the node uses v3 names.
+    fn parallel_version(&self, e: &Elem) -> Format {
+        match self.sources[e.doc].format {
+            Format::Unspecified
+                if e.attr("success_threshold").is_some()
+                    || e.attr("failure_threshold").is_some() =>
+            {
+                Format::V3
+            }
+            Format::Unspecified => Format::V4,
+            f => f,
+        }
+    }
+
+    /// Nav2's RecoveryNode(main, recovery, n): tick main; Success is
+    /// Success; on Failure, if fewer than n retries were used, tick
+    /// recovery: Failure is Failure, Success ticks main again. Built as
+    /// Fallback(main, Sequence(recovery, RecoveryNode(main, recovery,
+    /// n − 1))) with RecoveryNode(main, recovery, 0) = main, each copy
+    /// fresh.
+    #[allow(clippy::too_many_arguments)]
+    fn recovery(
+        &mut self,
+        e: &'a Elem,
+        ty: &str,
+        parent: Option<usize>,
+        depth: usize,
+        path: String,
+        prefix: &str,
+        retry: Option<&'static str>,
+    ) -> Result<usize, TreeError> {
+        if e.children.len() != 2 {
+            return Err(self
+                .err(
+                    e.loc,
+                    format!(
+                        "<{ty}> needs exactly two children (the main branch and the recovery), found {}",
+                        e.children.len()
+                    ),
+                )
+                .with_help("Nav2's RecoveryNode throws at run time for any other number of children"));
+        }
+        if let Some(a) = e
+            .attr("number_of_retries")
+            .filter(|a| a.value.trim().starts_with('{'))
+        {
+            self.problem(
+                e.doc,
+                a.loc,
+                format!(
+                    "<{ty}> with number_of_retries = \"{}\", a blackboard reference: the count is \
+                     only known at run time",
+                    a.value.trim()
+                ),
+                true,
+            );
+            let base = self.name_attr(e)?.unwrap_or_else(|| ty.to_string());
+            return self.placeholder(e, &base, parent, depth, &path, prefix, retry);
+        }
+        let n = match self.int_attr(e, "number_of_retries")? {
+            None => 1,
+            Some((n, at)) => {
+                if !(0..=MAX_RECOVERY_RETRIES as i64).contains(&n) {
+                    return Err(self
+                        .err(at, format!("number_of_retries = {n} is not a valid count"))
+                        .with_help(format!(
+                            "number_of_retries must be a whole number from 0 to {MAX_RECOVERY_RETRIES}"
+                        )));
+                }
+                n as usize
+            }
+        };
+        let base = self.name_attr(e)?.unwrap_or_else(|| ty.to_string());
+        let (main, rec) = (e.children[0], e.children[1]);
+        // the main branch is ticked again after its failure
+        let main_retry = if n > 0 { Some("RecoveryNode") } else { retry };
+        // (fallback, main copy, sequence, recovery copy) per retry
+        let mut levels: Vec<(usize, usize, usize, usize)> = Vec::with_capacity(n);
+        let (mut up, mut d, mut p) = (parent, depth, path);
+        for k in 1..=n {
+            let fb_name = if k == 1 {
+                base.clone()
+            } else {
+                format!("{base}/attempt {k}")
+            };
+            let main_prefix = if k == 1 {
+                prefix.to_string()
+            } else {
+                format!("{prefix}{base}/attempt {k}/")
+            };
+            let fb = self.push(
+                e,
+                &fb_name,
+                prefix,
+                up,
+                d,
+                &p,
+                NodeKind::Fallback {
+                    children: Vec::new(),
+                },
+            )?;
+            let m = self.node(
+                main,
+                Some(fb),
+                d + 1,
+                format!("{p}.0"),
+                &main_prefix,
+                main_retry,
+            )?;
+            let sq = self.push(
+                e,
+                &format!("{base}/recovery {k}"),
+                prefix,
+                Some(fb),
+                d + 1,
+                &format!("{p}.1"),
+                NodeKind::Sequence {
+                    children: Vec::new(),
+                },
+            )?;
+            let r = self.node(
+                rec,
+                Some(sq),
+                d + 2,
+                format!("{p}.1.0"),
+                &format!("{prefix}{base}/recovery {k}/"),
+                retry,
+            )?;
+            levels.push((fb, m, sq, r));
+            (up, d, p) = (Some(sq), d + 2, format!("{p}.1.1"));
+        }
+        let last_prefix = if n == 0 {
+            prefix.to_string()
+        } else {
+            format!("{prefix}{base}/attempt {}/", n + 1)
+        };
+        let mut next = self.node(main, up, d, p, &last_prefix, main_retry)?;
+        for (fb, m, sq, r) in levels.into_iter().rev() {
+            self.set_children(sq, vec![r, next]);
+            self.set_children(fb, vec![m, sq]);
+            next = fb;
+        }
+        Ok(next)
     }
 
     /// Number of nodes of tree `id` after SubTree expansion (saturating),
@@ -1029,28 +1441,47 @@ impl<'a> Builder<'a> {
         if let Some(&s) = self.sizes.get(id) {
             return s;
         }
-        let Some(&tree) = self.trees.get(id) else {
-            return 0;
+        let Some(&tree) = self.trees.get(id).and_then(|v| v.first()) else {
+            return 1;
         };
         if guard > MAX_DEPTH || !self.sizing.insert(id) {
             return 0;
         }
-        let doc = self.doc;
-        let mut total = 0u64;
-        let mut stack: Vec<usize> = doc.elems[tree].children.clone();
-        while let Some(i) = stack.pop() {
-            let e = &doc.elems[i];
-            if e.name == "SubTree" {
-                if let Some(a) = e.attr("ID") {
-                    total = total.saturating_add(self.tree_size(&a.value, guard + 1));
-                }
-            } else {
-                total = total.saturating_add(1);
-                stack.extend_from_slice(&e.children);
-            }
-        }
+        let total = match self.elems[tree].children.first() {
+            Some(&root) => self.elem_size(root, guard),
+            None => 0,
+        };
         self.sizing.remove(id);
         self.sizes.insert(id, total);
+        total
+    }
+
+    fn elem_size(&mut self, ei: usize, guard: usize) -> u64 {
+        let e = self.elem(ei);
+        if matches!(e.name.as_str(), "SubTree" | "SubTreePlus") {
+            return match e.attr("ID") {
+                Some(a) => self.tree_size(&a.value, guard + 1),
+                None => 1,
+            };
+        }
+        let recovery = e.name == "RecoveryNode"
+            || (e.name == "Control" && e.attr("ID").is_some_and(|a| a.value == "RecoveryNode"));
+        if recovery && e.children.len() == 2 {
+            let n = e
+                .attr("number_of_retries")
+                .and_then(|a| a.value.trim().parse::<u64>().ok())
+                .unwrap_or(1)
+                .min(MAX_RECOVERY_RETRIES);
+            let m = self.elem_size(e.children[0], guard);
+            let r = self.elem_size(e.children[1], guard);
+            return (2 * n)
+                .saturating_add((n + 1).saturating_mul(m))
+                .saturating_add(n.saturating_mul(r));
+        }
+        let mut total = 1u64;
+        for &c in &e.children {
+            total = total.saturating_add(self.elem_size(c, guard));
+        }
         total
     }
 
@@ -1071,7 +1502,7 @@ impl<'a> Builder<'a> {
         &mut self,
         e: &Elem,
         id: &str,
-        is_action: bool,
+        kind: LeafKind,
         parent: Option<usize>,
         depth: usize,
         path: &str,
@@ -1081,24 +1512,50 @@ impl<'a> Builder<'a> {
         let name_attr = self.name_attr(e)?;
         let base = name_attr.clone().unwrap_or_else(|| id.to_string());
         // placeholder parameters, filled in from the params file
-        let kind = if is_action {
-            NodeKind::Action(Action {
-                ps: 0.0,
-                pf: 1.0,
-                success: None,
-                failure: None,
-            })
-        } else {
-            NodeKind::Condition { ps: 0.0 }
-        };
-        let node = self.push(e, &base, prefix, parent, depth, path, kind)?;
+        let node = self.push(
+            e,
+            &base,
+            prefix,
+            parent,
+            depth,
+            path,
+            NodeKind::Condition { ps: 0.0 },
+        )?;
         self.leaves.push(Leaf {
             node,
-            is_action,
+            kind,
             id: id.to_string(),
             name_attr,
+            doc: e.doc,
         });
         Ok(node)
+    }
+
+    /// The BehaviorTree with this ID: the main file's definition, else the
+    /// only included one.
+    fn lookup_tree(&self, id: &str, at: Loc) -> Result<Option<usize>, TreeError> {
+        let Some(defs) = self.trees.get(id) else {
+            return Ok(None);
+        };
+        if defs.len() > 1 && self.elem(defs[0]).doc != 0 {
+            let places: Vec<String> = defs
+                .iter()
+                .map(|&d| {
+                    let el = self.elem(d);
+                    format!("{}:{}:{}", self.sources[el.doc].name, el.loc.0, el.loc.1)
+                })
+                .collect();
+            return Err(self
+                .err(
+                    at,
+                    format!("BehaviorTree `{id}` is defined in several included files"),
+                )
+                .with_help(format!(
+                    "defined at {}; include only one of them",
+                    places.join(", ")
+                )));
+        }
+        Ok(defs.first().copied())
     }
 
     fn subtree(
@@ -1108,25 +1565,54 @@ impl<'a> Builder<'a> {
         depth: usize,
         path: String,
         prefix: &str,
-        under_retry: bool,
+        retry: Option<&'static str>,
     ) -> Result<usize, TreeError> {
-        self.check_attrs(e, &["name", "ID", "_autoremap"], true)?;
+        self.check_attrs(e, &["name", "ID"], true)?;
         self.no_children(e)?;
         let id = self.id_attr(e)?;
-        let Some(&tree) = self.trees.get(id) else {
+        let name_attr = self.name_attr(e)?;
+        let instance = name_attr.clone().unwrap_or_else(|| id.to_string());
+        let Some(tree) = self.lookup_tree(id, e.loc)? else {
+            // a SubTree defined nowhere but given a params entry is one leaf
+            let full = format!("{prefix}{instance}");
+            let has_entry = [Some(full.as_str()), name_attr.as_deref(), Some(id)]
+                .into_iter()
+                .flatten()
+                .any(|k| self.table.contains_key(k));
+            if has_entry {
+                return self.leaf(e, id, LeafKind::Inferred, parent, depth, &path, prefix);
+            }
             let ids: Vec<&str> = self.trees.keys().copied().collect();
             let mut sorted = ids.clone();
             sorted.sort_unstable();
             let hint = match nearest(id, &ids) {
-                Some(k) => format!("did you mean `{k}`? trees: {}", sorted.join(", ")),
-                None => format!("trees: {}", sorted.join(", ")),
+                Some(k) => format!("did you mean `{k}`? "),
+                None => String::new(),
             };
-            return Err(self
-                .err(
-                    e.loc,
-                    format!("no <BehaviorTree ID=\"{id}\"> for this SubTree"),
-                )
-                .with_help(hint));
+            let trees = if sorted.is_empty() {
+                "none".to_string()
+            } else {
+                sorted.join(", ")
+            };
+            self.problem(
+                e.doc,
+                e.loc,
+                format!(
+                    "no <BehaviorTree ID=\"{id}\"> for this SubTree ({hint}trees read: {trees}); \
+                     include the file that defines it, or give `{id}` a params entry to treat \
+                     the SubTree as one leaf"
+                ),
+                false,
+            );
+            return self.push(
+                e,
+                &instance,
+                prefix,
+                parent,
+                depth,
+                &path,
+                NodeKind::Condition { ps: 1.0 },
+            );
         };
         if let Some(pos) = self.expanding.iter().position(|(t, _)| *t == id) {
             let cycle: Vec<&str> = self.expanding[pos..]
@@ -1143,17 +1629,42 @@ impl<'a> Builder<'a> {
                 .err(e.loc, "SubTrees are nested too deeply")
                 .with_help(format!("btrel expands at most {MAX_DEPTH} nested SubTrees")));
         }
-        let instance = self.name_attr(e)?.unwrap_or_else(|| id.to_string());
         let inner = format!("{prefix}{instance}/");
         self.expanding.push((id, e.loc));
         let root = self.elem(tree).children[0];
-        let r = self.node(root, parent, depth, path, &inner, under_retry);
+        let r = self.node(root, parent, depth, path, &inner, retry);
         self.expanding.pop();
         r
     }
 
-    /// `num_attempts` / `num_cycles`: required, 1..=1e6.
-    fn count(&self, e: &Elem, key: &str) -> Result<usize, TreeError> {
+    /// `num_attempts` / `num_cycles`: required, 1..=1e6. A count from the
+    /// blackboard or −1 (forever) is recorded as a problem (`None`).
+    fn count(&mut self, e: &Elem, key: &str) -> Result<Option<usize>, TreeError> {
+        if let Some(a) = e.attr(key).filter(|a| a.value.trim().starts_with('{')) {
+            self.problem(
+                e.doc,
+                a.loc,
+                format!(
+                    "<{}> with {key} = \"{}\", a blackboard reference: the count is only known at run time",
+                    e.name,
+                    a.value.trim()
+                ),
+                true,
+            );
+            return Ok(None);
+        }
+        if let Some((-1, at)) = self.int_attr(e, key)? {
+            self.problem(
+                e.doc,
+                at,
+                format!(
+                    "<{}> with {key} = -1 (forever): an endless loop has no finite MTTS/MTTF",
+                    e.name
+                ),
+                true,
+            );
+            return Ok(None);
+        }
         let Some((n, at)) = self.int_attr(e, key)? else {
             return Err(self
                 .err(e.loc, format!("<{}> needs `{key}`", e.name))
@@ -1161,24 +1672,33 @@ impl<'a> Builder<'a> {
                     "write {key}=\"N\" with N a whole number from 1 to 1000000"
                 )));
         };
-        if n == -1 {
-            return Err(self
-                .err(at, format!("{key} = -1 (forever) is not supported"))
-                .with_help(format!(
-                    "an endless loop has no finite MTTS/MTTF to analyse; give a finite {key} from 1 to 1000000"
-                )));
-        }
         if !(1..=1_000_000).contains(&n) {
             return Err(self
                 .err(at, format!("{key} = {n} is not a valid count"))
                 .with_help(format!("{key} must be a whole number from 1 to 1000000")));
         }
-        Ok(n as usize)
+        Ok(Some(n as usize))
     }
 
-    fn thresholds(&self, e: &Elem, n: usize) -> Result<(usize, usize), TreeError> {
-        let resolve = |key: &str, default: i64, meaning: &str| -> Result<usize, TreeError> {
-            let (k, at) = self.int_attr(e, key)?.unwrap_or((default, e.loc));
+    /// Parallel thresholds. v4: `success_count` (default −1),
+    /// `failure_count` (default 1); v3: `success_threshold` (required),
+    /// `failure_threshold` (default 1). A negative count k means N + k + 1.
+    fn thresholds(&self, e: &Elem, n: usize, version: Format) -> Result<(usize, usize), TreeError> {
+        let resolve = |key: &str,
+                       default: Option<i64>,
+                       meaning: &str|
+         -> Result<usize, TreeError> {
+            let (k, at) = match (self.int_attr(e, key)?, default) {
+                (Some(v), _) => v,
+                (None, Some(d)) => (d, e.loc),
+                (None, None) => {
+                    return Err(self
+                        .err(e.loc, format!("<{}> needs `{key}` (BT.CPP v3)", e.name))
+                        .with_help(format!(
+                            "BT.CPP v3 has no default for {key}; write {key}=\"M\" (M from 1 to {n}, or -1 for all children)"
+                        )))
+                }
+            };
             let v = if k < 0 { n as i64 + k + 1 } else { k };
             if v < 1 || v > n as i64 {
                 return Err(self
@@ -1189,32 +1709,255 @@ impl<'a> Builder<'a> {
             }
             Ok(v as usize)
         };
-        let m = resolve("success_count", -1, "Success at >= M successes")?;
-        let f = resolve("failure_count", 1, "Failure at >= F failures")?;
+        if version == Format::V3 {
+            let m = resolve("success_threshold", None, "Success at >= M successes")?;
+            let f = resolve("failure_threshold", Some(1), "Failure at >= F failures")?;
+            return Ok((m, f));
+        }
+        let m = resolve("success_count", Some(-1), "Success at >= M successes")?;
+        let f = resolve("failure_count", Some(1), "Failure at >= F failures")?;
         Ok((m, f))
     }
 }
 
-/// Parses a BehaviorTree.CPP v4 XML tree with its params file. `file` and
-/// `params_file` name the sources in error messages.
+// ---------------------------------------------------------------------------
+// Reading the files
+// ---------------------------------------------------------------------------
+
+/// Most XML files (the main file and everything it includes).
+pub const MAX_FILES: usize = 10_000;
+
+/// The XML files of a tree, read and parsed.
+struct Files {
+    sources: Vec<Source>,
+    elems: Vec<Elem>,
+    /// Root element of each source.
+    roots: Vec<usize>,
+    /// Canonical paths of the files read from disk.
+    seen: HashSet<std::path::PathBuf>,
+    bytes: usize,
+}
+
+impl Files {
+    fn new() -> Files {
+        Files {
+            sources: Vec::new(),
+            elems: Vec::new(),
+            roots: Vec::new(),
+            seen: HashSet::new(),
+            bytes: 0,
+        }
+    }
+
+    /// Parses `text` as a new source; `dir` resolves its `<include>`s
+    /// (`None`: the text was not read from a file, and includes are
+    /// refused).
+    fn add(&mut self, name: String, text: String, dir: Option<&Path>) -> Result<(), TreeError> {
+        if self.sources.len() >= MAX_FILES {
+            return Err(plain(&name, format!("more than {MAX_FILES} XML files")));
+        }
+        self.bytes = self.bytes.saturating_add(text.len());
+        if self.bytes > MAX_BYTES {
+            return Err(plain(
+                &name,
+                format!("the XML files are more than {MAX_BYTES} bytes together"),
+            ));
+        }
+        let doc = self.sources.len();
+        let elems = Reader {
+            src: &text,
+            file: &name,
+            doc,
+            pos: 0,
+            line: 1,
+            col: 1,
+        }
+        .parse()?;
+        let base = self.elems.len();
+        self.roots.push(base);
+        self.elems.extend(elems.into_iter().map(|mut e| {
+            for c in &mut e.children {
+                *c += base;
+            }
+            e
+        }));
+        let root = &self.elems[base];
+        let err = |at: Loc, msg: String| TreeError::at(&name, &text, at, msg);
+        let format = match root.attr("BTCPP_format") {
+            None => Format::Unspecified,
+            Some(a) => match a.value.trim() {
+                "4" => Format::V4,
+                "3" => Format::V3,
+                v => {
+                    return Err(
+                        err(a.loc, format!("BTCPP_format = \"{v}\" is not supported"))
+                            .with_help("btrel reads the BehaviorTree.CPP formats 3 and 4"),
+                    )
+                }
+            },
+        };
+        let mut includes: Vec<(Loc, String)> = Vec::new();
+        for &c in &root.children {
+            let e = &self.elems[c];
+            if e.name != "include" {
+                continue;
+            }
+            if let Some(a) = e.attr("ros_pkg") {
+                return Err(err(
+                    a.loc,
+                    "<include ros_pkg=...> is not supported: btrel cannot locate ROS packages"
+                        .into(),
+                )
+                .with_help("include the file by its path instead"));
+            }
+            let Some(p) = e.attr("path") else {
+                return Err(err(e.loc, "<include> needs a `path` attribute".into())
+                    .with_help("write <include path=\"other_file.xml\"/>"));
+            };
+            includes.push((e.loc, p.value.clone()));
+        }
+        if !includes.is_empty() && dir.is_none() {
+            return Err(err(
+                includes[0].0,
+                "<include> cannot be resolved: the tree was not read from a file".into(),
+            )
+            .with_help("read the tree from a file, or pass the included file's text with it"));
+        }
+        self.sources.push(Source { name, text, format });
+        if let Some(dir) = dir {
+            for (at, p) in includes {
+                let path = dir.join(&p);
+                let src = &self.sources[doc];
+                if !path.is_file() {
+                    return Err(TreeError::at(
+                        &src.name,
+                        &src.text,
+                        at,
+                        format!("included file `{}` does not exist", path.display()),
+                    )
+                    .with_help("the path is relative to the folder of the including file"));
+                }
+                self.add_file(&path)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Reads a file (once: a file already read is skipped).
+    fn add_file(&mut self, path: &Path) -> Result<(), TreeError> {
+        let name = path.display().to_string();
+        if let Ok(c) = std::fs::canonicalize(path) {
+            if !self.seen.insert(c) {
+                return Ok(());
+            }
+        }
+        let text = read_text(path, &name)?;
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        self.add(name, text, Some(&dir))
+    }
+
+    /// `--include FILE|DIR`: a file, or every `.xml` file of a folder (not
+    /// its subfolders), in name order.
+    fn add_include(&mut self, path: &Path) -> Result<(), TreeError> {
+        let name = path.display().to_string();
+        if path.is_dir() {
+            let rd = std::fs::read_dir(path).map_err(|e| {
+                plain(&name, format!("cannot read the folder: {e}"))
+                    .with_help(super::parse::read_help(&e))
+            })?;
+            let mut files: Vec<std::path::PathBuf> = rd
+                .filter_map(|d| d.ok().map(|d| d.path()))
+                .filter(|p| {
+                    p.is_file() && p.extension().is_some_and(|x| x.eq_ignore_ascii_case("xml"))
+                })
+                .collect();
+            files.sort();
+            for f in files {
+                self.add_file(&f)?;
+            }
+            return Ok(());
+        }
+        self.add_file(path)
+    }
+}
+
+/// Parses a BehaviorTree.CPP XML tree (format 3 or 4) with its params file.
+/// `file` and `params_file` name the sources in error messages. The text
+/// was not read from a file, so `<include>` is refused.
 pub fn parse_xml_str(
     xml: &str,
     file: &str,
     params: &str,
     params_file: &str,
 ) -> Result<Tree, TreeError> {
-    for (src, name) in [(xml, file), (params, params_file)] {
+    parse_xml_str_with(xml, file, &[], params, params_file)
+}
+
+/// Like [`parse_xml_str`], with more XML texts (`(name, text)`) whose
+/// BehaviorTrees and node models the tree may use, as `--include` files.
+pub fn parse_xml_str_with(
+    xml: &str,
+    file: &str,
+    includes: &[(&str, &str)],
+    params: &str,
+    params_file: &str,
+) -> Result<Tree, TreeError> {
+    for (src, name) in [(xml, file), (params, params_file)]
+        .into_iter()
+        .chain(includes.iter().map(|&(n, t)| (t, n)))
+    {
         if src.len() > MAX_BYTES {
             return Err(too_large(name, src.len()));
         }
     }
-    // the builder recurses once per tree level and SubTree (both bounded);
-    // a dedicated stack keeps that independent of the caller's stack
+    on_parser_thread(file, || {
+        let mut files = Files::new();
+        files.add(file.to_string(), xml.to_string(), None)?;
+        for &(name, text) in includes {
+            files.add(name.to_string(), text.to_string(), None)?;
+        }
+        build(files, params, params_file)
+    })
+}
+
+/// Reads a BehaviorTree.CPP XML file and its params file.
+pub fn parse_xml_file(xml: &Path, params: &Path) -> Result<Tree, TreeError> {
+    parse_xml_files(xml, params, &[])
+}
+
+/// Reads a BehaviorTree.CPP XML file, its params file, and the files (or
+/// folders of `.xml` files) in `includes`, whose BehaviorTrees and node
+/// models the tree may use. `<include path>` elements are followed
+/// (relative to the including file); every file is read once.
+pub fn parse_xml_files(
+    xml: &Path,
+    params: &Path,
+    includes: &[std::path::PathBuf],
+) -> Result<Tree, TreeError> {
+    let xml_name = xml.display().to_string();
+    let params_name = params.display().to_string();
+    let params_src = read_text(params, &params_name)?;
+    on_parser_thread(&xml_name, || {
+        let mut files = Files::new();
+        files.add_file(xml)?;
+        for inc in includes {
+            files.add_include(inc)?;
+        }
+        build(files, &params_src, &params_name)
+    })
+}
+
+/// Runs `f` on a thread with a dedicated stack: the builder recurses once
+/// per tree level and SubTree (both bounded).
+fn on_parser_thread<F>(file: &str, f: F) -> Result<Tree, TreeError>
+where
+    F: FnOnce() -> Result<Tree, TreeError> + Send,
+{
     std::thread::scope(|s| {
         std::thread::Builder::new()
             .name("btrel-xml".into())
             .stack_size(64 << 20)
-            .spawn_scoped(s, || parse_here(xml, file, params, params_file))
+            .spawn_scoped(s, f)
             .map_err(|e| plain(file, format!("cannot start the parser thread: {e}")))?
             .join()
             .unwrap_or_else(|_| {
@@ -1242,174 +1985,295 @@ fn too_large(file: &str, len: usize) -> TreeError {
     )
 }
 
-fn parse_here(xml: &str, file: &str, params: &str, params_file: &str) -> Result<Tree, TreeError> {
-    let doc = Reader {
-        src: xml,
-        file,
-        pos: 0,
-        line: 1,
-        col: 1,
-    }
-    .parse()?;
-    let err = |at: Loc, msg: String| TreeError::at(file, xml, at, msg);
-    let root = &doc.elems[0];
-    if root.name != "root" {
-        return Err(err(root.loc, format!("the root element is <{}>, not <root>", root.name))
-            .with_help("a BT.CPP file is `<root BTCPP_format=\"4\"> <BehaviorTree ID=\"Main\"> ... </BehaviorTree> </root>`"));
-    }
-    if let Some(t) = root.text {
-        return Err(err(t, "text inside <root> has no meaning".into()).with_help("remove the text"));
-    }
+/// Formats collected problems as `file:line:column: text` lines.
+fn problem_lines(sources: &[Source], ps: &[&Problem]) -> String {
+    ps.iter()
+        .map(|p| {
+            format!(
+                "  {}:{}:{}: {}",
+                sources[p.doc].name, p.loc.0, p.loc.1, p.text
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+fn build(files: Files, params: &str, params_file: &str) -> Result<Tree, TreeError> {
+    let Files {
+        sources,
+        elems,
+        roots,
+        ..
+    } = files;
+    let table = parse_params(params, params_file)?;
     let mut b = Builder {
-        doc: &doc,
-        src: xml,
-        file,
+        sources: &sources,
+        elems: &elems,
+        table: &table,
         trees: HashMap::new(),
         model: HashMap::new(),
         nodes: Vec::new(),
         used: HashSet::new(),
         name_bytes: 0,
         leaves: Vec::new(),
+        problems: Vec::new(),
+        seen_problems: HashSet::new(),
+        cur: std::cell::Cell::new(0),
         expanding: Vec::new(),
         sizes: HashMap::new(),
         sizing: HashSet::new(),
     };
-    b.check_attrs(root, &["BTCPP_format", "main_tree_to_execute"], false)?;
-    if let Some(a) = root.attr("BTCPP_format") {
-        if a.value.trim() != "4" {
-            return Err(err(a.loc, format!("BTCPP_format = \"{}\" is not supported", a.value))
-                .with_help("btrel reads the BehaviorTree.CPP v4 format (BTCPP_format=\"4\"); convert older files with BT.CPP's converter"));
-        }
-    }
+    // (ID, BehaviorTree element) of the main file, in order
     let mut order: Vec<(&str, usize)> = Vec::new();
-    for &c in &root.children {
-        let e = &doc.elems[c];
-        match e.name.as_str() {
-            "BehaviorTree" => {
-                b.check_attrs(e, &["ID"], false)?;
-                let id = b.id_attr(e)?;
-                if let Some(&prev) = b.trees.get(id) {
-                    let p = doc.elems[prev].loc;
+    let mut unnamed_main: Option<usize> = None;
+    for (doc, &ri) in roots.iter().enumerate() {
+        b.cur.set(doc);
+        let root = &elems[ri];
+        let src = &sources[doc];
+        let err = |at: Loc, msg: String| TreeError::at(&src.name, &src.text, at, msg);
+        if root.name != "root" {
+            return Err(err(root.loc, format!("the root element is <{}>, not <root>", root.name))
+                .with_help("a BT.CPP file is `<root BTCPP_format=\"4\"> <BehaviorTree ID=\"Main\"> ... </BehaviorTree> </root>`"));
+        }
+        b.check_attrs(root, &["BTCPP_format", "main_tree_to_execute"], false)?;
+        let lone = root
+            .children
+            .iter()
+            .filter(|&&c| elems[c].name == "BehaviorTree")
+            .count()
+            == 1;
+        for &c in &root.children {
+            let e = &elems[c];
+            match e.name.as_str() {
+                "BehaviorTree" => {
+                    // other attributes are the SubTree's port defaults
+                    b.check_attrs(e, &["ID"], true)?;
+                    let id = match e.attr("ID") {
+                        // BT.CPP accepts a lone BehaviorTree without an ID
+                        None if lone && doc == 0 => {
+                            unnamed_main = Some(c);
+                            None
+                        }
+                        None if lone => {
+                            return Err(err(e.loc, "<BehaviorTree> needs an ID attribute in an included file".into())
+                                .with_help("a SubTree refers to an included tree by its ID: write <BehaviorTree ID=\"...\">"))
+                        }
+                        None => {
+                            return Err(err(e.loc, "<BehaviorTree> needs an ID attribute".into())
+                                .with_help("only a file's only BehaviorTree may omit its ID; write <BehaviorTree ID=\"...\">"))
+                        }
+                        Some(_) => Some(b.id_attr(e)?),
+                    };
+                    if e.children.len() != 1 {
+                        return Err(err(
+                            e.loc,
+                            format!(
+                                "<BehaviorTree{}> must hold exactly one node, found {}",
+                                id.map(|i| format!(" ID=\"{i}\"")).unwrap_or_default(),
+                                e.children.len()
+                            ),
+                        )
+                        .with_help("wrap several nodes in a <Sequence> or <Fallback>"));
+                    }
+                    let Some(id) = id else { continue };
+                    let defs = b.trees.entry(id).or_default();
+                    if let Some(&prev) = defs.iter().find(|&&p| elems[p].doc == doc) {
+                        let p = elems[prev].loc;
+                        return Err(err(e.loc, format!("duplicate BehaviorTree ID `{id}`"))
+                            .with_help(format!(
+                                "`{id}` is already defined at line {}, column {}",
+                                p.0, p.1
+                            )));
+                    }
+                    defs.push(c);
+                    if doc == 0 {
+                        order.push((id, c));
+                    }
+                }
+                "TreeNodesModel" => {
+                    for &m in &e.children {
+                        let d = &elems[m];
+                        let decl = match d.name.as_str() {
+                            "Action" => Decl::Action,
+                            "Condition" => Decl::Condition,
+                            "Decorator" => Decl::Other("decorator"),
+                            "Control" => Decl::Other("control node"),
+                            // a SubTree's model (ports, metadata) says nothing about leaves
+                            "SubTree" => continue,
+                            other => {
+                                return Err(err(d.loc, format!("unknown <{other}> in <TreeNodesModel>"))
+                                    .with_help("<TreeNodesModel> declares <Action>, <Condition>, <Decorator>, <Control> and <SubTree> entries"));
+                            }
+                        };
+                        let id = b.id_attr(d)?;
+                        if let Some(&prev) = b.model.get(id) {
+                            if prev != decl {
+                                return Err(err(
+                                    d.loc,
+                                    format!("`{id}` is declared twice with different kinds"),
+                                )
+                                .with_help("declare each ID once, as an Action or a Condition"));
+                            }
+                        }
+                        b.model.insert(id, decl);
+                    }
+                }
+                // resolved when the file was read
+                "include" => {}
+                other => {
                     return Err(
-                        err(e.loc, format!("duplicate BehaviorTree ID `{id}`")).with_help(format!(
-                            "`{id}` is already defined at line {}, column {}",
-                            p.0, p.1
-                        )),
+                        err(e.loc, format!("unknown <{other}> in <root>")).with_help(
+                            "<root> holds <BehaviorTree>, <TreeNodesModel> and <include> elements",
+                        ),
                     );
                 }
-                if let Some(t) = e.text {
-                    return Err(err(t, "text inside <BehaviorTree> has no meaning".into())
-                        .with_help("remove the text"));
-                }
-                if e.children.len() != 1 {
-                    return Err(err(
-                        e.loc,
-                        format!(
-                            "<BehaviorTree ID=\"{id}\"> must hold exactly one node, found {}",
-                            e.children.len()
-                        ),
-                    )
-                    .with_help("wrap several nodes in a <Sequence> or <Fallback>"));
-                }
-                b.trees.insert(id, c);
-                order.push((id, c));
-            }
-            "TreeNodesModel" => {
-                for &m in &e.children {
-                    let d = &doc.elems[m];
-                    let decl = match d.name.as_str() {
-                        "Action" => Decl::Action,
-                        "Condition" => Decl::Condition,
-                        "Decorator" => Decl::Other("decorator"),
-                        "Control" => Decl::Other("control node"),
-                        "SubTree" => Decl::Other("SubTree model"),
-                        other => {
-                            return Err(err(d.loc, format!("unknown <{other}> in <TreeNodesModel>"))
-                                .with_help("<TreeNodesModel> declares <Action>, <Condition>, <Decorator>, <Control> and <SubTree> entries"));
-                        }
-                    };
-                    let id = b.id_attr(d)?;
-                    if let Some(&prev) = b.model.get(id) {
-                        if prev != decl {
-                            return Err(err(
-                                d.loc,
-                                format!("`{id}` is declared twice with different kinds"),
-                            )
-                            .with_help("declare each ID once, as an Action or a Condition"));
-                        }
-                    }
-                    b.model.insert(id, decl);
-                }
-            }
-            "include" => {
-                return Err(err(e.loc, "<include> is not supported".into())
-                    .with_help("paste the included trees into this file"));
-            }
-            other => {
-                return Err(err(e.loc, format!("unknown <{other}> in <root>"))
-                    .with_help("<root> holds <BehaviorTree> and <TreeNodesModel> elements"));
             }
         }
     }
-    let (main_id, main) = match root.attr("main_tree_to_execute") {
-        Some(a) => match b.trees.get(a.value.as_str()) {
-            Some(&t) => (a.value.as_str(), t),
+    b.cur.set(0);
+    let root = &elems[roots[0]];
+    let err = |at: Loc, msg: String| TreeError::at(&sources[0].name, &sources[0].text, at, msg);
+    let (main_id, main): (Option<&str>, usize) = match root.attr("main_tree_to_execute") {
+        Some(a) => match b.lookup_tree(&a.value, a.loc)? {
+            Some(t) => (Some(a.value.as_str()), t),
             None => {
-                let ids: Vec<&str> = order.iter().map(|(i, _)| *i).collect();
+                let ids: Vec<&str> = b.trees.keys().copied().collect();
+                let mut sorted = ids.clone();
+                sorted.sort_unstable();
                 let hint = match nearest(&a.value, &ids) {
-                    Some(k) => format!("did you mean `{k}`? trees: {}", ids.join(", ")),
-                    None => format!("trees: {}", ids.join(", ")),
+                    Some(k) => format!("did you mean `{k}`? trees: {}", sorted.join(", ")),
+                    None => format!("trees: {}", sorted.join(", ")),
                 };
                 return Err(
                     err(a.loc, format!("no <BehaviorTree ID=\"{}\">", a.value)).with_help(hint)
                 );
             }
         },
-        None => match order.first() {
-            Some(&(id, t)) => (id, t),
-            None => {
+        None => match (order.first(), unnamed_main) {
+            (Some(&(id, t)), _) => (Some(id), t),
+            (None, Some(t)) => (None, t),
+            (None, None) => {
                 return Err(err(root.loc, "the file has no <BehaviorTree>".into())
                     .with_help("add <BehaviorTree ID=\"Main\"> holding the root node"))
             }
         },
     };
-    let size = b.tree_size(main_id, 0);
+    let size = match main_id {
+        Some(id) => b.tree_size(id, 0),
+        None => b.elem_size(elems[main].children[0], 0),
+    };
     if size > MAX_NODES as u64 {
         return Err(err(
-            doc.elems[main].loc,
+            elems[main].loc,
             format!("the tree has too many nodes after SubTree expansion ({size})"),
         )
         .with_help(format!("btrel accepts at most {MAX_NODES} nodes")));
     }
-    b.expanding.push((main_id, doc.elems[main].loc));
-    b.node(doc.elems[main].children[0], None, 0, "0".into(), "", false)?;
+    if let Some(id) = main_id {
+        b.expanding.push((id, elems[main].loc));
+    }
+    b.node(elems[main].children[0], None, 0, "0".into(), "", None)?;
     b.expanding.pop();
 
+    if !b.problems.is_empty() {
+        let (semantic, front): (Vec<&Problem>, Vec<&Problem>) =
+            b.problems.iter().partition(|p| p.semantic);
+        let (first, message, help) = if front.is_empty() {
+            let n = semantic.len();
+            (
+                semantic[0],
+                format!(
+                    "{UNSUPPORTED} {n} node{} of this tree:\n{}",
+                    if n == 1 { "" } else { "s" },
+                    problem_lines(&sources, &semantic)
+                ),
+                "these BT.CPP node types (or attributes) have no model as a Stochastic Behavior \
+                 Tree in btrel yet; read: Sequence, SequenceWithMemory, ReactiveSequence, \
+                 Fallback, ReactiveFallback, Parallel, Inverter, ForceSuccess, ForceFailure, \
+                 RetryUntilSuccessful, Repeat, RecoveryNode, SubTree, AlwaysSuccess, \
+                 AlwaysFailure, Script, SetBlackboard, UnsetBlackboard and custom leaves"
+                    .to_string(),
+            )
+        } else {
+            let n = front.len();
+            let mut message = format!(
+                "{n} node{} cannot be read:\n{}",
+                if n == 1 { "" } else { "s" },
+                problem_lines(&sources, &front)
+            );
+            if !semantic.is_empty() {
+                message.push_str(&format!(
+                    "\nand {UNSUPPORTED} {} node{}:\n{}",
+                    semantic.len(),
+                    if semantic.len() == 1 { "" } else { "s" },
+                    problem_lines(&sources, &semantic)
+                ));
+            }
+            let mut help = Vec::new();
+            if front.iter().any(|p| p.text.starts_with("unknown node")) {
+                help.push(
+                    "a leaf (an element without children) needs no declaration, its params entry \
+                     makes it an action or a condition; a node with children must be a known \
+                     control node or decorator",
+                );
+            }
+            if front.iter().any(|p| p.text.starts_with("no <BehaviorTree")) {
+                help.push("a SubTree's BehaviorTree may be defined in an included file");
+            }
+            (front[0], message, help.join("; "))
+        };
+        return Err(b.err_in(first.doc, first.loc, message).with_help(help));
+    }
+
     // parameters
-    let table = parse_params(params, params_file)?;
     let perr = |at: Loc, msg: String, help: String| {
         TreeError::at(params_file, params, at, msg).with_help(help)
     };
     let mut used_keys: HashSet<&str> = HashSet::new();
-    let mut missing: Vec<(Loc, String)> = Vec::new();
+    let mut missing: Vec<(usize, Loc, String)> = Vec::new();
     let leaves = std::mem::take(&mut b.leaves);
     for leaf in &leaves {
         let node = &b.nodes[leaf.node];
         let at = node.location.unwrap_or((0, 0));
-        let kind = if leaf.is_action {
-            "action"
-        } else {
-            "condition"
-        };
-        let who = format!("{kind} `{}` (ID `{}`)", node.name, leaf.id);
         let mut keys = vec![node.name.as_str()];
         for k in leaf.name_attr.iter().chain(std::iter::once(&leaf.id)) {
             if !keys.contains(&k.as_str()) {
                 keys.push(k);
             }
         }
-        let Some((key, def)) = keys.iter().find_map(|k| table.get_key_value(*k)) else {
+        let found = keys.iter().find_map(|k| table.get_key_value(*k));
+        let is_action = match (leaf.kind, found) {
+            (LeafKind::Action, _) => true,
+            (LeafKind::Condition, _) => false,
+            (LeafKind::ZeroTime, None) => {
+                b.nodes[leaf.node].kind = NodeKind::Condition { ps: 1.0 };
+                continue;
+            }
+            (LeafKind::Inferred | LeafKind::ZeroTime, Some((_, def))) => has_timing(&def.value),
+            (LeafKind::Inferred, None) => {
+                let typo = match nearest(&leaf.id, BUILTINS) {
+                    Some(k) if k != leaf.id => format!(" (or did you mean <{k}>?)"),
+                    _ => String::new(),
+                };
+                missing.push((
+                    leaf.doc,
+                    at,
+                    format!(
+                        "leaf `{}` (ID `{}`): no entry (keys tried: {}); give `{{ps: ...}}` for a \
+                         condition or `{{ps: ..., mu: ..., nu: ...}}` for an action{typo}",
+                        node.name,
+                        leaf.id,
+                        keys.join(", ")
+                    ),
+                ));
+                continue;
+            }
+        };
+        let kind = if is_action { "action" } else { "condition" };
+        let who = format!("{kind} `{}` (ID `{}`)", node.name, leaf.id);
+        let Some((key, def)) = found else {
             missing.push((
+                leaf.doc,
                 at,
                 format!("{who}: no entry (keys tried: {})", keys.join(", ")),
             ));
@@ -1417,11 +2281,11 @@ fn parse_here(xml: &str, file: &str, params: &str, params_file: &str) -> Result<
         };
         used_keys.insert(key.as_str());
         let p = &def.value;
-        let new_kind = if leaf.is_action {
+        let new_kind = if is_action {
             match validate_action(p, &perr)? {
                 Ok(a) => NodeKind::Action(a),
                 Err(m) => {
-                    missing.push((at, format!("{who} (key `{key}`): {m}")));
+                    missing.push((leaf.doc, at, format!("{who} (key `{key}`): {m}")));
                     continue;
                 }
             }
@@ -1440,6 +2304,7 @@ fn parse_here(xml: &str, file: &str, params: &str, params_file: &str) -> Result<
             }
             let Some(ps) = &p.ps else {
                 missing.push((
+                    leaf.doc,
                     at,
                     format!("{who} (key `{key}`): missing `ps` (probability of success in [0, 1])"),
                 ));
@@ -1456,24 +2321,26 @@ fn parse_here(xml: &str, file: &str, params: &str, params_file: &str) -> Result<
         };
         b.nodes[leaf.node].kind = new_kind;
     }
-    if let Some(&(first, _)) = missing.first() {
+    if let Some(&(doc, first, _)) = missing.first() {
         let lines: Vec<String> = missing
             .iter()
-            .map(|((l, c), m)| format!("  {file}:{l}:{c}: {m}"))
+            .map(|(d, (l, c), m)| format!("  {}:{l}:{c}: {m}", sources[*d].name))
             .collect();
         let n = missing.len();
-        return Err(err(
-            first,
-            format!(
-                "missing parameters for {n} node{} in {params_file}:\n{}",
-                if n == 1 { "" } else { "s" },
-                lines.join("\n")
-            ),
-        )
-        .with_help(format!(
-            "add an entry per node to {params_file}, keyed by name or ID, e.g. \
-             `grasp: {{ps: 0.5, mu: 0.1, nu: 0.2}}` (actions) or `ready: {{ps: 0.9}}` (conditions)"
-        )));
+        return Err(b
+            .err_in(
+                doc,
+                first,
+                format!(
+                    "missing parameters for {n} node{} in {params_file}:\n{}",
+                    if n == 1 { "" } else { "s" },
+                    lines.join("\n")
+                ),
+            )
+            .with_help(format!(
+                "add an entry per node to {params_file}, keyed by name or ID, e.g. \
+                 `grasp: {{ps: 0.5, mu: 0.1, nu: 0.2}}` (actions) or `ready: {{ps: 0.9}}` (conditions)"
+            )));
     }
     if let Some((key, def)) = table
         .iter()
@@ -1499,18 +2366,9 @@ fn parse_here(xml: &str, file: &str, params: &str, params_file: &str) -> Result<
         ));
     }
     Ok(Tree {
-        title: Some(main_id.to_string()),
+        title: main_id.map(str::to_string),
         nodes: b.nodes,
     })
-}
-
-/// Reads a BehaviorTree.CPP v4 XML file and its params file.
-pub fn parse_xml_file(xml: &Path, params: &Path) -> Result<Tree, TreeError> {
-    let xml_name = xml.display().to_string();
-    let params_name = params.display().to_string();
-    let xml_src = read_text(xml, &xml_name)?;
-    let params_src = read_text(params, &params_name)?;
-    parse_xml_str(&xml_src, &xml_name, &params_src, &params_name)
 }
 
 fn read_text(path: &Path, file: &str) -> Result<String, TreeError> {

@@ -1,0 +1,126 @@
+//! The published BehaviorTree.CPP trees of ../shared/realworld (see its
+//! INDEX.md): every tree is read as published, with its params file, the
+//! files it needs for its SubTrees, and its project's node model. A tree
+//! may be refused only because it uses node types btrel has no stochastic
+//! meaning for yet (`btrel::tree::xml::is_unsupported`), never for
+//! front-end reasons (syntax, leaves without a model, metadata attributes,
+//! explicit forms, SubTrees in other files, missing parameters). Every tree
+//! that is read must also be analysed.
+
+use std::path::{Path, PathBuf};
+
+use btrel::compile::{analyze, Options};
+use btrel::tree::xml::{is_unsupported, parse_xml_files};
+
+/// Trees that BehaviorTree.CPP itself cannot load, with the reason
+/// (INDEX.md's notes): btrel must refuse them with this text.
+const INVALID_AS_PUBLISHED: &[(&str, &str)] = &[(
+    // `<inverter>` (lower case) is registered by no factory
+    "nav2/application_example.xml",
+    "unknown node <inverter> with children (did you mean <Inverter>?)",
+)];
+
+struct Row {
+    file: String,
+    kind: String,
+    needs: Vec<String>,
+}
+
+fn rows(index: &str) -> Vec<Row> {
+    index
+        .lines()
+        .filter(|l| l.starts_with("| `"))
+        .map(|l| l.split('|').map(str::trim).collect::<Vec<&str>>())
+        // the file table has 9 columns (11 cells with the outer empty ones)
+        .filter(|cells| cells.len() == 11)
+        .map(|cells| {
+            // | file | kind | repo | commit | path | licence | needs | node types | notes |
+            let needs = cells[7]
+                .split(", ")
+                .map(str::trim)
+                .filter(|n| n.ends_with(".xml") && !n.starts_with('('))
+                .map(str::to_string)
+                .collect();
+            Row {
+                file: cells[1].trim_matches('`').to_string(),
+                kind: cells[2].to_string(),
+                needs,
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn published_trees_are_read_or_refused_for_node_semantics_only() {
+    // BTREL_REALWORLD overrides the place (e.g. for a checkout elsewhere)
+    let root = std::env::var_os("BTREL_REALWORLD")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/realworld"));
+    let Ok(index) = std::fs::read_to_string(root.join("INDEX.md")) else {
+        println!(
+            "note: {} is absent; skipping the corpus test",
+            root.display()
+        );
+        return;
+    };
+    let trees: Vec<Row> = rows(&index)
+        .into_iter()
+        .filter(|r| r.kind == "tree")
+        .collect();
+    assert!(trees.len() >= 100, "INDEX.md lists {} trees", trees.len());
+    let (mut parsed, mut semantic, mut invalid) = (Vec::new(), Vec::new(), Vec::new());
+    let mut front_end = Vec::new();
+    for row in &trees {
+        let xml = root.join(&row.file);
+        let dir = xml.parent().unwrap().to_path_buf();
+        let params = xml.with_extension("params.yaml");
+        let mut includes: Vec<PathBuf> = row.needs.iter().map(|n| dir.join(n)).collect();
+        // the project's node model, shipped as a separate file
+        let folder = row.file.split('/').next().unwrap();
+        match folder {
+            "nav2" | "nav2_humble" => includes.push(dir.join("nav2_tree_nodes.xml")),
+            "roscon24" if row.file.contains("pyrobosim_btcpp") => includes.push(
+                dir.join("BehaviorTree.CPP__pyrobosim_btcpp__trees__pyrobosim_btcpp_model.xml"),
+            ),
+            _ => {}
+        }
+        match parse_xml_files(&xml, &params, &includes) {
+            Ok(tree) => {
+                if let Err(e) = analyze(&tree, &Options::default()) {
+                    panic!(
+                        "{}: read ({} nodes) but not analysed: {e}",
+                        row.file,
+                        tree.nodes.len()
+                    );
+                }
+                parsed.push((row.file.clone(), tree.nodes.len()));
+            }
+            Err(e) if is_unsupported(&e) => semantic.push((row.file.clone(), e.to_string())),
+            Err(e) => match INVALID_AS_PUBLISHED.iter().find(|(f, _)| *f == row.file) {
+                Some((_, why)) if e.message.contains(why) => invalid.push(row.file.clone()),
+                _ => front_end.push(format!("{}:\n{e}", row.file)),
+            },
+        }
+    }
+    println!(
+        "{} trees: {} read and analysed, {} refused for node semantics only, {} invalid as published",
+        trees.len(),
+        parsed.len(),
+        semantic.len(),
+        invalid.len()
+    );
+    for (f, n) in &parsed {
+        println!("  read: {f} ({n} nodes)");
+    }
+    for (f, e) in &semantic {
+        println!("  node semantics: {f}: {}", e.lines().nth(1).unwrap_or(""));
+    }
+    assert!(
+        front_end.is_empty(),
+        "{} trees refused for front-end reasons:\n{}",
+        front_end.len(),
+        front_end.join("\n\n")
+    );
+    assert_eq!(invalid.len(), INVALID_AS_PUBLISHED.len());
+    assert_eq!(parsed.len() + semantic.len() + invalid.len(), trees.len());
+}
