@@ -1050,7 +1050,7 @@ fn export(args: ExportArgs) -> Result<(), Failure> {
                 .zip(btrel::export::PRISM_EXPLICIT_EXTENSIONS)
                 .map(|(path, ext)| {
                     let chain = &chain;
-                    let write: Box<dyn FnOnce(&mut dyn Write) -> std::io::Result<()>> =
+                    let write: btrel::output::WriteFn =
                         Box::new(move |w| btrel::export::write_prism_explicit(chain, ext, w));
                     (path.as_path(), write)
                 })

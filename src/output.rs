@@ -48,18 +48,19 @@ pub fn write_atomic(
     result
 }
 
+/// A function writing a file's bytes.
+pub type WriteFn<'a> = Box<dyn FnOnce(&mut dyn Write) -> io::Result<()> + 'a>;
+
 /// A file for [`write_atomic_all`]: its path and the function writing its
 /// bytes.
-pub type FileWriter<'a> = (
-    &'a Path,
-    Box<dyn FnOnce(&mut dyn Write) -> io::Result<()> + 'a>,
-);
+pub type FileWriter<'a> = (&'a Path, WriteFn<'a>);
 
 /// Writes several files that belong together (a model split over files):
 /// every file goes to its temporary first, and the temporaries are renamed
 /// into place only once all of them are written, so a failed run leaves
-/// none of the files changed. On error, the failing path is returned with
-/// the error.
+/// none of the files changed (short of a rename failing midway, which is
+/// checked for beforehand). On error, the failing path is returned with the
+/// error.
 pub fn write_atomic_all<'a>(files: Vec<FileWriter<'a>>) -> Result<(), (&'a Path, io::Error)> {
     let mut temps: Vec<(std::path::PathBuf, &Path)> = Vec::new();
     let cleanup = |temps: &[(std::path::PathBuf, &Path)]| {
@@ -91,6 +92,14 @@ pub fn write_atomic_all<'a>(files: Vec<FileWriter<'a>>) -> Result<(), (&'a Path,
         if let Err(e) = result {
             cleanup(&temps);
             return Err((path, e));
+        }
+    }
+    // the renames are the only step left that can fail: a destination that
+    // is a directory is the likely cause, so refuse before renaming any
+    for (_, path) in &temps {
+        if fs::metadata(path).is_ok_and(|m| m.is_dir()) {
+            cleanup(&temps);
+            return Err((path, io::Error::other("a directory is in the way")));
         }
     }
     for (i, (tmp, path)) in temps.iter().enumerate() {

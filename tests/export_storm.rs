@@ -170,8 +170,13 @@ fn check(python: &Path, file: &str, node: Option<&str>, times: &[f64]) -> usize 
             );
         }
         // the absorbing self-loops do not raise the uniformisation rate
-        if chain.len() > 0 {
-            assert_eq!(num(&r, "max_exit_rate"), num(&r, "max_running_exit_rate"));
+        if !chain.is_empty() {
+            // (equal up to the order of summation of a row)
+            let (all, running) = (num(&r, "max_exit_rate"), num(&r, "max_running_exit_rate"));
+            assert!(
+                all <= running * (1.0 + 4.0 * f64::EPSILON),
+                "{what}: {all} > {running}"
+            );
             close(
                 &format!("{what}: fastest rate"),
                 num(&r, "max_exit_rate"),

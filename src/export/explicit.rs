@@ -22,10 +22,12 @@ use crate::solve::chain::PhaseChain;
 
 /// The rate of the self-loops on the absorbing Success and Failure states:
 /// the largest exit rate of any phase (1 for a chain without phases, where
-/// nothing is ever uniformised).
+/// nothing is ever uniformised). Each exit rate is summed over the phase's
+/// [`row`] in target order, as a checker reading the explicit files sums it,
+/// so the loops do not exceed it even by rounding.
 pub fn absorbing_rate(chain: &PhaseChain) -> f64 {
     let max = (0..chain.len())
-        .map(|i| chain.total_rate(i))
+        .map(|i| row(chain, i, 0.0).iter().map(|&(_, r)| r).sum::<f64>())
         .fold(0.0f64, f64::max);
     if max > 0.0 && max.is_finite() {
         max
