@@ -283,6 +283,10 @@ Examples:
   btrel export trees/search-and-grasp.yaml --to dot --mrg search -o search-mrg.dot
   btrel export trees/search-and-grasp.yaml --to prism -o sg.sm --properties sg.csl
   prism sg.sm sg.csl -const T=100 -prop success_by_T     # P(success by 100 s), weighted over the start
+  btrel export trees/search-and-grasp.yaml --to prism-explicit -o sg --properties sg.csl
+  prism -importmodel sg.all -ctmc sg.csl -const T=100    # sg.tra, sg.sta, sg.lab, sg.srew (large chains)
+  btrel export trees/search-and-grasp.yaml --to drn -o sg.drn
+  python3 scripts/storm_check.py sg.drn --times 100       # Storm (stormpy), weighted over the start
 
 DOT uses the book's notation: Sequence ->, Fallback ?, Parallel =>, decorators <>.";
 
@@ -290,22 +294,27 @@ DOT uses the book's notation: Sequence ->, Fallback ?, Parallel =>, decorators <
 enum ExportFormat {
     Dot,
     Prism,
+    PrismExplicit,
+    Drn,
 }
 
 #[derive(clap::Args)]
 struct ExportArgs {
     /// The tree file (YAML).
     tree: PathBuf,
-    /// dot: the tree (or with --mrg a node's MRG); prism: a node's exact CTMC.
+    /// dot: the tree (or with --mrg a node's MRG); prism: a node's exact CTMC
+    /// as a PRISM model; prism-explicit: the same as PRISM's explicit files
+    /// BASE.tra/.sta/.lab/.srew (with -o BASE; for large chains); drn: the
+    /// same in Storm's explicit DRN format.
     #[arg(long, value_enum)]
     to: ExportFormat,
     /// Draw this control node's marking reachability graph instead of the tree (DOT).
     #[arg(long, value_name = "NODE")]
     mrg: Option<String>,
-    /// Node whose chain is exported to PRISM (default: the root).
+    /// Node whose chain is exported to PRISM or Storm (default: the root).
     #[arg(long, value_name = "NAME")]
     node: Option<String>,
-    /// Write the matching PRISM properties file here (with --to prism).
+    /// Write the matching PRISM properties file here (with --to prism or prism-explicit).
     #[arg(long, value_name = "FILE")]
     properties: Option<PathBuf>,
     /// Method of the figures shown in DOT labels.
@@ -314,7 +323,8 @@ struct ExportArgs {
     /// Largest chain (number of states) an exact analysis may build.
     #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_STATES)]
     max_states: usize,
-    /// Write to this file (atomically) instead of standard output.
+    /// Write to this file (atomically) instead of standard output; with
+    /// --to prism-explicit, the base name of the four files (required).
     #[arg(short, long, value_name = "FILE")]
     output: Option<PathBuf>,
 }
@@ -986,6 +996,28 @@ fn export(args: ExportArgs) -> Result<(), Failure> {
         method: method(args.method),
         max_states: args.max_states,
     };
+    if args.mrg.is_some() && !matches!(args.to, ExportFormat::Dot) {
+        return Err(Failure::input("--mrg goes with --to dot"));
+    }
+    if args.properties.is_some()
+        && !matches!(args.to, ExportFormat::Prism | ExportFormat::PrismExplicit)
+    {
+        return Err(Failure::input(match args.to {
+            ExportFormat::Drn => {
+                "--properties goes with --to prism or prism-explicit: Storm's property language \
+                 cannot weight results by the initial distribution (weight them by the DRN's \
+                 w_init reward, as scripts/storm_check.py does)"
+            }
+            _ => "--properties goes with --to prism or prism-explicit",
+        }));
+    }
+    let chain = |id| {
+        btrel::compile::phase::phase_chain(&tree, id, args.max_states).map_err(Failure::analysis)
+    };
+    let what = |id: usize| {
+        let n = tree.node(id);
+        format!("node '{}' ({})", n.name, n.kind.keyword())
+    };
     let text = match args.to {
         ExportFormat::Dot => {
             let analysis = analyze(&tree, &options).ok();
@@ -1009,18 +1041,61 @@ fn export(args: ExportArgs) -> Result<(), Failure> {
                 }
             }
         }
-        ExportFormat::Prism => {
-            if args.mrg.is_some() {
-                return Err(Failure::input("--mrg goes with --to dot"));
+        ExportFormat::Prism => btrel::export::prism_ctmc(&tree, one(&args.node)?, args.max_states)
+            .map_err(Failure::analysis)?,
+        ExportFormat::Drn => {
+            let id = one(&args.node)?;
+            let chain = chain(id)?;
+            return emit(args.output.as_deref(), |out| {
+                btrel::export::write_drn(&chain, &what(id), out)
+            });
+        }
+        ExportFormat::PrismExplicit => {
+            let Some(base) = &args.output else {
+                return Err(Failure::input(
+                    "--to prism-explicit writes four files: give their base name with -o BASE \
+                     (BASE.tra, BASE.sta, BASE.lab, BASE.srew)",
+                ));
+            };
+            let chain = chain(one(&args.node)?)?;
+            // `-o sg`, `-o sg.tra` and `-o sg.all` all name sg.tra, sg.sta, ...
+            let base = match base.extension().and_then(|e| e.to_str()) {
+                Some(e) if e == "all" || btrel::export::PRISM_EXPLICIT_EXTENSIONS.contains(&e) => {
+                    base.with_extension("")
+                }
+                _ => base.clone(),
+            };
+            let properties = args
+                .properties
+                .as_ref()
+                .map(|_| btrel::export::prism_explicit_properties(&chain));
+            let paths: Vec<PathBuf> = btrel::export::PRISM_EXPLICIT_EXTENSIONS
+                .iter()
+                .map(|ext| {
+                    let mut name = base.clone().into_os_string();
+                    name.push(".");
+                    name.push(ext);
+                    PathBuf::from(name)
+                })
+                .collect();
+            let mut files: Vec<btrel::output::FileWriter> = paths
+                .iter()
+                .zip(btrel::export::PRISM_EXPLICIT_EXTENSIONS)
+                .map(|(path, ext)| {
+                    let chain = &chain;
+                    let write: btrel::output::WriteFn =
+                        Box::new(move |w| btrel::export::write_prism_explicit(chain, ext, w));
+                    (path.as_path(), write)
+                })
+                .collect();
+            if let (Some(path), Some(text)) = (&args.properties, &properties) {
+                files.push((path.as_path(), Box::new(|w| w.write_all(text.as_bytes()))));
             }
-            btrel::export::prism_ctmc(&tree, one(&args.node)?, args.max_states)
-                .map_err(Failure::analysis)?
+            return btrel::output::write_atomic_all(files)
+                .map_err(|(path, e)| Failure::input(write_error(path, &e)));
         }
     };
     if let Some(path) = &args.properties {
-        if !matches!(args.to, ExportFormat::Prism) {
-            return Err(Failure::input("--properties goes with --to prism"));
-        }
         btrel::output::write_atomic(path, |out| {
             out.write_all(btrel::export::PRISM_PROPERTIES.as_bytes())
         })

@@ -344,3 +344,286 @@ fn prism_numbers_round_trip_in_prism_syntax() {
         assert!(PRISM_PROPERTIES.contains(p));
     }
 }
+
+/// The largest exit rate of a phase: its rates grouped by target and summed
+/// in target order (the order a checker reading the files sums them in).
+fn fastest(chain: &btrel::solve::chain::PhaseChain) -> f64 {
+    grouped(chain)
+        .iter()
+        .take(chain.len())
+        .map(|row| row.values().sum::<f64>())
+        .fold(0.0, f64::max)
+}
+
+/// Outgoing rates of every state, grouped by target (`BTreeMap` sums).
+fn grouped(chain: &btrel::solve::chain::PhaseChain) -> Vec<std::collections::BTreeMap<usize, f64>> {
+    let n = chain.len();
+    let mut rows = vec![std::collections::BTreeMap::new(); n + 2];
+    for (i, row) in rows.iter_mut().enumerate().take(n) {
+        for &(j, r) in chain.transitions[i]
+            .iter()
+            .chain(&[(n, chain.exit_success[i]), (n + 1, chain.exit_failure[i])])
+        {
+            if r > 0.0 {
+                *row.entry(j).or_insert(0.0) += r;
+            }
+        }
+    }
+    rows
+}
+
+#[test]
+fn prism_absorbing_loop_keeps_the_uniformisation_rate() {
+    let t = search_and_grasp();
+    let chain = phase_chain(&t, 0, 1_000_000).unwrap();
+    let text = prism_ctmc(&t, 0, 1_000_000).unwrap();
+    // the grasp phase of rate 1 + 1 (two hands: Success 0.05·…) is the
+    // fastest; the loop on Success/Failure has exactly that rate
+    let q = fastest(&chain);
+    assert!(q > 0.0 && q < 1e3);
+    let n = chain.len();
+    assert!(
+        text.contains(&format!(
+            "  [] s>={n} -> {} : true;",
+            btrel::export::prism::prism_number(q)
+        )),
+        "{text}"
+    );
+    assert!(!text.contains("-> 1.0 : true;") || q == 1.0);
+    // the initial weights as a reward structure, for Storm
+    assert!(text.contains("rewards \"w_init\"\n"));
+    for &(i, w) in &chain.initial {
+        assert!(text.contains(&format!(
+            "  s={i} : {};",
+            btrel::export::prism::prism_number(w)
+        )));
+    }
+}
+
+fn explicit_files(chain: &btrel::solve::chain::PhaseChain) -> Vec<String> {
+    btrel::export::PRISM_EXPLICIT_EXTENSIONS
+        .iter()
+        .map(|ext| {
+            let mut v = Vec::new();
+            btrel::export::write_prism_explicit(chain, ext, &mut v).unwrap();
+            String::from_utf8(v).unwrap()
+        })
+        .collect()
+}
+
+#[test]
+fn prism_explicit_files_are_the_chain() {
+    let t = search_and_grasp();
+    let pair = tree(MIXED.replace("tau_s: 2.0", "mu: 0.5").as_str());
+    for (t, id) in (0..t.nodes.len())
+        .map(|i| (&t, i))
+        .chain((0..pair.nodes.len()).map(|i| (&pair, i)))
+    {
+        let chain = phase_chain(t, id, 1_000_000).unwrap();
+        let n = chain.len();
+        let files = explicit_files(&chain);
+        let (tra, sta, lab, srew) = (&files[0], &files[1], &files[2], &files[3]);
+        // .tra: header, then rows in order, rates bit for bit
+        let mut lines = tra.lines();
+        let header: Vec<usize> = lines
+            .next()
+            .unwrap()
+            .split(' ')
+            .map(|x| x.parse().unwrap())
+            .collect();
+        let rows = grouped(&chain);
+        let mut expected: Vec<(usize, usize, f64)> = rows
+            .iter()
+            .enumerate()
+            .flat_map(|(i, r)| r.iter().map(move |(&j, &x)| (i, j, x)))
+            .collect();
+        let q = if n == 0 { 1.0 } else { fastest(&chain) };
+        expected.push((n, n, q));
+        expected.push((n + 1, n + 1, q));
+        let got: Vec<(usize, usize, f64)> = lines
+            .map(|l| {
+                let f: Vec<&str> = l.split(' ').collect();
+                assert_eq!(f.len(), 3, "{l}");
+                (
+                    f[0].parse().unwrap(),
+                    f[1].parse().unwrap(),
+                    f[2].parse().unwrap(),
+                )
+            })
+            .collect();
+        assert_eq!(header, vec![n + 2, expected.len()]);
+        assert_eq!(got, expected);
+        // .sta: the variable s is the state index
+        assert!(sta.starts_with("(s)\n0:(0)\n"));
+        assert_eq!(sta.lines().count(), n + 3);
+        assert!(sta.ends_with(&format!("{}:({})\n", n + 1, n + 1)));
+        // .lab: init on the states of positive initial probability
+        let mut init: Vec<usize> = chain.initial.iter().map(|&(i, _)| i).collect();
+        if chain.initial_success > 0.0 {
+            init.push(n);
+        }
+        if chain.initial_failure > 0.0 {
+            init.push(n + 1);
+        }
+        init.sort();
+        init.dedup();
+        let mut lab_lines = lab.lines();
+        assert_eq!(
+            lab_lines.next(),
+            Some("0=\"init\" 1=\"success\" 2=\"failure\" 3=\"done\" 4=\"running\"")
+        );
+        let labelled: Vec<(usize, Vec<&str>)> = lab_lines
+            .map(|l| {
+                let (s, ls) = l.split_once(": ").unwrap();
+                (s.parse().unwrap(), ls.split(' ').collect())
+            })
+            .collect();
+        assert_eq!(labelled.len(), n + 2);
+        for (s, ls) in &labelled {
+            assert_eq!(ls.contains(&"0"), init.contains(s), "state {s}");
+            let rest: Vec<&str> = ls.iter().copied().filter(|&l| l != "0").collect();
+            let want: &[&str] = if *s < n {
+                &["4"]
+            } else if *s == n {
+                &["1", "3"]
+            } else {
+                &["2", "3"]
+            };
+            assert_eq!(rest, want);
+        }
+        // .srew: 1 per unit time in every phase
+        let mut want = format!("{} {n}\n", n + 2);
+        for i in 0..n {
+            want.push_str(&format!("{i} 1.0\n"));
+        }
+        assert_eq!(srew, &want);
+        // the properties weight by the same initial distribution
+        let props = btrel::export::prism_explicit_properties(&chain);
+        assert_eq!(props.matches("filter(+, (").count(), 5);
+        assert!(props.contains("R=? [ F \"done\" ]"));
+    }
+}
+
+#[test]
+fn drn_is_the_chain_with_weights() {
+    let t = search_and_grasp();
+    let chain = phase_chain(&t, 0, 1_000_000).unwrap();
+    let n = chain.len();
+    let mut v = Vec::new();
+    btrel::export::write_drn(&chain, "root", &mut v).unwrap();
+    let text = String::from_utf8(v).unwrap();
+    assert!(text.contains("@type: CTMC\n") && text.contains("@reward_models\ntime w_init\n"));
+    assert!(text.contains(&format!("@nr_states\n{}\n@nr_choices\n{}\n", n + 2, n + 2)));
+    let rows = grouped(&chain);
+    let q = fastest(&chain);
+    let body = text.split("@model\n").nth(1).unwrap();
+    let mut states = body.split("state ").skip(1);
+    for (i, row) in rows.iter().enumerate() {
+        let block = states.next().unwrap();
+        let mut lines = block.lines();
+        let head: Vec<&str> = lines.next().unwrap().split(' ').collect();
+        assert_eq!(head[0].parse::<usize>().unwrap(), i);
+        let exit: f64 = head[1].strip_prefix('!').unwrap().parse().unwrap();
+        assert_eq!(lines.next(), Some("\taction 0"));
+        let out: Vec<(usize, f64)> = lines
+            .map(|l| {
+                let (j, r) = l.trim().split_once(" : ").unwrap();
+                (j.parse().unwrap(), r.parse().unwrap())
+            })
+            .collect();
+        let want: Vec<(usize, f64)> = if i < n {
+            row.iter().map(|(&j, &r)| (j, r)).collect()
+        } else {
+            vec![(i, q)]
+        };
+        assert_eq!(out, want, "state {i}");
+        assert_eq!(exit, want.iter().map(|&(_, r)| r).sum::<f64>());
+        let w = chain
+            .initial
+            .iter()
+            .find(|&&(s, _)| s == i)
+            .map_or(0.0, |&(_, w)| w);
+        let rewards = format!(
+            "[{}, {}]",
+            if i < n { "1.0" } else { "0.0" },
+            btrel::export::prism::prism_number(w)
+        );
+        assert!(block.contains(&rewards), "{block}");
+        assert_eq!(block.contains(" init"), w > 0.0, "{block}");
+        assert_eq!(block.contains(" done"), i >= n, "{block}");
+    }
+}
+
+#[test]
+fn cli_explicit_and_drn_exports() {
+    use assert_cmd::Command;
+    let tree = concat!(env!("CARGO_MANIFEST_DIR"), "/trees/search-and-grasp.yaml");
+    let dir = tempfile::tempdir().unwrap();
+    // four files from -o BASE (a .tra or .all extension names the same set)
+    for base in ["sg", "sg2.tra", "sg3.all"] {
+        let out = dir.path().join(base);
+        Command::cargo_bin("btrel")
+            .unwrap()
+            .args(["export", tree, "--to", "prism-explicit", "-o"])
+            .arg(&out)
+            .arg("--properties")
+            .arg(dir.path().join("p.csl"))
+            .assert()
+            .success();
+        let stem = out.with_extension("");
+        for ext in ["tra", "sta", "lab", "srew"] {
+            assert!(stem.with_extension(ext).is_file(), "{base}: .{ext}");
+        }
+    }
+    let csl = std::fs::read_to_string(dir.path().join("p.csl")).unwrap();
+    assert!(
+        csl.contains("(s=0 ? 0.3 : 0.0) + (s=1 ? 0.7 : 0.0)"),
+        "{csl}"
+    );
+    let mut names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names.len(), 13, "{names:?}");
+    // no -o: refused, nothing written
+    let fail = Command::cargo_bin("btrel")
+        .unwrap()
+        .current_dir(dir.path())
+        .args(["export", tree, "--to", "prism-explicit"])
+        .assert()
+        .code(2);
+    let err = String::from_utf8_lossy(&fail.get_output().stderr).into_owned();
+    assert!(err.contains("-o BASE"), "{err}");
+    // DRN to standard output; --properties refused with the reason
+    let drn = Command::cargo_bin("btrel")
+        .unwrap()
+        .args(["export", tree, "--to", "drn"])
+        .assert()
+        .success();
+    assert!(String::from_utf8_lossy(&drn.get_output().stdout).contains("@type: CTMC"));
+    let fail = Command::cargo_bin("btrel")
+        .unwrap()
+        .args(["export", tree, "--to", "drn", "--properties", "x.csl"])
+        .assert()
+        .code(2);
+    let err = String::from_utf8_lossy(&fail.get_output().stderr).into_owned();
+    assert!(err.contains("w_init"), "{err}");
+    Command::cargo_bin("btrel")
+        .unwrap()
+        .args(["export", tree, "--to", "drn", "--mrg", "search"])
+        .assert()
+        .code(2);
+    // a failed set leaves none of its files: a directory named like one file
+    let blocked = dir.path().join("blocked");
+    std::fs::create_dir(dir.path().join("blocked.lab")).unwrap();
+    Command::cargo_bin("btrel")
+        .unwrap()
+        .args(["export", tree, "--to", "prism-explicit", "-o"])
+        .arg(&blocked)
+        .assert()
+        .code(2);
+    for ext in ["tra", "sta", "srew"] {
+        assert!(!blocked.with_extension(ext).exists(), ".{ext} written");
+    }
+}

@@ -7,13 +7,22 @@
 //! * [`dot_mrg`]: a Sequence/Fallback/Parallel node's MRG with the DTMC
 //!   probability of every event (the book's Figs. 9.8–9.10);
 //! * [`prism_ctmc`]: a node's exact phase chain as a PRISM `ctmc` model, to
-//!   be checked with the properties in [`PRISM_PROPERTIES`].
+//!   be checked with the properties in [`PRISM_PROPERTIES`];
+//! * [`write_prism_explicit`]: the same chain as PRISM's explicit model
+//!   files (`.tra`, `.sta`, `.lab`, `.srew`), for large chains;
+//! * [`write_drn`]: the same chain in Storm's explicit DRN format.
 
 pub mod dot;
+pub mod drn;
+pub mod explicit;
 pub mod prism;
 
 pub use dot::{dot_mrg, dot_tree};
-pub use prism::{prism_ctmc, prism_model, PRISM_PROPERTIES};
+pub use drn::write_drn;
+pub use prism::{
+    prism_ctmc, prism_explicit_properties, prism_model, write_prism_explicit,
+    PRISM_EXPLICIT_EXTENSIONS, PRISM_PROPERTIES,
+};
 
 /// Escapes text for a double-quoted DOT string: backslashes and quotes are
 /// escaped, line breaks become DOT's `\n`.

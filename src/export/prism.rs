@@ -1,4 +1,7 @@
-//! PRISM models of exact phase chains.
+//! PRISM models of exact phase chains: a PRISM-language `ctmc` model
+//! ([`prism_model`], [`prism_ctmc`]) and PRISM's explicit model files
+//! ([`write_prism_explicit`]), for chains too large for one command per
+//! transition.
 //!
 //! # Format
 //!
@@ -9,17 +12,27 @@
 //! command `[] s=i -> r : (s'=j);`, and every nonzero exit to Success or
 //! Failure one command to `s=n` or `s=n+1`; parallel commands between the
 //! same states add up, as PRISM's CTMC semantics says. One last command,
-//! `[] s>=n -> 1 : true;`, is a self-loop on the absorbing states so that
-//! PRISM does not report them as deadlocks (a CTMC self-loop changes no
-//! probability or time). Labels: `"success"` (`s=n`), `"failure"`
-//! (`s=n+1`), `"done"` (either) and `"running"`; the reward structure
-//! `"time"` earns 1 per unit time while running.
+//! `[] s>=n -> q : true;`, is a self-loop on the absorbing states so that
+//! PRISM does not report them as deadlocks; its rate `q` is the chain's
+//! fastest exit rate ([`absorbing_rate`]), so it does not raise PRISM's
+//! uniformisation rate (PRISM's own deadlock fix would add rate-1 loops).
+//! Labels: `"success"` (`s=n`), `"failure"` (`s=n+1`), `"done"` (either) and
+//! `"running"`; the reward structure `"time"` earns 1 per unit time while
+//! running, and `"w_init"` holds each state's initial probability (for
+//! tools such as Storm whose property language cannot weight results by
+//! a state expression).
 //!
 //! Rates and weights are written so that they parse back to the same `f64`
 //! (shortest round-trip digits): plain decimals such as `0.0167` for
 //! ordinary magnitudes, and scientific notation such as `1.5e-7` (which
 //! PRISM's `REG_DOUBLE` token accepts) otherwise. Integral values get a
 //! `.0` so PRISM never reads them as (overflowing) integer literals.
+//!
+//! The explicit files number the states the same way: `.tra` (header
+//! `states transitions`, then `i j rate` sorted by `i` then `j`, parallel
+//! transitions added up, the absorbing self-loops included), `.sta`
+//! (variable `s`), `.lab` (`"init"`, `"success"`, `"failure"`, `"done"`,
+//! `"running"`) and `.srew` (the time reward).
 //!
 //! # The initial distribution
 //!
@@ -37,14 +50,18 @@
 //! * properties weight the per-state results by `w_init` and sum over the
 //!   initial states: `filter(+, w_init * P=? [ F<=T "success" ], "init")` is
 //!   the node's probability to have succeeded by time `T` from its initial
-//!   distribution. [`PRISM_PROPERTIES`] holds the usual ones.
+//!   distribution. [`PRISM_PROPERTIES`] holds the usual ones;
+//!   [`prism_explicit_properties`] the same with the weights written out
+//!   (an imported model has no formulas).
 //!
 //! A plain `P=? [...]` on such a model reports, per PRISM's default filter,
 //! the value in the first initial state only, which is *not* the node's
 //! figure when the initial distribution is a mixture.
 
 use std::fmt::Write as _;
+use std::io::{self, Write};
 
+use super::explicit::{absorbing_rate, initial_weights, row, transition_count};
 use crate::compile::phase::phase_chain;
 use crate::compile::AnalysisError;
 use crate::solve::chain::PhaseChain;
@@ -110,22 +127,7 @@ pub fn prism_ctmc(tree: &Tree, node: NodeId, max_states: usize) -> Result<String
 pub fn prism_model(chain: &PhaseChain, what: &str) -> String {
     let n = chain.len();
     let (success, failure) = (n, n + 1);
-    // initial weights per state, duplicates merged, zeros dropped
-    let mut weights: Vec<(usize, f64)> = Vec::new();
-    let mut add = |state: usize, w: f64| {
-        if w > 0.0 {
-            match weights.iter_mut().find(|(s, _)| *s == state) {
-                Some((_, x)) => *x += w,
-                None => weights.push((state, w)),
-            }
-        }
-    };
-    for &(i, w) in &chain.initial {
-        add(i, w);
-    }
-    add(success, chain.initial_success);
-    add(failure, chain.initial_failure);
-    weights.sort_by_key(|&(s, _)| s);
+    let weights = initial_weights(chain);
 
     let mut out = String::new();
     let _ = writeln!(
@@ -144,16 +146,7 @@ pub fn prism_model(chain: &PhaseChain, what: &str) -> String {
         let _ = writeln!(out, "//   P(s = {s}) = {}", prism_number(w));
     }
     out.push_str("\nctmc\n\n");
-    let w_init = if weights.is_empty() {
-        "0.0".to_string()
-    } else {
-        weights
-            .iter()
-            .map(|&(s, w)| format!("(s={s} ? {} : 0.0)", prism_number(w)))
-            .collect::<Vec<_>>()
-            .join(" + ")
-    };
-    let _ = writeln!(out, "formula w_init = {w_init};\n");
+    let _ = writeln!(out, "formula w_init = {};\n", weight_expression(&weights));
     let _ = writeln!(out, "label \"success\" = s={success};");
     let _ = writeln!(out, "label \"failure\" = s={failure};");
     let _ = writeln!(out, "label \"done\" = s>={success};");
@@ -179,8 +172,13 @@ pub fn prism_model(chain: &PhaseChain, what: &str) -> String {
             }
         }
     }
-    out.push_str("\n  // absorbing outcomes (a self-loop, so PRISM sees no deadlock)\n");
-    let _ = writeln!(out, "  [] s>={success} -> 1.0 : true;");
+    out.push_str("\n  // absorbing outcomes: a self-loop (so PRISM sees no deadlock) at the\n");
+    out.push_str("  // fastest exit rate (so the uniformisation rate stays that of the phases)\n");
+    let _ = writeln!(
+        out,
+        "  [] s>={success} -> {} : true;",
+        prism_number(absorbing_rate(chain))
+    );
     out.push_str("endmodule\n");
     if weights.len() != 1 {
         let init = weights
@@ -198,5 +196,115 @@ pub fn prism_model(chain: &PhaseChain, what: &str) -> String {
     out.push_str("\nrewards \"time\"\n");
     let _ = writeln!(out, "  s<{success} : 1.0;");
     out.push_str("endrewards\n");
+    out.push_str("\n// the initial probability of each state, for tools that cannot use w_init\n");
+    out.push_str("rewards \"w_init\"\n");
+    for &(s, w) in &weights {
+        let _ = writeln!(out, "  s={s} : {};", prism_number(w));
+    }
+    out.push_str("endrewards\n");
+    out
+}
+
+/// `(s=i ? w : 0.0) + ...`: the initial probability of the current state.
+fn weight_expression(weights: &[(usize, f64)]) -> String {
+    if weights.is_empty() {
+        return "0.0".to_string();
+    }
+    weights
+        .iter()
+        .map(|&(s, w)| format!("(s={s} ? {} : 0.0)", prism_number(w)))
+        .collect::<Vec<_>>()
+        .join(" + ")
+}
+
+/// The file extensions of PRISM's explicit model files written by
+/// [`write_prism_explicit`], in its order.
+pub const PRISM_EXPLICIT_EXTENSIONS: [&str; 4] = ["tra", "sta", "lab", "srew"];
+
+/// Writes one of PRISM's explicit model files for `chain`: `ext` is one of
+/// [`PRISM_EXPLICIT_EXTENSIONS`] (the transitions, states, labels and state
+/// rewards files; see the module documentation). The files are streamed,
+/// so chains of millions of states need no extra memory.
+///
+/// Import them with `prism -importmodel BASE.all -ctmc`; check them with
+/// [`prism_explicit_properties`].
+pub fn write_prism_explicit(chain: &PhaseChain, ext: &str, w: &mut dyn Write) -> io::Result<()> {
+    let n = chain.len();
+    let states = n + 2;
+    match ext {
+        "tra" => {
+            let absorbing = absorbing_rate(chain);
+            writeln!(w, "{states} {}", transition_count(chain))?;
+            for i in 0..states {
+                for (j, r) in row(chain, i, absorbing) {
+                    writeln!(w, "{i} {j} {}", prism_number(r))?;
+                }
+            }
+        }
+        "sta" => {
+            writeln!(w, "(s)")?;
+            for i in 0..states {
+                writeln!(w, "{i}:({i})")?;
+            }
+        }
+        "lab" => {
+            writeln!(
+                w,
+                "0=\"init\" 1=\"success\" 2=\"failure\" 3=\"done\" 4=\"running\""
+            )?;
+            let weights = initial_weights(chain);
+            let mut init = weights.iter().map(|&(s, _)| s).peekable();
+            for i in 0..states {
+                let mut labels = String::new();
+                if init.peek() == Some(&i) {
+                    init.next();
+                    labels.push_str(" 0");
+                }
+                labels.push_str(match i {
+                    _ if i < n => " 4",
+                    _ if i == n => " 1 3",
+                    _ => " 2 3",
+                });
+                writeln!(w, "{i}:{labels}")?;
+            }
+        }
+        "srew" => {
+            writeln!(w, "{states} {n}")?;
+            for i in 0..n {
+                writeln!(w, "{i} 1.0")?;
+            }
+        }
+        other => {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!("no PRISM explicit file with extension .{other}"),
+            ))
+        }
+    }
+    Ok(())
+}
+
+/// Properties for the explicit files of [`write_prism_explicit`]: the same
+/// figures as [`PRISM_PROPERTIES`], with the initial weights written out
+/// over the variable `s` of the `.sta` file (an imported model has no
+/// `w_init` formula) and the time reward as the model's only reward.
+pub fn prism_explicit_properties(chain: &PhaseChain) -> String {
+    let w = weight_expression(&initial_weights(chain));
+    let mut out = String::new();
+    out.push_str("// Properties for a phase-chain CTMC exported by btrel as PRISM explicit\n");
+    out.push_str("// files (import with the .sta file, which defines the variable s):\n");
+    out.push_str("//   prism -importmodel BASE.all -ctmc THIS_FILE -const T=100\n");
+    out.push_str("// Every figure is a sum over the \"init\" states weighted by their initial\n");
+    out.push_str("// probability (the parenthesised expression).\n");
+    out.push_str("const double T;\n\n");
+    for (name, what) in [
+        ("success_by_T", "P=? [ F<=T \"success\" ]"),
+        ("failure_by_T", "P=? [ F<=T \"failure\" ]"),
+        ("ps", "P=? [ F \"success\" ]"),
+        ("pf", "P=? [ F \"failure\" ]"),
+        ("mean_time", "R=? [ F \"done\" ]"),
+    ] {
+        let _ = writeln!(out, "\"{name}\": filter(+, ({w}) * {what}, \"init\");");
+    }
     out
 }
