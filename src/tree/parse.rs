@@ -198,20 +198,35 @@ pub fn parse_file(path: &std::path::Path) -> Result<Tree, TreeError> {
         return Err(too_large(&file, meta.len() as usize, &limits));
     }
     let bytes = std::fs::read(path).map_err(io_err)?;
-    let source = String::from_utf8(bytes).map_err(|e| {
+    parse_bytes(bytes, &file)
+}
+
+/// Parses a tree from the raw bytes of a YAML document (e.g. standard
+/// input) with default limits; `file` names the source in error messages.
+pub fn parse_bytes(bytes: Vec<u8>, file: &str) -> Result<Tree, TreeError> {
+    let limits = ParseLimits::default();
+    if bytes.len() > limits.max_bytes {
+        return Err(too_large(file, bytes.len(), &limits));
+    }
+    let source = text_from_bytes(bytes, file)?;
+    parse_str_with(&source, file, limits)
+}
+
+/// The bytes as UTF-8 text, or an error located at the first invalid byte.
+pub fn text_from_bytes(bytes: Vec<u8>, file: &str) -> Result<String, TreeError> {
+    String::from_utf8(bytes).map_err(|e| {
         let before = &e.as_bytes()[..e.utf8_error().valid_up_to()];
         let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
         let column = before.iter().rev().take_while(|&&b| b != b'\n').count() + 1;
         TreeError {
-            file: file.clone(),
+            file: file.to_string(),
             line,
             column,
-            message: "the file is not valid UTF-8 text".into(),
-            help: Some("a tree file is YAML text; is this the right file?".into()),
+            message: "the input is not valid UTF-8 text".into(),
+            help: Some("a tree file is YAML or XML text; is this the right file?".into()),
             source_line: None,
         }
-    })?;
-    parse_str_with(&source, &file, limits)
+    })
 }
 
 /// Advice for a file that cannot be read.
