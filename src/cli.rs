@@ -315,7 +315,12 @@ struct PlotArgs {
     #[arg(long, value_name = "NODE")]
     compare: Option<String>,
     /// Deadline (s) ranking the orderings of --compare.
-    #[arg(long, value_name = "T", allow_hyphen_values = true, requires = "compare")]
+    #[arg(
+        long,
+        value_name = "T",
+        allow_hyphen_values = true,
+        requires = "compare"
+    )]
     deadline: Option<String>,
     /// How many orderings --compare overlays.
     #[arg(long, value_name = "K", default_value_t = 2, requires = "compare")]
@@ -561,7 +566,9 @@ fn analysis_failure(cmd: Cmd, method: Method) -> impl Fn(AnalysisError) -> Failu
             }
             AnalysisError::Stiff { .. } => {
                 match cmd {
-                    Cmd::Curve => fixes.push("fewer or earlier time points (--times, --t-end)".into()),
+                    Cmd::Curve => {
+                        fixes.push("fewer or earlier time points (--times, --t-end)".into())
+                    }
                     Cmd::Plot => fixes.push("a shorter horizon (--t-end)".into()),
                     _ => {}
                 }
@@ -574,7 +581,11 @@ fn analysis_failure(cmd: Cmd, method: Method) -> impl Fn(AnalysisError) -> Failu
         }
         let mut message = e.to_string();
         if !fixes.is_empty() {
-            message.push_str(&format!("\n  help: `btrel {}` can use {}", cmd.name(), or_list(&fixes)));
+            message.push_str(&format!(
+                "\n  help: `btrel {}` can use {}",
+                cmd.name(),
+                or_list(&fixes)
+            ));
         }
         Failure::analysis(message)
     }
@@ -589,7 +600,8 @@ fn with_article(word: &str) -> String {
 /// A comparison error with advice for `cmd` (compare, or plot --compare).
 fn compare_failure(cmd: Cmd, method: Method) -> impl Fn(btrel::compare::CompareError) -> Failure {
     use btrel::compare::CompareError;
-    move |e| match e {
+    move |e| {
+        match e {
         CompareError::Analysis(a) => analysis_failure(cmd, method)(a),
         CompareError::NotReorderable(name, kind) => Failure::input(format!(
             "node '{name}' is {}: only the children of Fallback nodes can be reordered (Def. 9.10)\n  help: {}",
@@ -604,6 +616,7 @@ fn compare_failure(cmd: Cmd, method: Method) -> impl Fn(btrel::compare::CompareE
             Failure::input("--by success-by needs a deadline: add --deadline T")
         }
         other => Failure::input(other),
+    }
     }
 }
 
@@ -685,8 +698,8 @@ fn load(path: &Path) -> Result<Tree, Failure> {
         let name = params.display().to_string();
         let params_text =
             btrel::tree::parse::text_from_bytes(params_text, &name).map_err(Failure::input)?;
-        let xml_text =
-            btrel::tree::parse::text_from_bytes(read_stdin()?, STDIN_NAME).map_err(Failure::input)?;
+        let xml_text = btrel::tree::parse::text_from_bytes(read_stdin()?, STDIN_NAME)
+            .map_err(Failure::input)?;
         return btrel::tree::xml::parse_xml_str(&xml_text, STDIN_NAME, &params_text, &name)
             .map_err(Failure::input);
     }
@@ -1335,7 +1348,9 @@ fn find_nodes(tree: &Tree, names: &[String], file: &Path) -> Result<Vec<usize>, 
                 let all: Vec<&str> = tree.nodes.iter().map(|x| x.name.as_str()).collect();
                 let hint = match btrel::tree::error::nearest(n, &all) {
                     Some(near) => format!("did you mean '{near}'?"),
-                    None if all.len() <= 12 => format!("the nodes are: {}", all.join(", ")),
+                    None if all.len() <= 12 => {
+                        format!("give one of {}, or a path such as 0.1", all.join(", "))
+                    }
                     None => "give a node name, or a path such as 0.1 (`btrel report --format csv` lists both)"
                         .to_string(),
                 };
@@ -1372,8 +1387,8 @@ fn compare(args: CompareArgs) -> Result<(), Failure> {
         max_states: args.max_states,
         ..CompareOptions::default()
     };
-    let cmp =
-        btrel::compare::compare(&tree, &options).map_err(compare_failure(Cmd::Compare, options.method))?;
+    let cmp = btrel::compare::compare(&tree, &options)
+        .map_err(compare_failure(Cmd::Compare, options.method))?;
     if let Some(path) = &args.curves {
         let top: Vec<_> = cmp.candidates.iter().take(args.top).collect();
         let end = t_end.unwrap_or_else(|| {

@@ -285,12 +285,18 @@ fn deterministic_parallel_by_hand() {
 }
 
 #[test]
-fn mixed_timing_is_refused_with_a_pointer_to_simulation() {
+fn mixed_timing_is_refused_with_the_reason() {
     let t = tree(
         "tree: {sequence: {children: [{action: {ps: 0.5, tau_s: 3, tau_f: 1}}, {action: {ps: 0.8, mu: 2, nu: 4}}]}}",
     );
     let err = curve(&t, 0, &[1.0], &exact()).unwrap_err().to_string();
-    assert!(err.contains("simulate"), "{err}");
+    // the library states the fact; advice (`btrel simulate`, --timing) is the CLI's
+    assert!(err.contains("mixes deterministic"), "{err}");
+    assert!(err.contains("action@0.0"), "names the leaf: {err}");
+    assert!(
+        !err.contains("--"),
+        "no CLI flags in a library error: {err}"
+    );
 }
 
 #[test]

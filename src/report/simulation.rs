@@ -77,6 +77,23 @@ fn pm(e: Option<&Estimate>) -> String {
     }
 }
 
+/// Conditional means (MTTS, MTTF) resting on fewer runs than this are
+/// marked in tables: their standard error is itself too uncertain to trust.
+pub const FEW_RUNS: u64 = 30;
+
+/// A conditional mean ± its standard error, marked `[n runs]` when it rests
+/// on fewer than [`FEW_RUNS`] runs.
+fn pm_conditional(e: Option<&Estimate>, marked: &mut bool) -> String {
+    match e {
+        Some(x) if x.count < FEW_RUNS => {
+            *marked = true;
+            let runs = if x.count == 1 { "run" } else { "runs" };
+            format!("{} [{} {runs}]", pm(e), x.count)
+        }
+        _ => pm(e),
+    }
+}
+
 fn aligned(rows: &[Vec<String>], left: usize, out: &mut dyn Write) -> io::Result<()> {
     super::table::write_aligned(rows, |j, _| j < left, out)
 }
@@ -101,17 +118,25 @@ pub fn write_table(tree: &Tree, r: &SimResult, out: &mut dyn Write) -> io::Resul
         "MTTS".into(),
         "MTTF".into(),
     ]];
+    let mut marked = false;
     for n in &r.nodes {
         let node = tree.node(n.node);
         rows.push(vec![
             format!("{}{}", "  ".repeat(node.depth - root_depth), node.name),
             node.kind.keyword().into(),
             pm(Some(&n.ps)),
-            pm(n.mtts.as_ref()),
-            pm(n.mttf.as_ref()),
+            pm_conditional(n.mtts.as_ref(), &mut marked),
+            pm_conditional(n.mttf.as_ref(), &mut marked),
         ]);
     }
     aligned(&rows, 2, out)?;
+    if marked {
+        writeln!(
+            out,
+            "[n runs]: a mean time from fewer than {FEW_RUNS} successful (MTTS) or failed (MTTF) runs; \
+             its standard error is unreliable — simulate more runs"
+        )?;
+    }
     if !r.curve.is_empty() {
         writeln!(out)?;
         let mut rows = vec![vec![
