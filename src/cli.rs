@@ -504,18 +504,6 @@ enum Cmd {
     ExportPrism,
 }
 
-impl Cmd {
-    fn name(self) -> &'static str {
-        match self {
-            Cmd::Report => "report",
-            Cmd::Curve => "curve",
-            Cmd::Compare => "compare",
-            Cmd::Plot => "plot",
-            Cmd::ExportDot | Cmd::ExportPrism => "export",
-        }
-    }
-}
-
 /// Joins alternatives: `a`, `a or b`, `a, b or c`.
 fn or_list(items: &[String]) -> String {
     match items {
@@ -548,11 +536,11 @@ fn analysis_failure(cmd: Cmd, method: Method) -> impl Fn(AnalysisError) -> Failu
                 fixes.push(simulate);
                 if *states < 1e12 {
                     fixes.push(format!(
-                        "raise the budget with `--max-states {}`",
+                        "a larger budget, `--max-states {}`",
                         (states.ceil() as u64).max(1)
                     ));
                 } else {
-                    fixes.push("raise the budget with `--max-states N`".to_string());
+                    fixes.push("a larger budget, `--max-states N`".to_string());
                 }
             }
             AnalysisError::MixedTiming { .. } => {
@@ -581,11 +569,7 @@ fn analysis_failure(cmd: Cmd, method: Method) -> impl Fn(AnalysisError) -> Failu
         }
         let mut message = e.to_string();
         if !fixes.is_empty() {
-            message.push_str(&format!(
-                "\n  help: `btrel {}` can use {}",
-                cmd.name(),
-                or_list(&fixes)
-            ));
+            message.push_str(&format!("\n  help: instead use {}", or_list(&fixes)));
         }
         Failure::analysis(message)
     }
@@ -1373,7 +1357,7 @@ fn compare(args: CompareArgs) -> Result<(), Failure> {
     }
     let tree = load(&args.tree)?;
     let nodes = find_nodes(&tree, &args.nodes, &args.tree)?;
-    let options = CompareOptions {
+    let mut options = CompareOptions {
         nodes,
         objective: args.by.map(|b| match b {
             ObjectiveArg::MeanTime => Objective::MeanTime,
@@ -1384,9 +1368,9 @@ fn compare(args: CompareArgs) -> Result<(), Failure> {
         deadline,
         method: method(args.method),
         max_candidates: args.max_candidates,
-        max_states: args.max_states,
         ..CompareOptions::default()
     };
+    options.max_states = args.max_states;
     let cmp = btrel::compare::compare(&tree, &options)
         .map_err(compare_failure(Cmd::Compare, options.method))?;
     if let Some(path) = &args.curves {
