@@ -1255,6 +1255,19 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
 }
 
 fn export(args: ExportArgs) -> Result<(), Failure> {
+    match args.to {
+        ExportFormat::Dot if args.node.is_some() => {
+            return Err(Failure::input(
+                "--node goes with --to prism (the DOT export draws the whole tree, or with --mrg NODE one node's MRG)",
+            ))
+        }
+        ExportFormat::Prism if matches!(args.method, MethodArg::Book) => {
+            return Err(Failure::input(
+                "--method book goes with --to dot (its labels); --to prism always exports the exact chain: remove --method book",
+            ))
+        }
+        _ => {}
+    }
     let tree = load(&args.tree)?;
     let one = |name: &Option<String>| -> Result<usize, Failure> {
         match name {

@@ -220,6 +220,32 @@ fn monte_carlo_options_without_mc_are_refused() {
 }
 
 #[test]
+fn export_options_of_the_other_format_are_refused() {
+    refused(
+        &["export", SG, "--to", "dot", "--node", "search"],
+        &["--node", "--to prism"],
+    );
+    refused(
+        &["export", SG, "--to", "prism", "--method", "book"],
+        &["--method book", "--to prism"],
+    );
+    refused(
+        &["export", SG, "--to", "prism", "--mrg", "search"],
+        &["--mrg", "--to dot"],
+    );
+    refused(
+        &["export", SG, "--to", "dot", "--properties", "p.csl"],
+        &["--properties", "--to prism"],
+    );
+    assert!(!repo("p.csl").exists());
+    assert_eq!(run(&["export", SG, "--to", "dot", "--method", "book"]).0, 0);
+    assert_eq!(
+        run(&["export", SG, "--to", "prism", "--node", "search"]).0,
+        0
+    );
+}
+
+#[test]
 fn a_zero_horizon_is_refused() {
     refused(&["curve", SG, "--t-end", "0"], &["--t-end", "> 0"]);
     refused(&["curve", SG, "--t-end", "0", "--dt", "1"], &["--t-end"]);
