@@ -169,6 +169,7 @@ Examples:
   btrel curve trees/search-and-grasp.yaml --times 10,100,1000 --method book
   btrel curve trees/search-and-grasp.yaml --node search --t-end 500 --dt 5 -o search.csv
   btrel curve trees/search-and-grasp.yaml --timing deterministic --t-end 1000 --points 1001
+  btrel curve trees/search-and-grasp.xml --params trees/search-and-grasp.params.yaml --times 100
 
 Output: CSV with header node,t,success,failure,running; one row per node per time,
 in the order of the requested times; numbers at full precision.";
@@ -212,6 +213,7 @@ Examples:
   btrel compare trees/search-and-grasp.yaml --node search --deadline 100
   btrel compare trees/search-and-grasp.yaml --by mean-time --format json
   btrel compare trees/search-and-grasp.yaml --node search --deadline 100 --top 3 --curves top3.csv
+  btrel compare trees/search-and-grasp.xml --params trees/search-and-grasp.params.yaml --node search
 
 Without --node every Fallback is reordered (the product of their permutations).
 Default objective: success-by with --deadline, else mean-time.";
@@ -267,6 +269,7 @@ const SIMULATE_EXAMPLES: &str = "\
 Examples:
   btrel simulate trees/search-and-grasp.yaml --runs 1e6
   btrel simulate trees/search-and-grasp.yaml --runs 1e6 --times 10,100,1000 --format json
+  btrel simulate trees/two-arm-parallel.xml --params trees/two-arm-parallel.params.yaml --runs 1e5
   btrel report trees/search-and-grasp.yaml --mc 1e6        # Table 9.1-style check
   btrel curve trees/search-and-grasp.yaml --t-end 1000 --mc 1e5
 
@@ -278,7 +281,11 @@ Examples:
   btrel plot trees/search-and-grasp.yaml -o sg.svg --mc 1e5                 # Fig. 9.18
   btrel plot trees/search-and-grasp.yaml -o nodes.svg --node search --node grasp
   btrel plot trees/search-and-grasp.yaml -o det.svg --timing both           # Fig. 9.20
-  btrel plot trees/search-and-grasp.yaml -o order.svg --compare search --deadline 100   # Fig. 9.22";
+  btrel plot trees/search-and-grasp.yaml -o order.svg --compare search --deadline 100   # Fig. 9.22
+  btrel plot trees/search-and-grasp.xml --params trees/search-and-grasp.params.yaml -o - > sg.svg
+
+--deadline and --top go with --compare, which draws the orderings with the times as given
+(no --node, no --timing); --seed and --threads go with --mc.";
 
 #[derive(Clone, Copy, ValueEnum)]
 enum PlotTiming {
@@ -338,6 +345,7 @@ Examples:
   btrel export trees/search-and-grasp.yaml --to dot -o tree.dot && dot -Tsvg tree.dot -o tree.svg
   btrel export trees/search-and-grasp.yaml --to dot --mrg search -o search-mrg.dot
   btrel export trees/search-and-grasp.yaml --to prism -o sg.sm --properties sg.csl
+  btrel export trees/two-arm-parallel.xml --params trees/two-arm-parallel.params.yaml --to dot -o -
   prism sg.sm sg.csl -const T=100 -prop success_by_T     # P(success by 100 s), weighted over the start
 
 DOT uses the book's notation: Sequence ->, Fallback ?, Parallel =>, decorators <>.";
@@ -406,7 +414,7 @@ struct SimArgs {
 /// its options need `--mc`.
 #[derive(clap::Args)]
 struct McArgs {
-    /// Seed of the simulation's random streams (decimal or 0x hex; default 0x5EEDB7E1).
+    /// Seed of the simulation's random streams, with --mc (decimal or 0x hex; default 0x5EEDB7E1).
     #[arg(long, value_name = "S", allow_hyphen_values = true, requires = "mc")]
     seed: Option<String>,
     #[arg(long, value_name = "K", help = threads_help(), requires = "mc")]

@@ -926,3 +926,47 @@ fn man_page_renders() {
         assert!(text.contains("btrel"), "{text}");
     }
 }
+
+/// The example lines `btrel CMD ...` of `CMD --help` (comments removed).
+fn examples_of(cmd: &str) -> Vec<String> {
+    let (_, help, _) = run(&[cmd, "--help"]);
+    let section = help.split("Examples:").nth(1).unwrap_or("");
+    section
+        .lines()
+        .map(|l| l.split("  #").next().unwrap().trim().to_string())
+        .filter(|l| l.starts_with(&format!("btrel {cmd} ")))
+        .collect()
+}
+
+#[test]
+fn every_help_example_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut ran = 0;
+    for cmd in COMMANDS.iter().chain(&["completions", "man"]) {
+        for line in examples_of(cmd) {
+            // the part before a shell pipe, redirection or `&&`
+            let line = line.split(['|', '>', '&']).next().unwrap().trim();
+            let words: Vec<&str> = line.split_whitespace().skip(1).collect();
+            if words.contains(&"-") && words.get(1) == Some(&"-") {
+                continue; // reads standard input
+            }
+            let mut args: Vec<String> = Vec::new();
+            let mut out_next = false;
+            for w in words {
+                if out_next && w != "-" {
+                    // outputs go to the temporary directory
+                    let name = Path::new(w).file_name().unwrap();
+                    args.push(dir.path().join(name).to_string_lossy().into_owned());
+                } else {
+                    args.push(w.to_string());
+                }
+                out_next = matches!(w, "-o" | "--curves" | "--properties");
+            }
+            let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+            let (code, _, err) = run(&refs);
+            assert_eq!(code, 0, "`{line}` fails:\n{err}");
+            ran += 1;
+        }
+    }
+    assert!(ran >= 25, "only {ran} examples found");
+}
