@@ -77,6 +77,11 @@ fn pm(e: Option<&Estimate>) -> String {
     }
 }
 
+/// `1 run`, `20 runs`.
+fn runs(n: u64) -> String {
+    format!("{n} {}", if n == 1 { "run" } else { "runs" })
+}
+
 /// Conditional means (MTTS, MTTF) resting on fewer runs than this are
 /// marked in tables: their standard error is itself too uncertain to trust.
 pub const FEW_RUNS: u64 = 30;
@@ -87,8 +92,7 @@ fn pm_conditional(e: Option<&Estimate>, marked: &mut bool) -> String {
     match e {
         Some(x) if x.count < FEW_RUNS => {
             *marked = true;
-            let runs = if x.count == 1 { "run" } else { "runs" };
-            format!("{} [{} {runs}]", pm(e), x.count)
+            format!("{} [{}]", pm(e), runs(x.count))
         }
         _ => pm(e),
     }
@@ -107,8 +111,9 @@ pub fn write_table(tree: &Tree, r: &SimResult, out: &mut dyn Write) -> io::Resul
         .unwrap_or_else(|| tree.nodes[0].name.clone());
     writeln!(
         out,
-        "{title} — Monte Carlo: {} runs per node, seed {} (estimate ± standard error; times in s)",
-        r.runs, r.seed
+        "{title} — Monte Carlo: {} per node, seed {} (estimate ± standard error; times in s)",
+        runs(r.runs),
+        r.seed
     )?;
     let root_depth = tree.node(r.nodes[0].node).depth;
     let mut rows = vec![vec![
@@ -248,8 +253,9 @@ pub fn node_checks(report: &super::NodeReport, mc: &NodeEstimate) -> Vec<(&'stat
 pub fn write_check_table(report: &Report, r: &SimResult, out: &mut dyn Write) -> io::Result<()> {
     writeln!(
         out,
-        "\nMonte Carlo check ({} runs per node, seed {}): z = (numerical − analytical) / standard error",
-        r.runs, r.seed
+        "\nMonte Carlo check ({} per node, seed {}): z = (numerical − analytical) / standard error",
+        runs(r.runs),
+        r.seed
     )?;
     let mut rows = vec![vec![
         "node".to_string(),

@@ -479,9 +479,9 @@ const NODE_KEYS: &[&str] = &[
 ];
 
 /// The 1-based line `line` of `source` (empty if out of range).
-fn line_of(source: &str, line: usize) -> &str {
+fn line_of<'a>(lines: &[&'a str], line: usize) -> &'a str {
     line.checked_sub(1)
-        .and_then(|l| source.lines().nth(l))
+        .and_then(|l| lines.get(l).copied())
         .unwrap_or("")
 }
 
@@ -506,8 +506,8 @@ fn word_at(text: &str, column: usize) -> String {
 /// The key whose value starts at `(line, column)`: on the same line before
 /// the column (`child: [...]`), else the nearest line above that is
 /// indented less and ends with `key:`.
-fn owner_key(source: &str, (line, column): (usize, usize)) -> Option<(usize, String)> {
-    let text = line_of(source, line);
+fn owner_key(lines: &[&str], (line, column): (usize, usize)) -> Option<(usize, String)> {
+    let text = line_of(lines, line);
     let before: String = text.chars().take(column.saturating_sub(1)).collect();
     let key_of = |t: &str| -> Option<String> {
         let t = t.trim_end().strip_suffix(':')?;
@@ -521,7 +521,7 @@ fn owner_key(source: &str, (line, column): (usize, usize)) -> Option<(usize, Str
     let indent = indent_of(text);
     (1..line)
         .rev()
-        .map(|l| (l, line_of(source, l)))
+        .map(|l| (l, line_of(lines, l)))
         .filter(|(_, t)| !is_blank_or_comment(t))
         .find(|(_, t)| indent_of(t) < indent || indent == 0)
         .and_then(|(l, t)| key_of(t).map(|k| (l, k)))
@@ -529,11 +529,11 @@ fn owner_key(source: &str, (line, column): (usize, usize)) -> Option<(usize, Str
 
 /// The lines enclosing `line`: going up, each non-blank line indented less
 /// than the previous one found (their indentations are where a line may start).
-fn enclosing_lines(source: &str, line: usize) -> Vec<(usize, usize, String)> {
+fn enclosing_lines(lines: &[&str], line: usize) -> Vec<(usize, usize, String)> {
     let mut out: Vec<(usize, usize, String)> = Vec::new();
     let mut limit = usize::MAX;
     for l in (1..line).rev() {
-        let t = line_of(source, l);
+        let t = line_of(lines, l);
         if is_blank_or_comment(t) {
             continue;
         }
@@ -551,11 +551,14 @@ fn enclosing_lines(source: &str, line: usize) -> Vec<(usize, usize, String)> {
 
 /// The last token before `(line, column)` (skipping white space), with its
 /// location.
-fn token_before(source: &str, (line, column): (usize, usize)) -> Option<((usize, usize), String)> {
+fn token_before(
+    lines: &[&str],
+    (line, column): (usize, usize),
+) -> Option<((usize, usize), String)> {
     let mut l = line;
     let mut limit = column.saturating_sub(1);
     while l >= 1 {
-        let text: String = line_of(source, l).chars().take(limit).collect();
+        let text: String = line_of(lines, l).chars().take(limit).collect();
         let trimmed = text.trim_end();
         if !trimmed.is_empty() && !trimmed.trim_start().starts_with('#') {
             let token: String = {
@@ -586,7 +589,8 @@ fn common_mistake(
 ) -> Option<TreeError> {
     use serde_saphyr::Error as E;
     let (line, column) = loc;
-    let text = line_of(source, line);
+    let lines: Vec<&str> = source.lines().collect();
+    let text = line_of(&lines, line);
     let at = |l: (usize, usize), m: String, h: String| {
         Some(TreeError::at(file, source, l, m).with_help(h))
     };
@@ -618,7 +622,7 @@ fn common_mistake(
             if !list {
                 return None;
             }
-            match owner_key(source, loc) {
+            match owner_key(&lines, loc) {
                 Some((_, k)) if k == "child" => at(
                     loc,
                     "`child:` takes one node, not a list".into(),
@@ -646,7 +650,7 @@ fn common_mistake(
         E::ExpectedMappingEndAfterEnumVariantValue { .. } => {
             let second = word_at(text, column);
             let first =
-                enclosing_node(source, loc).map(|(l, c)| (l, word_at(line_of(source, l), c)));
+                enclosing_node(source, loc).map(|(l, c)| (l, word_at(line_of(&lines, l), c)));
             let (fl, first) = first.unwrap_or((0, "the node's kind".into()));
             let first_at = if fl > 0 {
                 format!(" (line {fl})")
@@ -699,7 +703,7 @@ fn common_mistake(
             )
         }
         E::Unexpected { expected, .. } if *expected == "sequence start" => {
-            let key = owner_key(source, loc).map(|(_, k)| k);
+            let key = owner_key(&lines, loc).map(|(_, k)| k);
             let key = key.as_deref().unwrap_or("children");
             at(
                 loc,
@@ -713,10 +717,10 @@ fn common_mistake(
             let rest: String = text.chars().skip(column.saturating_sub(1)).collect();
             let rest = rest.trim();
             let (tl, token) = if rest.starts_with(':') {
-                let ((l, c), t) = token_before(source, loc)?;
+                let ((l, c), t) = token_before(&lines, loc)?;
                 ((l, c), format!("{t}:"))
             } else {
-                token_before(source, loc)?
+                token_before(&lines, loc)?
             };
             if let Some(kind) = token.strip_suffix(':') {
                 if NODE_KINDS.contains(&kind) && !rest.is_empty() && !rest.starts_with([':', '#']) {
@@ -759,7 +763,7 @@ fn common_mistake(
                 return None;
             }
             let dash = text.trim_start().starts_with('-');
-            let enclosing = enclosing_lines(source, line);
+            let enclosing = enclosing_lines(&lines, line);
             if enclosing.iter().any(|(_, i, _)| *i == indent) {
                 return None;
             }
@@ -1048,7 +1052,13 @@ impl Builder<'_> {
             let v = t.value;
             if !(v.is_finite() && v.fract() == 0.0 && v >= 1.0 && v <= n as f64) {
                 return Err(self
-                    .err(loc(t), format!("{key} = {v} is not valid for {n} children"))
+                    .err(
+                        loc(t),
+                        format!(
+                            "{key} = {v} is not valid for {n} {}",
+                            if n == 1 { "child" } else { "children" }
+                        ),
+                    )
                     .with_help(format!(
                         "{key} must be a whole number from 1 to {n}: {meaning}"
                     )));
