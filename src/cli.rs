@@ -406,7 +406,7 @@ struct SimArgs {
     /// Seed of the random streams (decimal or 0x hex; default 0x5EEDB7E1).
     #[arg(long, value_name = "S", allow_hyphen_values = true)]
     seed: Option<String>,
-    #[arg(long, value_name = "K", help = threads_help())]
+    #[arg(long, value_name = "K", help = threads_help("Worker threads"))]
     threads: Option<usize>,
 }
 
@@ -417,7 +417,7 @@ struct McArgs {
     /// Seed of the simulation's random streams, with --mc (decimal or 0x hex; default 0x5EEDB7E1).
     #[arg(long, value_name = "S", allow_hyphen_values = true, requires = "mc")]
     seed: Option<String>,
-    #[arg(long, value_name = "K", help = threads_help(), requires = "mc")]
+    #[arg(long, value_name = "K", help = threads_help("Worker threads of the simulation, with --mc"), requires = "mc")]
     threads: Option<usize>,
 }
 
@@ -430,14 +430,29 @@ impl McArgs {
     }
 }
 
-/// The number of worker threads used when `--threads` is not given.
+/// The number of worker threads used when `--threads` is not given:
+/// rayon's global pool, which honours `RAYON_NUM_THREADS` and otherwise has
+/// one thread per core (computed here without starting the pool).
 fn default_threads() -> usize {
-    std::thread::available_parallelism().map_or(1, |n| n.get())
+    std::env::var("RAYON_NUM_THREADS")
+        .ok()
+        .and_then(|v| v.trim().parse::<usize>().ok())
+        .filter(|&n| n > 0)
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
 }
 
-fn threads_help() -> String {
+fn threads_help(what: &str) -> String {
+    let from_env = std::env::var("RAYON_NUM_THREADS")
+        .ok()
+        .and_then(|v| v.trim().parse::<usize>().ok())
+        .is_some_and(|n| n > 0);
+    let why = if from_env {
+        "from RAYON_NUM_THREADS"
+    } else {
+        "one per core"
+    };
     format!(
-        "Worker threads [default: {}, one per core]; the result does not depend on it",
+        "{what} [default: {}, {why}]; the result does not depend on it",
         default_threads()
     )
 }
