@@ -722,11 +722,25 @@ fn every_command_help_has_its_examples_and_says_tree_may_be_xml() {
 #[test]
 fn threads_help_shows_the_real_default() {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let help = |cmd: &str, env: Option<&str>| {
+        let mut c = btrel();
+        c.args([cmd, "--help"]).env_remove("RAYON_NUM_THREADS");
+        if let Some(n) = env {
+            c.env("RAYON_NUM_THREADS", n);
+        }
+        String::from_utf8(c.output().unwrap().stdout).unwrap()
+    };
     for cmd in ["simulate", "report", "curve", "plot"] {
-        let (_, help, _) = run(&[cmd, "--help"]);
+        let text = help(cmd, None);
         assert!(
-            help.contains(&format!("[default: {cores}, one per core]")),
-            "{cmd}:\n{help}"
+            text.contains(&format!("[default: {cores}, one per core]")),
+            "{cmd}:\n{text}"
+        );
+        // rayon's pool honours RAYON_NUM_THREADS, and so does the help
+        let text = help(cmd, Some("3"));
+        assert!(
+            text.contains("[default: 3, from RAYON_NUM_THREADS]"),
+            "{cmd}:\n{text}"
         );
     }
 }
