@@ -430,31 +430,26 @@ impl McArgs {
     }
 }
 
-/// The number of worker threads used when `--threads` is not given:
-/// rayon's global pool, which honours `RAYON_NUM_THREADS` and otherwise has
-/// one thread per core (computed here without starting the pool).
-fn default_threads() -> usize {
+/// `RAYON_NUM_THREADS`, which sizes rayon's global pool when set to a positive number.
+fn rayon_env_threads() -> Option<usize> {
     std::env::var("RAYON_NUM_THREADS")
         .ok()
         .and_then(|v| v.trim().parse::<usize>().ok())
         .filter(|&n| n > 0)
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
 }
 
+/// The help of `--threads`, with the real default: the size of rayon's
+/// global pool (`RAYON_NUM_THREADS`, else one thread per core), computed
+/// without starting the pool.
 fn threads_help(what: &str) -> String {
-    let from_env = std::env::var("RAYON_NUM_THREADS")
-        .ok()
-        .and_then(|v| v.trim().parse::<usize>().ok())
-        .is_some_and(|n| n > 0);
-    let why = if from_env {
-        "from RAYON_NUM_THREADS"
-    } else {
-        "one per core"
+    let (n, why) = match rayon_env_threads() {
+        Some(n) => (n, "from RAYON_NUM_THREADS"),
+        None => (
+            std::thread::available_parallelism().map_or(1, |n| n.get()),
+            "one per core",
+        ),
     };
-    format!(
-        "{what} [default: {}, {why}]; the result does not depend on it",
-        default_threads()
-    )
+    format!("{what} [default: {n}, {why}]; the result does not depend on it")
 }
 
 #[derive(clap::Args)]
