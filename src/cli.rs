@@ -10,7 +10,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
 
-use btrel::compile::{analyze, Method, Options, DEFAULT_MAX_STATES};
+use btrel::compile::{analyze, AnalysisError, Method, Options, DEFAULT_MAX_STATES};
 use btrel::curve::{CurveOptions, Timing};
 use btrel::report::number::full;
 use btrel::report::{Format, Report};
@@ -19,15 +19,51 @@ use btrel::tree::{parse_file, Tree};
 const EXAMPLES: &str = "\
 Examples:
   btrel report trees/search-and-grasp.yaml
-  btrel report trees/search-and-grasp.yaml --method book --format json
-  btrel report trees/two-arm-parallel.yaml --format csv -o figures.csv
-  btrel check trees/search-and-grasp.yaml
   btrel report trees/search-and-grasp.xml --params trees/search-and-grasp.params.yaml
   btrel report nav.xml --params nav.params.yaml --include nav2_tree_nodes.xml --include subtrees/
   btrel curve trees/search-and-grasp.yaml --t-end 1000 --points 101 -o curve.csv
-  btrel curve trees/search-and-grasp.yaml --node search --node grasp --times 10,100,1000
+  btrel compare trees/search-and-grasp.yaml --node search --deadline 100
+  btrel simulate trees/search-and-grasp.yaml --runs 1e6
+  btrel plot trees/search-and-grasp.yaml -o sg.svg --mc 1e5
+  btrel check trees/search-and-grasp.yaml
+  btrel completions bash > ~/.local/share/bash-completion/completions/btrel
 
+TREE is a YAML tree file or a BehaviorTree.CPP v4 XML file (.xml, with --params);
+`-` reads it from standard input. `-o -` writes to standard output.
 Exit codes: 0 ok, 2 invalid input or usage, 1 analysis not possible or internal error.";
+
+const REPORT_EXAMPLES: &str = "\
+Examples:
+  btrel report trees/search-and-grasp.yaml
+  btrel report trees/search-and-grasp.yaml --method book --format json
+  btrel report trees/two-arm-parallel.yaml --format csv -o figures.csv
+  btrel report trees/search-and-grasp.yaml --mc 1e6 --seed 7     # Table 9.1-style check
+  btrel report trees/search-and-grasp.xml --params trees/search-and-grasp.params.yaml
+  cat trees/search-and-grasp.yaml | btrel report -
+
+TREE is YAML or BehaviorTree.CPP v4 XML (.xml, or --input-format xml; parameters from
+--params, default TREE with the extension .params.yaml); `-` reads standard input.
+Exit codes: 0 ok, 2 invalid input or usage, 1 analysis not possible or internal error.";
+
+const CHECK_EXAMPLES: &str = "\
+Examples:
+  btrel check trees/search-and-grasp.yaml
+  btrel check trees/search-and-grasp.xml --params trees/search-and-grasp.params.yaml
+  generate-tree | btrel check -
+
+TREE is YAML or BehaviorTree.CPP v4 XML (.xml, or --input-format xml); `-` reads standard input.";
+
+const COMPLETIONS_EXAMPLES: &str = "\
+Examples:
+  btrel completions bash > ~/.local/share/bash-completion/completions/btrel
+  btrel completions zsh > ~/.zfunc/_btrel        # with fpath+=~/.zfunc before compinit
+  btrel completions fish > ~/.config/fish/completions/btrel.fish";
+
+const MAN_EXAMPLES: &str = "\
+Examples:
+  btrel man | man -l -
+  btrel man report -o btrel-report.1
+  mkdir -p ~/.local/share/man/man1 && btrel man -o ~/.local/share/man/man1/btrel.1";
 
 #[derive(Parser)]
 #[command(
@@ -69,7 +105,7 @@ static INPUT: std::sync::OnceLock<(Option<InputFormat>, Option<PathBuf>, Vec<Pat
 #[derive(Subcommand)]
 enum Command {
     /// Analyse a tree and print every node's ps, pf, MTTS, MTTF, mu and nu.
-    #[command(after_help = EXAMPLES)]
+    #[command(after_help = REPORT_EXAMPLES)]
     Report(ReportArgs),
     /// Probabilities of Success/Failure/Running over time, as CSV.
     #[command(after_help = CURVE_EXAMPLES)]
@@ -87,16 +123,31 @@ enum Command {
     #[command(after_help = PLOT_EXAMPLES)]
     Plot(PlotArgs),
     /// Validate a tree file without analysing it.
-    #[command(after_help = "Example:\n  btrel check trees/search-and-grasp.yaml")]
+    #[command(after_help = CHECK_EXAMPLES)]
     Check {
-        /// The tree file (YAML).
+        /// The tree: YAML, or BehaviorTree.CPP v4 XML (.xml; actions' parameters from --params); - reads standard input.
         tree: PathBuf,
+    },
+    /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
+    #[command(after_help = COMPLETIONS_EXAMPLES)]
+    Completions {
+        /// The shell.
+        shell: clap_complete::Shell,
+    },
+    /// Print the manual page (roff) of btrel or of one of its commands.
+    #[command(after_help = MAN_EXAMPLES)]
+    Man {
+        /// The command whose page to print (default: btrel itself).
+        command: Option<String>,
+        /// Write to this file (atomically) instead of standard output (- is standard output).
+        #[arg(short, long, value_name = "FILE")]
+        output: Option<PathBuf>,
     },
 }
 
 #[derive(clap::Args)]
 struct ReportArgs {
-    /// The tree file (YAML).
+    /// The tree: YAML, or BehaviorTree.CPP v4 XML (.xml; actions' parameters from --params); - reads standard input.
     tree: PathBuf,
     /// exact: compose the actions' phase-type distributions exactly;
     /// book: the chapter's recursion (subtrees replaced by exponential actions).
@@ -105,7 +156,7 @@ struct ReportArgs {
     /// Output format.
     #[arg(long, value_enum, default_value_t = FormatArg::Table)]
     format: FormatArg,
-    /// Write to this file (atomically) instead of standard output.
+    /// Write to this file (atomically) instead of standard output (- is standard output).
     #[arg(short, long, value_name = "FILE")]
     output: Option<PathBuf>,
     /// Largest chain (number of states) an exact analysis may build.
@@ -115,7 +166,7 @@ struct ReportArgs {
     #[arg(long, value_name = "N")]
     mc: Option<String>,
     #[command(flatten)]
-    sim: SimArgs,
+    sim: McArgs,
 }
 
 const CURVE_EXAMPLES: &str = "\
@@ -124,13 +175,14 @@ Examples:
   btrel curve trees/search-and-grasp.yaml --times 10,100,1000 --method book
   btrel curve trees/search-and-grasp.yaml --node search --t-end 500 --dt 5 -o search.csv
   btrel curve trees/search-and-grasp.yaml --timing deterministic --t-end 1000 --points 1001
+  btrel curve trees/search-and-grasp.xml --params trees/search-and-grasp.params.yaml --times 100
 
 Output: CSV with header node,t,success,failure,running; one row per node per time,
 in the order of the requested times; numbers at full precision.";
 
 #[derive(clap::Args)]
 struct CurveArgs {
-    /// The tree file (YAML).
+    /// The tree: YAML, or BehaviorTree.CPP v4 XML (.xml; actions' parameters from --params); - reads standard input.
     tree: PathBuf,
     /// Node to report, by name or path (repeatable); default: the root.
     #[arg(long = "node", value_name = "NAME")]
@@ -147,8 +199,8 @@ struct CurveArgs {
     #[arg(long, value_name = "N")]
     mc: Option<String>,
     #[command(flatten)]
-    sim: SimArgs,
-    /// Write to this file (atomically) instead of standard output.
+    sim: McArgs,
+    /// Write to this file (atomically) instead of standard output (- is standard output).
     #[arg(short, long, value_name = "FILE")]
     output: Option<PathBuf>,
     /// Largest chain (number of states) an exact analysis may build.
@@ -167,13 +219,14 @@ Examples:
   btrel compare trees/search-and-grasp.yaml --node search --deadline 100
   btrel compare trees/search-and-grasp.yaml --by mean-time --format json
   btrel compare trees/search-and-grasp.yaml --node search --deadline 100 --top 3 --curves top3.csv
+  btrel compare trees/search-and-grasp.xml --params trees/search-and-grasp.params.yaml --node search
 
 Without --node every Fallback is reordered (the product of their permutations).
 Default objective: success-by with --deadline, else mean-time.";
 
 #[derive(clap::Args)]
 struct CompareArgs {
-    /// The tree file (YAML).
+    /// The tree: YAML, or BehaviorTree.CPP v4 XML (.xml; actions' parameters from --params); - reads standard input.
     tree: PathBuf,
     /// Fallback node whose children are permuted, by name or path (repeatable); default: all.
     #[arg(long = "node", value_name = "NAME")]
@@ -202,7 +255,10 @@ struct CompareArgs {
     /// Largest number of orderings enumerated exhaustively.
     #[arg(long, value_name = "N", default_value_t = btrel::compare::DEFAULT_MAX_CANDIDATES)]
     max_candidates: usize,
-    /// Write to this file (atomically) instead of standard output.
+    /// Largest chain (number of states) an exact analysis may build.
+    #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_STATES)]
+    max_states: usize,
+    /// Write to this file (atomically) instead of standard output (- is standard output).
     #[arg(short, long, value_name = "FILE")]
     output: Option<PathBuf>,
 }
@@ -219,6 +275,7 @@ const SIMULATE_EXAMPLES: &str = "\
 Examples:
   btrel simulate trees/search-and-grasp.yaml --runs 1e6
   btrel simulate trees/search-and-grasp.yaml --runs 1e6 --times 10,100,1000 --format json
+  btrel simulate trees/two-arm-parallel.xml --params trees/two-arm-parallel.params.yaml --runs 1e5
   btrel report trees/search-and-grasp.yaml --mc 1e6        # Table 9.1-style check
   btrel curve trees/search-and-grasp.yaml --t-end 1000 --mc 1e5
 
@@ -230,7 +287,11 @@ Examples:
   btrel plot trees/search-and-grasp.yaml -o sg.svg --mc 1e5                 # Fig. 9.18
   btrel plot trees/search-and-grasp.yaml -o nodes.svg --node search --node grasp
   btrel plot trees/search-and-grasp.yaml -o det.svg --timing both           # Fig. 9.20
-  btrel plot trees/search-and-grasp.yaml -o order.svg --compare search --deadline 100   # Fig. 9.22";
+  btrel plot trees/search-and-grasp.yaml -o order.svg --compare search --deadline 100   # Fig. 9.22
+  btrel plot trees/search-and-grasp.xml --params trees/search-and-grasp.params.yaml -o - > sg.svg
+
+--deadline and --top go with --compare, which draws the orderings with the times as given
+(no --node, no --timing); --seed and --threads go with --mc.";
 
 #[derive(Clone, Copy, ValueEnum)]
 enum PlotTiming {
@@ -241,13 +302,13 @@ enum PlotTiming {
 
 #[derive(clap::Args)]
 struct PlotArgs {
-    /// The tree file (YAML).
+    /// The tree: YAML, or BehaviorTree.CPP v4 XML (.xml; actions' parameters from --params); - reads standard input.
     tree: PathBuf,
-    /// The SVG file to write (atomically).
+    /// The SVG file to write (atomically); - writes to standard output.
     #[arg(short, long, value_name = "FILE.svg")]
     output: PathBuf,
     /// Node to plot, by name or path (repeatable); default: the root.
-    #[arg(long = "node", value_name = "NAME")]
+    #[arg(long = "node", value_name = "NAME", conflicts_with = "compare")]
     nodes: Vec<String>,
     /// Horizon (s); default: 3 × the largest mean time plotted.
     #[arg(long, value_name = "T", allow_hyphen_values = true)]
@@ -259,7 +320,7 @@ struct PlotArgs {
     #[arg(long, value_name = "N")]
     mc: Option<String>,
     #[command(flatten)]
-    sim: SimArgs,
+    sim: McArgs,
     /// as-given, deterministic (every rate r becomes a fixed 1/r), or both overlaid.
     #[arg(long, value_enum, default_value_t = PlotTiming::AsGiven)]
     timing: PlotTiming,
@@ -267,14 +328,22 @@ struct PlotArgs {
     #[arg(long, value_name = "NODE")]
     compare: Option<String>,
     /// Deadline (s) ranking the orderings of --compare.
-    #[arg(long, value_name = "T", allow_hyphen_values = true)]
+    #[arg(
+        long,
+        value_name = "T",
+        allow_hyphen_values = true,
+        requires = "compare"
+    )]
     deadline: Option<String>,
     /// How many orderings --compare overlays.
-    #[arg(long, value_name = "K", default_value_t = 2)]
+    #[arg(long, value_name = "K", default_value_t = 2, requires = "compare")]
     top: usize,
     /// exact (default) or book.
     #[arg(long, value_enum, default_value_t = MethodArg::Exact)]
     method: MethodArg,
+    /// Largest chain (number of states) an exact analysis may build.
+    #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_STATES)]
+    max_states: usize,
 }
 
 const EXPORT_EXAMPLES: &str = "\
@@ -282,6 +351,7 @@ Examples:
   btrel export trees/search-and-grasp.yaml --to dot -o tree.dot && dot -Tsvg tree.dot -o tree.svg
   btrel export trees/search-and-grasp.yaml --to dot --mrg search -o search-mrg.dot
   btrel export trees/search-and-grasp.yaml --to prism -o sg.sm --properties sg.csl
+  btrel export trees/two-arm-parallel.xml --params trees/two-arm-parallel.params.yaml --to dot -o -
   prism sg.sm sg.csl -const T=100 -prop success_by_T     # P(success by 100 s), weighted over the start
   btrel export trees/search-and-grasp.yaml --to prism-explicit -o sg --properties sg.csl
   prism -importmodel sg.all -ctmc sg.csl -const T=100    # sg.tra, sg.sta, sg.lab, sg.srew (large chains)
@@ -300,7 +370,7 @@ enum ExportFormat {
 
 #[derive(clap::Args)]
 struct ExportArgs {
-    /// The tree file (YAML).
+    /// The tree: YAML, or BehaviorTree.CPP v4 XML (.xml; actions' parameters from --params); - reads standard input.
     tree: PathBuf,
     /// dot: the tree (or with --mrg a node's MRG); prism: a node's exact CTMC
     /// as a PRISM model; prism-explicit: the same as PRISM's explicit files
@@ -323,8 +393,9 @@ struct ExportArgs {
     /// Largest chain (number of states) an exact analysis may build.
     #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_STATES)]
     max_states: usize,
-    /// Write to this file (atomically) instead of standard output; with
-    /// --to prism-explicit, the base name of the four files (required).
+    /// Write to this file (atomically) instead of standard output (- is
+    /// standard output); with --to prism-explicit, the base name of the four
+    /// files (required).
     #[arg(short, long, value_name = "FILE")]
     output: Option<PathBuf>,
 }
@@ -341,25 +412,66 @@ struct TimeArgs {
     /// Number of grid points from 0 to T inclusive (default 101).
     #[arg(long, value_name = "K", conflicts_with = "dt", requires = "t_end")]
     points: Option<usize>,
-    /// Grid spacing (s), from 0 up to T.
+    /// Grid spacing (s): 0, D, 2D, ... up to T, and T itself when it is not a multiple of D.
     #[arg(long, value_name = "D", requires = "t_end", allow_hyphen_values = true)]
     dt: Option<String>,
 }
 
-/// Monte Carlo options shared by `simulate`, `report --mc` and `curve --mc`.
+/// Monte Carlo options of `simulate`.
 #[derive(clap::Args)]
 struct SimArgs {
     /// Seed of the random streams (decimal or 0x hex; default 0x5EEDB7E1).
     #[arg(long, value_name = "S", allow_hyphen_values = true)]
     seed: Option<String>,
-    /// Worker threads (default: one per core); the result does not depend on it.
-    #[arg(long, value_name = "K", default_value_t = 0)]
-    threads: usize,
+    #[arg(long, value_name = "K", help = threads_help("Worker threads"))]
+    threads: Option<usize>,
+}
+
+/// The Monte Carlo check of `report --mc`, `curve --mc` and `plot --mc`:
+/// its options need `--mc`.
+#[derive(clap::Args)]
+struct McArgs {
+    /// Seed of the simulation's random streams, with --mc (decimal or 0x hex; default 0x5EEDB7E1).
+    #[arg(long, value_name = "S", allow_hyphen_values = true, requires = "mc")]
+    seed: Option<String>,
+    #[arg(long, value_name = "K", help = threads_help("Worker threads of the simulation, with --mc"), requires = "mc")]
+    threads: Option<usize>,
+}
+
+impl McArgs {
+    fn sim(&self) -> SimArgs {
+        SimArgs {
+            seed: self.seed.clone(),
+            threads: self.threads,
+        }
+    }
+}
+
+/// `RAYON_NUM_THREADS`, which sizes rayon's global pool when set to a positive number.
+fn rayon_env_threads() -> Option<usize> {
+    std::env::var("RAYON_NUM_THREADS")
+        .ok()
+        .and_then(|v| v.trim().parse::<usize>().ok())
+        .filter(|&n| n > 0)
+}
+
+/// The help of `--threads`, with the real default: the size of rayon's
+/// global pool (`RAYON_NUM_THREADS`, else one thread per core), computed
+/// without starting the pool.
+fn threads_help(what: &str) -> String {
+    let (n, why) = match rayon_env_threads() {
+        Some(n) => (n, "from RAYON_NUM_THREADS"),
+        None => (
+            std::thread::available_parallelism().map_or(1, |n| n.get()),
+            "one per core",
+        ),
+    };
+    format!("{what} [default: {n}, {why}]; the result does not depend on it")
 }
 
 #[derive(clap::Args)]
 struct SimulateArgs {
-    /// The tree file (YAML).
+    /// The tree: YAML, or BehaviorTree.CPP v4 XML (.xml; actions' parameters from --params); - reads standard input.
     tree: PathBuf,
     /// Runs per node (e.g. 1000000 or 1e6).
     #[arg(long, value_name = "N", default_value = "1000000")]
@@ -374,7 +486,7 @@ struct SimulateArgs {
     /// Output format.
     #[arg(long, value_enum, default_value_t = FormatArg::Table)]
     format: FormatArg,
-    /// Write to this file (atomically) instead of standard output.
+    /// Write to this file (atomically) instead of standard output (- is standard output).
     #[arg(short, long, value_name = "FILE")]
     output: Option<PathBuf>,
 }
@@ -416,6 +528,117 @@ impl Failure {
     }
 }
 
+/// The command that was run, for advice that names only its own options.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Cmd {
+    Report,
+    Curve,
+    Compare,
+    Plot,
+    ExportDot,
+    ExportPrism,
+}
+
+/// Joins alternatives: `a`, `a or b`, `a, b or c`.
+fn or_list(items: &[String]) -> String {
+    match items {
+        [] => String::new(),
+        [one] => one.clone(),
+        [rest @ .., last] => format!("{} or {last}", rest.join(", ")),
+    }
+}
+
+/// An analysis error with advice naming only the options of `cmd`.
+fn analysis_failure(cmd: Cmd, method: Method) -> impl Fn(AnalysisError) -> Failure {
+    move |e| {
+        let exact = method == Method::Exact;
+        let has_method = cmd != Cmd::ExportPrism;
+        let has_timing = matches!(cmd, Cmd::Curve | Cmd::Plot);
+        let mut fixes: Vec<String> = Vec::new();
+        let book = "`--method book` (the book's approximation)".to_string();
+        let simulate = "`btrel simulate` (Monte Carlo)".to_string();
+        match &e {
+            AnalysisError::NotMarkovian { .. } => {
+                if exact && has_method {
+                    fixes.push(book);
+                }
+                fixes.push(simulate);
+            }
+            AnalysisError::StateBudget { states, .. } => {
+                if exact && has_method {
+                    fixes.push(book);
+                }
+                fixes.push(simulate);
+                if *states < 1e12 {
+                    fixes.push(format!(
+                        "a larger budget, `--max-states {}`",
+                        (states.ceil() as u64).max(1)
+                    ));
+                } else {
+                    fixes.push("a larger budget, `--max-states N`".to_string());
+                }
+            }
+            AnalysisError::MixedTiming { .. } => {
+                fixes.push(simulate);
+                if has_timing {
+                    fixes.push(
+                        "`--timing deterministic` (every exponential time becomes 1/rate)"
+                            .to_string(),
+                    );
+                }
+            }
+            AnalysisError::Stiff { .. } => {
+                match cmd {
+                    Cmd::Curve => {
+                        fixes.push("fewer or earlier time points (--times, --t-end)".into())
+                    }
+                    Cmd::Plot => fixes.push("a shorter horizon (--t-end)".into()),
+                    _ => {}
+                }
+                if exact && has_method {
+                    fixes.push(book);
+                }
+                fixes.push(simulate);
+            }
+            AnalysisError::Numerical { .. } => {}
+        }
+        let mut message = e.to_string();
+        if !fixes.is_empty() {
+            message.push_str(&format!("\n  help: instead use {}", or_list(&fixes)));
+        }
+        Failure::analysis(message)
+    }
+}
+
+/// `a sequence`, `an action`.
+fn with_article(word: &str) -> String {
+    let an = word.starts_with(['a', 'e', 'i', 'o', 'u']);
+    format!("{} {word}", if an { "an" } else { "a" })
+}
+
+/// A comparison error with advice for `cmd` (compare, or plot --compare).
+fn compare_failure(cmd: Cmd, method: Method) -> impl Fn(btrel::compare::CompareError) -> Failure {
+    use btrel::compare::CompareError;
+    move |e| {
+        match e {
+        CompareError::Analysis(a) => analysis_failure(cmd, method)(a),
+        CompareError::NotReorderable(name, kind) => Failure::input(format!(
+            "node '{name}' is {}: only the children of Fallback nodes can be reordered (Def. 9.10)\n  help: {}",
+            with_article(kind),
+            if cmd == Cmd::Plot {
+                "give --compare a Fallback node"
+            } else {
+                "give a Fallback with --node, or omit --node to reorder every Fallback"
+            }
+        )),
+        CompareError::NeedsDeadline => {
+            Failure::input("--by success-by needs a deadline: add --deadline T")
+        }
+        other => Failure::input(other),
+    }
+    }
+}
+
 pub fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
@@ -433,6 +656,8 @@ pub fn main() -> ExitCode {
         Command::Simulate(args) => simulate(args),
         Command::Export(args) => export(args),
         Command::Plot(args) => plot(args),
+        Command::Completions { shell } => completions(shell),
+        Command::Man { command, output } => man(command.as_deref(), output.as_deref()),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -443,8 +668,26 @@ pub fn main() -> ExitCode {
     }
 }
 
+/// The name standard input goes by in messages.
+const STDIN_NAME: &str = "<stdin>";
+
+/// Reads standard input (at most the parser's size limit, plus one byte so
+/// that a larger input is recognised as such).
+fn read_stdin() -> Result<Vec<u8>, Failure> {
+    use std::io::Read;
+    let limit = btrel::tree::ParseLimits::default().max_bytes as u64;
+    let mut bytes = Vec::new();
+    io::stdin()
+        .lock()
+        .take(limit + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| Failure::input(format!("{STDIN_NAME}: cannot read standard input: {e}")))?;
+    Ok(bytes)
+}
+
 fn load(path: &Path) -> Result<Tree, Failure> {
     let (format, params, include) = INPUT.get().cloned().unwrap_or((None, None, Vec::new()));
+    let stdin = path == Path::new("-");
     let xml = match format {
         Some(f) => f == InputFormat::Xml,
         None => path
@@ -454,7 +697,7 @@ fn load(path: &Path) -> Result<Tree, Failure> {
     if !xml {
         if params.is_some() {
             return Err(Failure::input(
-                "--params goes with an XML tree (YAML trees carry their parameters): remove --params",
+                "--params goes with an XML tree (YAML trees carry their parameters): remove --params, or add --input-format xml",
             ));
         }
         if !include.is_empty() {
@@ -462,7 +705,27 @@ fn load(path: &Path) -> Result<Tree, Failure> {
                 "--include goes with an XML tree (a YAML tree is one file): remove --include",
             ));
         }
+        if stdin {
+            return btrel::tree::parse_bytes(read_stdin()?, STDIN_NAME).map_err(Failure::input);
+        }
         return parse_file(path).map_err(Failure::input);
+    }
+    if stdin {
+        let Some(params) = params else {
+            return Err(Failure::input(format!(
+                "{STDIN_NAME}: an XML tree read from standard input needs its parameters file: give it with --params FILE"
+            )));
+        };
+        let params_text = std::fs::read(&params).map_err(|e| {
+            Failure::input(format!("{}: cannot read the file: {e}", params.display()))
+        })?;
+        let name = params.display().to_string();
+        let params_text =
+            btrel::tree::parse::text_from_bytes(params_text, &name).map_err(Failure::input)?;
+        let xml_text = btrel::tree::parse::text_from_bytes(read_stdin()?, STDIN_NAME)
+            .map_err(Failure::input)?;
+        return btrel::tree::xml::parse_xml_str(&xml_text, STDIN_NAME, &params_text, &name)
+            .map_err(Failure::input);
     }
     let params = params.unwrap_or_else(|| path.with_extension("params.yaml"));
     if !params.exists() {
@@ -497,17 +760,67 @@ fn load(path: &Path) -> Result<Tree, Failure> {
     })
 }
 
+fn completions(shell: clap_complete::Shell) -> Result<(), Failure> {
+    use clap::CommandFactory;
+    let mut cmd = Cli::command();
+    emit(None, |out| {
+        clap_complete::generate(shell, &mut cmd, "btrel", out);
+        Ok(())
+    })
+}
+
+fn man(command: Option<&str>, output: Option<&Path>) -> Result<(), Failure> {
+    use clap::CommandFactory;
+    let mut root = Cli::command();
+    root.build();
+    let page = match command {
+        None => root,
+        Some(name) => {
+            let names: Vec<String> = root
+                .get_subcommands()
+                .map(|c| c.get_name().to_string())
+                .collect();
+            let sub = root.find_subcommand(name).cloned().ok_or_else(|| {
+                Failure::input(format!(
+                    "no command '{name}'; the commands are: {}",
+                    names.join(", ")
+                ))
+            })?;
+            sub.name(format!("btrel-{name}"))
+        }
+    };
+    let mut text = Vec::new();
+    clap_mangen::Man::new(page)
+        .render(&mut text)
+        .map_err(|e| Failure::analysis(format!("cannot render the manual page: {e}")))?;
+    emit(output, |out| out.write_all(&text))
+}
+
 fn check(path: &Path) -> Result<(), Failure> {
     let tree = load(path)?;
     emit(None, |out| {
         writeln!(
             out,
-            "{}: ok ({} nodes, {} leaves)",
-            path.display(),
-            tree.nodes.len(),
-            tree.leaf_count()
+            "{}: ok ({}, {})",
+            display_path(path),
+            plural(tree.nodes.len(), "node", "nodes"),
+            plural(tree.leaf_count(), "leaf", "leaves")
         )
     })
+}
+
+/// `n thing` / `n things`.
+fn plural(n: usize, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
+/// A TREE argument as messages name it.
+fn display_path(path: &Path) -> String {
+    if path == Path::new("-") {
+        STDIN_NAME.to_string()
+    } else {
+        path.display().to_string()
+    }
 }
 
 fn report(args: ReportArgs) -> Result<(), Failure> {
@@ -518,9 +831,10 @@ fn report(args: ReportArgs) -> Result<(), Failure> {
     };
     let mc = optional_count("--mc", &args.mc)?;
     let sim = mc
-        .map(|runs| sim_options(&args.sim, runs, Vec::new(), true))
+        .map(|runs| sim_options(&args.sim.sim(), runs, Vec::new(), true))
         .transpose()?;
-    let analysis = analyze(&tree, &options).map_err(Failure::analysis)?;
+    let analysis =
+        analyze(&tree, &options).map_err(analysis_failure(Cmd::Report, options.method))?;
     let report = Report::new(&tree, &analysis);
     let simulated = match &sim {
         Some(o) => Some(run_simulation(&tree, Tree::ROOT, o)?),
@@ -605,6 +919,11 @@ fn grid_times(grid: &TimeArgs) -> Result<Option<Vec<f64>>, Failure> {
         return Ok(None);
     };
     let end = parse_time("--t-end", end)?;
+    if end <= 0.0 {
+        return Err(Failure::input(
+            "--t-end must be > 0 (for the time 0 alone use --times 0)",
+        ));
+    }
     if let Some(dt) = dt {
         let dt = parse_time("--dt", dt)?;
         if dt <= 0.0 {
@@ -616,11 +935,14 @@ fn grid_times(grid: &TimeArgs) -> Result<Option<Vec<f64>>, Failure> {
                 "--t-end / --dt gives {count:.0} points, more than the limit of {MAX_POINTS}"
             )));
         }
-        return Ok(Some(
-            (0..count as usize)
-                .map(|k| (k as f64 * dt).min(end))
-                .collect(),
-        ));
+        // 0, D, 2D, ... up to T, and T itself when it is not on the grid
+        let mut times: Vec<f64> = (0..count as usize)
+            .map(|k| (k as f64 * dt).min(end))
+            .collect();
+        if times.last().is_some_and(|&last| last < end * (1.0 - 1e-12)) {
+            times.push(end);
+        }
+        return Ok(Some(times));
     }
     let points = points.unwrap_or(101);
     if points == 0 || points > MAX_POINTS {
@@ -686,7 +1008,7 @@ fn sim_options(
     Ok(btrel::sim::SimOptions {
         runs,
         seed,
-        threads: args.threads,
+        threads: args.threads.unwrap_or(0),
         times,
         per_node,
     })
@@ -757,6 +1079,11 @@ fn simulate(args: SimulateArgs) -> Result<(), Failure> {
 }
 
 fn curve(args: CurveArgs) -> Result<(), Failure> {
+    if matches!(args.timing, TimingArg::Deterministic) && matches!(args.method, MethodArg::Book) {
+        return Err(Failure::input(
+            "--timing deterministic cannot be combined with --method book (the book's chain makes every time exponential again): use --method exact",
+        ));
+    }
     let times = requested_times(&args)?;
     let tree = load(&args.tree)?;
     let nodes = if args.nodes.is_empty() {
@@ -775,11 +1102,12 @@ fn curve(args: CurveArgs) -> Result<(), Failure> {
     };
     let mc = optional_count("--mc", &args.mc)?;
     let sim = mc
-        .map(|runs| sim_options(&args.sim, runs, times.clone(), false))
+        .map(|runs| sim_options(&args.sim.sim(), runs, times.clone(), false))
         .transpose()?;
     let mut curves = Vec::with_capacity(nodes.len());
     for &id in &nodes {
-        let points = btrel::curve::curve(&tree, id, &times, &options).map_err(Failure::analysis)?;
+        let points = btrel::curve::curve(&tree, id, &times, &options)
+            .map_err(analysis_failure(Cmd::Curve, options.method))?;
         let simulated = match &sim {
             Some(o) => Some(run_simulation(&tree, id, o)?.curve),
             None => None,
@@ -828,6 +1156,11 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
     if args.top == 0 {
         return Err(Failure::input("--top must be at least 1"));
     }
+    if args.compare.is_some() && !matches!(args.timing, PlotTiming::AsGiven) {
+        return Err(Failure::input(
+            "--timing deterministic/both cannot be combined with --compare (the orderings are drawn with the times as given): drop one of them",
+        ));
+    }
     let t_end = optional_time("--t-end", &args.t_end)?;
     let deadline = optional_time("--deadline", &args.deadline)?;
     let mc = optional_count("--mc", &args.mc)?;
@@ -839,6 +1172,7 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
     };
     let base = CurveOptions {
         method: method(args.method),
+        max_states: args.max_states,
         ..CurveOptions::default()
     };
     // the trees to draw: (label, tree, node, style, timing)
@@ -851,13 +1185,11 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
                 nodes: vec![node],
                 deadline,
                 method: base.method,
+                max_states: args.max_states,
                 ..btrel::compare::CompareOptions::default()
             },
         )
-        .map_err(|e| match e {
-            btrel::compare::CompareError::Analysis(a) => Failure::analysis(a),
-            other => Failure::input(other),
-        })?;
+        .map_err(compare_failure(Cmd::Plot, base.method))?;
         // the top K orderings, and the given one (as in Fig. 9.22)
         let shown: Vec<_> = cmp
             .candidates
@@ -922,7 +1254,7 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
                         t,
                         &Options {
                             method: base.method,
-                            ..Options::default()
+                            max_states: args.max_states,
                         },
                     )
                     .map(|a| a.nodes[*id].mean_time())
@@ -941,12 +1273,13 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
             timing: *timing,
             ..base
         };
-        let points = btrel::curve::curve(t, *id, &times, &options).map_err(Failure::analysis)?;
+        let points = btrel::curve::curve(t, *id, &times, &options)
+            .map_err(analysis_failure(Cmd::Plot, base.method))?;
         series.extend(curve_series(label, &points, *style));
     }
     if let Some(runs) = mc {
         let mc_times: Vec<f64> = (0..41).map(|k| end * k as f64 / 40.0).collect();
-        let o = sim_options(&args.sim, runs, mc_times, false)?;
+        let o = sim_options(&args.sim.sim(), runs, mc_times, false)?;
         for (label, t, id, _, timing) in &drawn {
             if *timing == Timing::Deterministic {
                 continue;
@@ -980,11 +1313,23 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
         }
     };
     let svg = render_svg(&PlotSpec::new(title, series)).map_err(Failure::analysis)?;
-    btrel::output::write_atomic(&args.output, |out| out.write_all(svg.as_bytes()))
-        .map_err(|e| Failure::input(write_error(&args.output, &e)))
+    emit(Some(&args.output), |out| out.write_all(svg.as_bytes()))
 }
 
 fn export(args: ExportArgs) -> Result<(), Failure> {
+    match args.to {
+        ExportFormat::Dot if args.node.is_some() => {
+            return Err(Failure::input(
+                "--node goes with --to prism (the DOT export draws the whole tree, or with --mrg NODE one node's MRG)",
+            ))
+        }
+        ExportFormat::Prism if matches!(args.method, MethodArg::Book) => {
+            return Err(Failure::input(
+                "--method book goes with --to dot (its labels); --to prism always exports the exact chain: remove --method book",
+            ))
+        }
+        _ => {}
+    }
     let tree = load(&args.tree)?;
     let one = |name: &Option<String>| -> Result<usize, Failure> {
         match name {
@@ -1020,15 +1365,30 @@ fn export(args: ExportArgs) -> Result<(), Failure> {
     };
     let text = match args.to {
         ExportFormat::Dot => {
-            let analysis = analyze(&tree, &options).ok();
+            let analysis = analyze(&tree, &options);
             match &args.mrg {
-                None => btrel::export::dot_tree(&tree, analysis.as_ref()),
+                None => btrel::export::dot_tree(&tree, analysis.as_ref().ok()),
                 Some(_) => {
                     let id = one(&args.mrg)?;
-                    let analysis = analysis.ok_or_else(|| {
-                        Failure::analysis(
-                            "the tree cannot be analysed, so its MRG cannot be labelled",
-                        )
+                    let kind = &tree.node(id).kind;
+                    if matches!(
+                        kind,
+                        btrel::tree::NodeKind::Action(_)
+                            | btrel::tree::NodeKind::Condition { .. }
+                            | btrel::tree::NodeKind::Decorator { .. }
+                    ) {
+                        return Err(Failure::input(format!(
+                            "node '{}' is {}: only Sequence, Fallback and Parallel nodes have a marking reachability graph\n  help: give --mrg one of those",
+                            tree.node(id).name,
+                            with_article(kind.keyword())
+                        )));
+                    }
+                    let analysis = analysis.map_err(|e| {
+                        let f = analysis_failure(Cmd::ExportDot, options.method)(e);
+                        Failure::analysis(format!(
+                            "the tree cannot be analysed, so its MRG cannot be labelled: {}",
+                            f.message
+                        ))
                     })?;
                     let figs: Vec<_> = tree
                         .node(id)
@@ -1042,7 +1402,7 @@ fn export(args: ExportArgs) -> Result<(), Failure> {
             }
         }
         ExportFormat::Prism => btrel::export::prism_ctmc(&tree, one(&args.node)?, args.max_states)
-            .map_err(Failure::analysis)?,
+            .map_err(analysis_failure(Cmd::ExportPrism, options.method))?,
         ExportFormat::Drn => {
             let id = one(&args.node)?;
             let chain = chain(id)?;
@@ -1109,9 +1469,18 @@ fn find_nodes(tree: &Tree, names: &[String], file: &Path) -> Result<Vec<usize>, 
         .iter()
         .map(|n| {
             tree.find(n).ok_or_else(|| {
+                let all: Vec<&str> = tree.nodes.iter().map(|x| x.name.as_str()).collect();
+                let hint = match btrel::tree::error::nearest(n, &all) {
+                    Some(near) => format!("did you mean '{near}'?"),
+                    None if all.len() <= 12 => {
+                        format!("give one of {}, or a path such as 0.1", all.join(", "))
+                    }
+                    None => "give a node name, or a path such as 0.1 (`btrel report --format csv` lists both)"
+                        .to_string(),
+                };
                 Failure::input(format!(
-                    "no node named '{n}' in {} (give a node name or a path such as 0.1)",
-                    file.display()
+                    "no node named '{n}' in {}; {hint}",
+                    display_path(file)
                 ))
             })
         })
@@ -1119,7 +1488,7 @@ fn find_nodes(tree: &Tree, names: &[String], file: &Path) -> Result<Vec<usize>, 
 }
 
 fn compare(args: CompareArgs) -> Result<(), Failure> {
-    use btrel::compare::{CompareError, CompareOptions, Objective};
+    use btrel::compare::{CompareOptions, Objective};
     use btrel::report::ranking;
     let deadline = optional_time("--deadline", &args.deadline)?;
     let t_end = optional_time("--t-end", &args.t_end)?;
@@ -1128,7 +1497,7 @@ fn compare(args: CompareArgs) -> Result<(), Failure> {
     }
     let tree = load(&args.tree)?;
     let nodes = find_nodes(&tree, &args.nodes, &args.tree)?;
-    let options = CompareOptions {
+    let mut options = CompareOptions {
         nodes,
         objective: args.by.map(|b| match b {
             ObjectiveArg::MeanTime => Objective::MeanTime,
@@ -1141,10 +1510,9 @@ fn compare(args: CompareArgs) -> Result<(), Failure> {
         max_candidates: args.max_candidates,
         ..CompareOptions::default()
     };
-    let cmp = btrel::compare::compare(&tree, &options).map_err(|e| match e {
-        CompareError::Analysis(a) => Failure::analysis(a),
-        other => Failure::input(other),
-    })?;
+    options.max_states = args.max_states;
+    let cmp = btrel::compare::compare(&tree, &options)
+        .map_err(compare_failure(Cmd::Compare, options.method))?;
     if let Some(path) = &args.curves {
         let top: Vec<_> = cmp.candidates.iter().take(args.top).collect();
         let end = t_end.unwrap_or_else(|| {
@@ -1168,7 +1536,7 @@ fn compare(args: CompareArgs) -> Result<(), Failure> {
                 }
             }
             let points = btrel::curve::curve(&t, Tree::ROOT, &times, &curve_options)
-                .map_err(Failure::analysis)?;
+                .map_err(analysis_failure(Cmd::Compare, options.method))?;
             rows.push((ranking::label(&tree, &cmp, c), points));
         }
         let root = csv_field(&tree.node(Tree::ROOT).name);
@@ -1223,7 +1591,7 @@ fn emit(
     path: Option<&Path>,
     write: impl FnOnce(&mut dyn Write) -> io::Result<()>,
 ) -> Result<(), Failure> {
-    match path {
+    match path.filter(|p| *p != Path::new("-")) {
         Some(p) => {
             btrel::output::write_atomic(p, write).map_err(|e| Failure::input(write_error(p, &e)))
         }

@@ -607,9 +607,7 @@ fn assert_nested_accepted(yaml: &str, levels: usize) {
         .arg(&f.path)
         .assert()
         .success()
-        .stdout(predicate::str::contains(format!(
-            "{levels} nodes, 1 leaves"
-        )));
+        .stdout(predicate::str::contains(format!("{levels} nodes, 1 leaf")));
     // a chain of Sequences over one action: every node is the action
     let out = btrel()
         .args(["report", "--format", "json"])

@@ -320,7 +320,13 @@ fn mixed_parallel_inside_a_sequence_is_refused_with_a_pointer_to_simulation() {
          {action: {ps: 0.5, tau_s: 3, tau_f: 1}}, {action: {ps: 0.8, mu: 2, nu: 4}}]}}]}}",
     );
     let err = curve(&t, 0, &[1.0], &exact()).unwrap_err().to_string();
-    assert!(err.contains("simulate"), "{err}");
+    // the library states the fact; advice (`btrel simulate`, --timing) is the CLI's
+    assert!(err.contains("mixes deterministic"), "{err}");
+    assert!(err.contains("action@0.1.0"), "names the leaf: {err}");
+    assert!(
+        !err.contains("--"),
+        "no CLI flags in a library error: {err}"
+    );
 }
 
 #[test]

@@ -116,7 +116,7 @@ pub enum AnalysisError {
     /// A deterministic or hybrid action where the analysis needs exponential times.
     #[error(
         "action '{leaf}' has deterministic or hybrid times, which the exact analysis of a \
-         Parallel node does not support yet; use --method book for the book's approximation"
+         Parallel node does not support yet"
     )]
     NotMarkovian {
         /// The offending leaf.
@@ -125,8 +125,7 @@ pub enum AnalysisError {
     /// A chain would exceed the state budget.
     #[error(
         "node '{node}' needs a chain of up to {states:.3e} states, more than the budget of \
-         {budget}; use --method book (approximate), `btrel simulate`, or raise the budget with \
-         --max-states"
+         {budget} states"
     )]
     StateBudget {
         /// The node whose chain is too large.
@@ -140,7 +139,8 @@ pub enum AnalysisError {
     /// has neither a finite phase chain nor finitely many atoms.
     #[error(
         "node '{node}' mixes deterministic or hybrid actions (e.g. '{leaf}') with stochastic \
-         ones; its exact π(t) is not supported: use `btrel simulate`, or --timing deterministic"
+         ones: it has neither a finite phase chain nor finitely many return instants, so its \
+         exact π(t) is not supported"
     )]
     MixedTiming {
         /// The node analysed.
@@ -151,8 +151,7 @@ pub enum AnalysisError {
     /// Uniformization would need too much work (a stiff chain over a long horizon).
     #[error(
         "node '{node}' is too stiff for the transient solver over this horizon (max rate × \
-         horizon × chain size ≈ {work:.2e} operations, limit {limit:.2e}); shorten the horizon, \
-         use --method book, or `btrel simulate`"
+         horizon × chain size ≈ {work:.2e} operations, limit {limit:.2e})"
     )]
     Stiff {
         /// The node analysed.

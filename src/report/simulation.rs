@@ -77,6 +77,27 @@ fn pm(e: Option<&Estimate>) -> String {
     }
 }
 
+/// `1 run`, `20 runs`.
+fn runs(n: u64) -> String {
+    format!("{n} {}", if n == 1 { "run" } else { "runs" })
+}
+
+/// Conditional means (MTTS, MTTF) resting on fewer runs than this are
+/// marked in tables: their standard error is itself too uncertain to trust.
+pub const FEW_RUNS: u64 = 30;
+
+/// A conditional mean ± its standard error, marked `[n runs]` when it rests
+/// on fewer than [`FEW_RUNS`] runs.
+fn pm_conditional(e: Option<&Estimate>, marked: &mut bool) -> String {
+    match e {
+        Some(x) if x.count < FEW_RUNS => {
+            *marked = true;
+            format!("{} [{}]", pm(e), runs(x.count))
+        }
+        _ => pm(e),
+    }
+}
+
 fn aligned(rows: &[Vec<String>], left: usize, out: &mut dyn Write) -> io::Result<()> {
     super::table::write_aligned(rows, |j, _| j < left, out)
 }
@@ -90,8 +111,9 @@ pub fn write_table(tree: &Tree, r: &SimResult, out: &mut dyn Write) -> io::Resul
         .unwrap_or_else(|| tree.nodes[0].name.clone());
     writeln!(
         out,
-        "{title} — Monte Carlo: {} runs per node, seed {} (estimate ± standard error; times in s)",
-        r.runs, r.seed
+        "{title} — Monte Carlo: {} per node, seed {} (estimate ± standard error; times in s)",
+        runs(r.runs),
+        r.seed
     )?;
     let root_depth = tree.node(r.nodes[0].node).depth;
     let mut rows = vec![vec![
@@ -101,17 +123,25 @@ pub fn write_table(tree: &Tree, r: &SimResult, out: &mut dyn Write) -> io::Resul
         "MTTS".into(),
         "MTTF".into(),
     ]];
+    let mut marked = false;
     for n in &r.nodes {
         let node = tree.node(n.node);
         rows.push(vec![
             format!("{}{}", "  ".repeat(node.depth - root_depth), node.name),
             node.kind.keyword().into(),
             pm(Some(&n.ps)),
-            pm(n.mtts.as_ref()),
-            pm(n.mttf.as_ref()),
+            pm_conditional(n.mtts.as_ref(), &mut marked),
+            pm_conditional(n.mttf.as_ref(), &mut marked),
         ]);
     }
     aligned(&rows, 2, out)?;
+    if marked {
+        writeln!(
+            out,
+            "[n runs]: a mean time from fewer than {FEW_RUNS} successful (MTTS) or failed (MTTF) runs; \
+             its standard error is unreliable — simulate more runs"
+        )?;
+    }
     if !r.curve.is_empty() {
         writeln!(out)?;
         let mut rows = vec![vec![
@@ -223,8 +253,9 @@ pub fn node_checks(report: &super::NodeReport, mc: &NodeEstimate) -> Vec<(&'stat
 pub fn write_check_table(report: &Report, r: &SimResult, out: &mut dyn Write) -> io::Result<()> {
     writeln!(
         out,
-        "\nMonte Carlo check ({} runs per node, seed {}): z = (numerical − analytical) / standard error",
-        r.runs, r.seed
+        "\nMonte Carlo check ({} per node, seed {}): z = (numerical − analytical) / standard error",
+        runs(r.runs),
+        r.seed
     )?;
     let mut rows = vec![vec![
         "node".to_string(),

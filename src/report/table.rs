@@ -58,7 +58,7 @@ impl Exporter for TableExporter {
 }
 
 /// A table's cells in one buffer (a million-row table would otherwise be
-/// millions of small strings), with each cell's width in characters.
+/// millions of small strings), with each cell's display width (terminal columns).
 #[derive(Debug, Clone, Default)]
 pub struct Cells {
     text: String,
@@ -83,10 +83,11 @@ impl Cells {
         self.rows.push(self.cells.len());
         for c in row {
             self.text.push_str(c);
+            // columns on a terminal: CJK and other wide characters take two
             let width = if c.is_ascii() {
                 c.len()
             } else {
-                c.chars().count()
+                unicode_width::UnicodeWidthStr::width(c)
             };
             self.cells.push((self.text.len() as u32, width as u32));
         }

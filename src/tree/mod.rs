@@ -11,7 +11,7 @@ pub mod parse;
 pub mod xml;
 
 pub use error::TreeError;
-pub use parse::{parse_file, parse_str, parse_str_with, ParseLimits};
+pub use parse::{parse_bytes, parse_file, parse_str, parse_str_with, ParseLimits};
 
 /// Index of a node in [`Tree::nodes`].
 pub type NodeId = usize;

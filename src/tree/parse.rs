@@ -198,20 +198,35 @@ pub fn parse_file(path: &std::path::Path) -> Result<Tree, TreeError> {
         return Err(too_large(&file, meta.len() as usize, &limits));
     }
     let bytes = std::fs::read(path).map_err(io_err)?;
-    let source = String::from_utf8(bytes).map_err(|e| {
+    parse_bytes(bytes, &file)
+}
+
+/// Parses a tree from the raw bytes of a YAML document (e.g. standard
+/// input) with default limits; `file` names the source in error messages.
+pub fn parse_bytes(bytes: Vec<u8>, file: &str) -> Result<Tree, TreeError> {
+    let limits = ParseLimits::default();
+    if bytes.len() > limits.max_bytes {
+        return Err(too_large(file, bytes.len(), &limits));
+    }
+    let source = text_from_bytes(bytes, file)?;
+    parse_str_with(&source, file, limits)
+}
+
+/// The bytes as UTF-8 text, or an error located at the first invalid byte.
+pub fn text_from_bytes(bytes: Vec<u8>, file: &str) -> Result<String, TreeError> {
+    String::from_utf8(bytes).map_err(|e| {
         let before = &e.as_bytes()[..e.utf8_error().valid_up_to()];
         let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
         let column = before.iter().rev().take_while(|&&b| b != b'\n').count() + 1;
         TreeError {
-            file: file.clone(),
+            file: file.to_string(),
             line,
             column,
-            message: "the file is not valid UTF-8 text".into(),
-            help: Some("a tree file is YAML text; is this the right file?".into()),
+            message: "the input is not valid UTF-8 text".into(),
+            help: Some("a tree file is YAML or XML text; is this the right file?".into()),
             source_line: None,
         }
-    })?;
-    parse_str_with(&source, &file, limits)
+    })
 }
 
 /// Advice for a file that cannot be read.
@@ -358,6 +373,9 @@ fn yaml_error(
         .location()
         .map_or((0, 0), |l| (l.line() as usize, l.column() as usize));
     let inner = e.without_snippet();
+    if let Some(err) = common_mistake(inner, source, file, loc) {
+        return err;
+    }
     let (message, help): (String, Option<String>) = match inner {
         E::SerdeUnknownField {
             field, expected, ..
@@ -372,6 +390,11 @@ fn yaml_error(
         E::SerdeUnknownVariant { variant, .. } => {
             let hint = match nearest(variant, NODE_KINDS) {
                 Some(k) => format!("did you mean `{k}`? node kinds: {}", NODE_KINDS.join(", ")),
+                None if NODE_KEYS.contains(&variant.as_str()) => format!(
+                    "`{variant}` is a key inside a node: write the node's kind first, e.g. \
+                     `- action: {{ps: 0.5, mu: 1, nu: 1}}` (node kinds: {})",
+                    NODE_KINDS.join(", ")
+                ),
                 None => format!("node kinds: {}", NODE_KINDS.join(", ")),
             };
             (format!("unknown node kind `{variant}`"), Some(hint))
@@ -436,6 +459,351 @@ fn yaml_error(
     let mut err = TreeError::at(file, source, loc, message);
     err.help = help;
     err
+}
+
+/// Keys that belong inside a node (what a missing kind line leaves behind).
+const NODE_KEYS: &[&str] = &[
+    "name",
+    "ps",
+    "pf",
+    "mu",
+    "nu",
+    "tau_s",
+    "tau_f",
+    "children",
+    "child",
+    "attempts",
+    "times",
+    "success_threshold",
+    "failure_threshold",
+];
+
+/// The 1-based line `line` of `source` (empty if out of range).
+fn line_of<'a>(lines: &[&'a str], line: usize) -> &'a str {
+    line.checked_sub(1)
+        .and_then(|l| lines.get(l).copied())
+        .unwrap_or("")
+}
+
+/// Number of leading spaces.
+fn indent_of(text: &str) -> usize {
+    text.len() - text.trim_start_matches(' ').len()
+}
+
+fn is_blank_or_comment(text: &str) -> bool {
+    let t = text.trim();
+    t.is_empty() || t.starts_with('#')
+}
+
+/// The identifier (key or kind) starting at 1-based `column` of `text`.
+fn word_at(text: &str, column: usize) -> String {
+    text.chars()
+        .skip(column.saturating_sub(1))
+        .take_while(|c| c.is_alphanumeric() || *c == '_')
+        .collect()
+}
+
+/// The key whose value starts at `(line, column)`: on the same line before
+/// the column (`child: [...]`), else the nearest line above that is
+/// indented less and ends with `key:`.
+fn owner_key(lines: &[&str], (line, column): (usize, usize)) -> Option<(usize, String)> {
+    let text = line_of(lines, line);
+    let before: String = text.chars().take(column.saturating_sub(1)).collect();
+    let key_of = |t: &str| -> Option<String> {
+        let t = t.trim_end().strip_suffix(':')?;
+        let t = t.trim_start().trim_start_matches("- ").trim_start();
+        let t = t.rsplit(['{', ',', ' ']).next().unwrap_or(t);
+        (!t.is_empty() && t.chars().all(|c| c.is_alphanumeric() || c == '_')).then(|| t.to_string())
+    };
+    if !before.trim().is_empty() {
+        return key_of(&before).map(|k| (line, k));
+    }
+    let indent = indent_of(text);
+    (1..line)
+        .rev()
+        .map(|l| (l, line_of(lines, l)))
+        .filter(|(_, t)| !is_blank_or_comment(t))
+        .find(|(_, t)| indent_of(t) < indent || indent == 0)
+        .and_then(|(l, t)| key_of(t).map(|k| (l, k)))
+}
+
+/// The lines enclosing `line`: going up, each non-blank line indented less
+/// than the previous one found (their indentations are where a line may start).
+fn enclosing_lines(lines: &[&str], line: usize) -> Vec<(usize, usize, String)> {
+    let mut out: Vec<(usize, usize, String)> = Vec::new();
+    let mut limit = usize::MAX;
+    for l in (1..line).rev() {
+        let t = line_of(lines, l);
+        if is_blank_or_comment(t) {
+            continue;
+        }
+        let i = indent_of(t);
+        if i < limit {
+            out.push((l, i, t.trim().to_string()));
+            limit = i;
+            if i == 0 {
+                break;
+            }
+        }
+    }
+    out
+}
+
+/// The last token before `(line, column)` (skipping white space), with its
+/// location.
+fn token_before(
+    lines: &[&str],
+    (line, column): (usize, usize),
+) -> Option<((usize, usize), String)> {
+    let mut l = line;
+    let mut limit = column.saturating_sub(1);
+    while l >= 1 {
+        let text: String = line_of(lines, l).chars().take(limit).collect();
+        let trimmed = text.trim_end();
+        if !trimmed.is_empty() && !trimmed.trim_start().starts_with('#') {
+            let token: String = {
+                let rev: String = trimmed
+                    .chars()
+                    .rev()
+                    .take_while(|c| !c.is_whitespace() && !"-[{,".contains(*c))
+                    .collect();
+                rev.chars().rev().collect()
+            };
+            let col = trimmed.chars().count() - token.chars().count() + 1;
+            return Some(((l, col), token));
+        }
+        l -= 1;
+        limit = usize::MAX;
+    }
+    None
+}
+
+/// Plain-language messages, with the fix, for the YAML mistakes people
+/// make most (a list under `child:`, two kinds in one node, tabs, bad
+/// indentation) instead of the parser's own words.
+fn common_mistake(
+    e: &serde_saphyr::Error,
+    source: &str,
+    file: &str,
+    loc: (usize, usize),
+) -> Option<TreeError> {
+    use serde_saphyr::Error as E;
+    let (line, column) = loc;
+    let lines: Vec<&str> = source.lines().collect();
+    let text = line_of(&lines, line);
+    let at = |l: (usize, usize), m: String, h: String| {
+        Some(TreeError::at(file, source, l, m).with_help(h))
+    };
+    let raw = e.to_string();
+    // tabs anywhere in the indentation of this line (the scanner's message
+    // varies with the context)
+    if raw.contains("tab") {
+        let lead: String = text
+            .chars()
+            .take_while(|c| *c == ' ' || *c == '\t')
+            .collect();
+        if let Some(i) = lead.chars().position(|c| c == '\t') {
+            return at(
+                (line, i + 1),
+                "a tab indents this line".into(),
+                "YAML indents with spaces only: replace each tab by spaces (e.g. 2 per level)"
+                    .into(),
+            );
+        }
+    }
+    match e {
+        E::ExternallyTaggedEnumExpectedScalarOrMapping { .. } => {
+            let list = text
+                .chars()
+                .skip(column.saturating_sub(1))
+                .collect::<String>()
+                .trim_start()
+                .starts_with(['-', '[']);
+            if !list {
+                return None;
+            }
+            match owner_key(&lines, loc) {
+                Some((_, k)) if k == "child" => at(
+                    loc,
+                    "`child:` takes one node, not a list".into(),
+                    "remove the `- ` (or the brackets) before the node: a decorator has exactly \
+                     one child; to decorate several nodes put them in a sequence or fallback \
+                     under `child:`"
+                        .into(),
+                ),
+                Some((_, k)) if k == "tree" => at(
+                    loc,
+                    "`tree:` takes the root node, not a list".into(),
+                    "remove the `- ` (or the brackets): to run several nodes put them in the \
+                     `children:` list of a sequence, fallback or parallel"
+                        .into(),
+                ),
+                _ => at(
+                    loc,
+                    "a node is expected here, not a list".into(),
+                    "a node is written `kind: {key: value, ...}`; lists of nodes go under \
+                     `children:`"
+                        .into(),
+                ),
+            }
+        }
+        E::ExpectedMappingEndAfterEnumVariantValue { .. } => {
+            let second = word_at(text, column);
+            let first =
+                enclosing_node(source, loc).map(|(l, c)| (l, word_at(line_of(&lines, l), c)));
+            let (fl, first) = first.unwrap_or((0, "the node's kind".into()));
+            let first_at = if fl > 0 {
+                format!(" (line {fl})")
+            } else {
+                String::new()
+            };
+            if second == first {
+                at(
+                    loc,
+                    format!("the node kind `{first}` appears twice in one node (line {fl} and line {line})"),
+                    "a node has one kind; several nodes go in a `children:` list (each after its \
+                     own `- `) under a sequence, fallback or parallel"
+                        .into(),
+                )
+            } else if NODE_KINDS.contains(&second.as_str()) {
+                at(
+                    loc,
+                    format!("two node kinds in one node: `{first}`{first_at} and `{second}`"),
+                    format!(
+                        "a node has one kind: to run both, make `{first}` and `{second}` two \
+                         items of a `children:` list (each after its own `- `) under a sequence, \
+                         fallback or parallel"
+                    ),
+                )
+            } else {
+                at(
+                    loc,
+                    format!(
+                        "`{second}` is next to the node kind `{first}`{first_at}, not inside it"
+                    ),
+                    format!(
+                        "indent `{second}:` further, under `{first}:` with its other keys (or put \
+                         it inside the braces after `{first}:`)"
+                    ),
+                )
+            }
+        }
+        E::DuplicateMappingKey { key, .. } => {
+            let key = key.clone().unwrap_or_else(|| word_at(text, column));
+            let help = if NODE_KINDS.contains(&key.as_str()) {
+                "a node has one kind; several nodes go in a `children:` list, each after its own `- `"
+                    .to_string()
+            } else {
+                format!("remove one of the two `{key}:`")
+            };
+            at(
+                loc,
+                format!("`{key}` appears twice in the same mapping"),
+                help,
+            )
+        }
+        E::Unexpected { expected, .. } if *expected == "sequence start" => {
+            let key = owner_key(&lines, loc).map(|(_, k)| k);
+            let key = key.as_deref().unwrap_or("children");
+            at(
+                loc,
+                format!("`{key}:` takes a list of nodes"),
+                "write each child on its own line after `- ` (e.g. `- action: {ps: 0.5, mu: 1, nu: 1}`), \
+                 indented under `children:`, or as a flow list `[...]`"
+                    .into(),
+            )
+        }
+        E::Unexpected { expected, .. } if *expected == "mapping start" => {
+            let rest: String = text.chars().skip(column.saturating_sub(1)).collect();
+            let rest = rest.trim();
+            let (tl, token) = if rest.starts_with(':') {
+                let ((l, c), t) = token_before(&lines, loc)?;
+                ((l, c), format!("{t}:"))
+            } else {
+                token_before(&lines, loc)?
+            };
+            if let Some(kind) = token.strip_suffix(':') {
+                if NODE_KINDS.contains(&kind) && !rest.is_empty() && !rest.starts_with([':', '#']) {
+                    return at(
+                        loc,
+                        format!("the keys of `{kind}:` must be in braces or on their own lines"),
+                        format!(
+                            "write `{kind}: {{{rest}, ...}}`, or each `key: value` on its own line \
+                             indented under `{kind}:`"
+                        ),
+                    );
+                }
+                if NODE_KINDS.contains(&kind) {
+                    return at(
+                        tl,
+                        format!("`{kind}:` has no keys"),
+                        format!(
+                            "indent its keys on the lines below, further than `{kind}` (e.g. 2 \
+                             more spaces), or write them inline: `{kind}: {{ps: 0.5, mu: 1, nu: 1}}`"
+                        ),
+                    );
+                }
+            } else if NODE_KINDS.contains(&token.as_str()) {
+                return at(
+                    tl,
+                    format!("the node kind `{token}` is written without its keys"),
+                    format!("write `{token}:` followed by its keys, e.g. `{token}: {{ps: 0.5, mu: 1, nu: 1}}`"),
+                );
+            }
+            None
+        }
+        E::ExternalMessage { msg, .. }
+            if msg.contains("did not find expected key")
+                || msg.contains("did not find expected '-'") =>
+        {
+            let indent = indent_of(text);
+            let start = (line, indent + 1);
+            if column != indent + 1 && !(text.trim_start().starts_with('-') && column == indent + 3)
+            {
+                return None;
+            }
+            let dash = text.trim_start().starts_with('-');
+            let enclosing = enclosing_lines(&lines, line);
+            if enclosing.iter().any(|(_, i, _)| *i == indent) {
+                return None;
+            }
+            // where siblings of this line start: lines of the same shape
+            let mut places: Vec<String> = enclosing
+                .iter()
+                .filter(|(_, _, t)| t.starts_with('-') == dash)
+                .map(|(l, i, t)| {
+                    let head: String = t.chars().take(24).collect();
+                    format!("{i} like line {l} (`{head}`)")
+                })
+                .collect();
+            places.truncate(3);
+            let help = if places.is_empty() {
+                "indent it like the lines it belongs with; YAML indents with spaces, the same \
+                 number for siblings"
+                    .to_string()
+            } else {
+                format!(
+                    "indent it by the same number of spaces as the block it belongs to: {}",
+                    places.join(", or ")
+                )
+            };
+            at(
+                start,
+                format!(
+                    "line {line} is indented {indent} spaces, which matches none of the blocks above it"
+                ),
+                help,
+            )
+        }
+        E::ExternalMessage { msg, .. } if msg.contains("mapping values are not allowed") => at(
+            loc,
+            "a second `key:` on one line".into(),
+            "write one `key: value` per line, with the keys of a node indented under its kind, \
+             or put them in braces: `action: {ps: 0.5, mu: 1, nu: 1}`"
+                .into(),
+        ),
+        _ => None,
+    }
 }
 
 fn missing_help(field: &str) -> String {
@@ -684,7 +1052,13 @@ impl Builder<'_> {
             let v = t.value;
             if !(v.is_finite() && v.fract() == 0.0 && v >= 1.0 && v <= n as f64) {
                 return Err(self
-                    .err(loc(t), format!("{key} = {v} is not valid for {n} children"))
+                    .err(
+                        loc(t),
+                        format!(
+                            "{key} = {v} is not valid for {n} {}",
+                            if n == 1 { "child" } else { "children" }
+                        ),
+                    )
                     .with_help(format!(
                         "{key} must be a whole number from 1 to {n}: {meaning}"
                     )));
