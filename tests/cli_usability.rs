@@ -421,11 +421,12 @@ fn hints_are_options_of(cmd: &str, err: &str) {
 
 #[test]
 fn analysis_hints_name_only_options_of_the_command() {
-    // mixed timing: exact π(t) is impossible
+    // mixed timing not answered exactly: a mixed Parallel inside a Sequence
     let mixed = fixture(
         "mixed.yaml",
-        "tree: {sequence: {children: [{action: {name: timer, ps: 0.5, tau_s: 3, tau_f: 1}}, \
-         {action: {ps: 0.8, mu: 2, nu: 4}}]}}\n",
+        "tree: {sequence: {children: [{action: {ps: 0.9, mu: 1, nu: 1}}, {parallel: {children: [\
+         {action: {name: timer, ps: 0.5, tau_s: 3, tau_f: 1}}, \
+         {action: {ps: 0.8, mu: 2, nu: 4}}]}}]}}\n",
     );
     let m = mixed.path.to_str().unwrap();
     let (code, _, err) = run(&["curve", m, "--times", "1"]);
