@@ -600,7 +600,8 @@ fn analysis_failure(cmd: Cmd, method: Method) -> impl Fn(AnalysisError) -> Failu
                 }
                 fixes.push(simulate);
             }
-            AnalysisError::Numerical { .. } => {}
+            AnalysisError::Unbounded { .. } => fixes.push(simulate),
+            AnalysisError::Numerical { .. } | AnalysisError::NeverReturns { .. } => {}
         }
         let mut message = e.to_string();
         if !fixes.is_empty() {

@@ -123,6 +123,12 @@ pub fn atoms(
                 .map(Some)
         }
         NodeKind::Decorator { decorator, child } => {
+            if matches!(decorator, Decorator::UntilFailure | Decorator::UntilSuccess) {
+                // infinitely many return instants
+                return Err(AnalysisError::Unbounded {
+                    node: node.name.clone(),
+                });
+            }
             let Some(c) = atoms(tree, *child, max_atoms)? else {
                 return Ok(None);
             };
@@ -153,6 +159,7 @@ pub fn atoms(
                     chain(std::iter::repeat_n(&c, times), Outcome::Success, max_atoms)
                         .map_err(budget)?
                 }
+                Decorator::UntilFailure | Decorator::UntilSuccess => unreachable!("refused above"),
             }))
         }
         NodeKind::Parallel { children, .. } => {

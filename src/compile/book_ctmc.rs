@@ -41,6 +41,33 @@ pub fn book_decorator(decorator: Decorator, child: Figures) -> PhaseChain {
     let (policy, n) = match decorator {
         Decorator::Retry { attempts } => (Policy::Fallback, attempts),
         Decorator::Repeat { times } => (Policy::Sequence, times),
+        Decorator::UntilFailure | Decorator::UntilSuccess => {
+            // the node summarised by its own figures, as the book does
+            let f = match super::loop_figures(decorator, child, "loop") {
+                Ok(Some(f)) => f,
+                _ => return PhaseChain::default(),
+            };
+            let mut c = PhaseChain::default();
+            for (p, t, success) in [(f.ps, f.mtts, true), (f.pf, f.mttf, false)] {
+                if p <= 0.0 {
+                    continue;
+                }
+                match t {
+                    Some(t) if t > 0.0 => {
+                        let i = c.push_phase();
+                        if success {
+                            c.exit_success[i] = 1.0 / t;
+                        } else {
+                            c.exit_failure[i] = 1.0 / t;
+                        }
+                        c.initial.push((i, p));
+                    }
+                    _ if success => c.initial_success += p,
+                    _ => c.initial_failure += p,
+                }
+            }
+            return c;
+        }
         _ => {
             let (s, f) = match decorator {
                 Decorator::Inverter => (child.pf, child.ps),

@@ -161,6 +161,26 @@ pub enum AnalysisError {
         /// The limit.
         limit: f64,
     },
+    /// A loop decorator whose child can never end the loop.
+    #[error("node '{node}' never returns: it repeats its child until {until}, and the child never returns {until}")]
+    NeverReturns {
+        /// The loop node.
+        node: String,
+        /// `Success` or `Failure`.
+        until: &'static str,
+    },
+    /// A subtree holding a loop without a bound (`until_failure`,
+    /// `until_success`) where the analysis needs its time distribution: the
+    /// loop's chain is cyclic, and only the loop itself is solved that way.
+    #[error(
+        "node '{node}' repeats its child without a bound; the exact distribution of a subtree \
+         around such a loop is not supported yet (its figures are, and the loop's own curve \
+         when its child has exponential times)"
+    )]
+    Unbounded {
+        /// The loop node.
+        node: String,
+    },
     /// The linear algebra produced a non-finite or out-of-range number.
     #[error("numerical failure at node '{node}': {what}")]
     Numerical {
@@ -268,6 +288,9 @@ fn node_figures(
         what,
     };
     if let NodeKind::Decorator { decorator, .. } = node.kind {
+        if let Some(f) = loop_figures(decorator, child_figs[0], &node.name)? {
+            return Ok(f);
+        }
         return decorator_figures(decorator, child_figs[0]).map_err(numerical);
     }
     let policy = Policy::of(&node.kind).expect("control node");
@@ -469,6 +492,44 @@ fn means_from_laws(
     })
 }
 
+/// Figures of a loop without a bound, from its child's: `until_failure`
+/// returns Failure after a geometric number `K` of successful runs
+/// (`E[K] = ps/pf`), so `MTTF = (ps/pf)·MTTS + MTTF_child`; `until_success`
+/// likewise with the outcomes exchanged. `None` for other decorators.
+pub fn loop_figures(
+    decorator: Decorator,
+    child: Figures,
+    name: &str,
+) -> Result<Option<Figures>, AnalysisError> {
+    let (p_end, p_again, t_end, t_again, success) = match decorator {
+        Decorator::UntilFailure => (child.pf, child.ps, child.mttf, child.mtts, false),
+        Decorator::UntilSuccess => (child.ps, child.pf, child.mtts, child.mttf, true),
+        _ => return Ok(None),
+    };
+    if p_end <= 0.0 {
+        return Err(AnalysisError::NeverReturns {
+            node: name.to_string(),
+            until: if success { "Success" } else { "Failure" },
+        });
+    }
+    let t = p_again / p_end * t_again.unwrap_or(0.0) + t_end.unwrap_or(0.0);
+    Ok(Some(if success {
+        Figures {
+            ps: 1.0,
+            pf: 0.0,
+            mtts: Some(t),
+            mttf: None,
+        }
+    } else {
+        Figures {
+            ps: 0.0,
+            pf: 1.0,
+            mtts: None,
+            mttf: Some(t),
+        }
+    }))
+}
+
 /// Figures of a decorator from its child's (exact under both methods: the
 /// means of repeated runs add along paths).
 ///
@@ -496,6 +557,11 @@ pub fn decorator_figures(decorator: Decorator, child: Figures) -> Result<Figures
             mtts: None,
             mttf: Some(child.mean_time()),
         },
+        Decorator::UntilFailure | Decorator::UntilSuccess => {
+            return loop_figures(decorator, child, "loop")
+                .map_err(|e| e.to_string())?
+                .ok_or_else(|| "not a loop".to_string())
+        }
         Decorator::Retry { attempts: n } | Decorator::Repeat { times: n } => {
             let policy = if matches!(decorator, Decorator::Retry { .. }) {
                 Policy::Fallback

@@ -135,6 +135,11 @@ pub fn combine(
                 }
                 Decorator::Retry { attempts } => attempts,
                 Decorator::Repeat { times } => times,
+                Decorator::UntilFailure | Decorator::UntilSuccess => {
+                    return Err(AnalysisError::Unbounded {
+                        node: node.name.clone(),
+                    })
+                }
             };
             let total = c.len() as f64 * copies as f64;
             if total > max_states as f64 {

@@ -257,6 +257,11 @@ pub fn shifted_law(
                     in_turn(vec![l; attempts], false, tree, id, max_states)?
                 }
                 Decorator::Repeat { times } => in_turn(vec![l; times], true, tree, id, max_states)?,
+                Decorator::UntilFailure | Decorator::UntilSuccess => {
+                    return Err(AnalysisError::Unbounded {
+                        node: node.name.clone(),
+                    })
+                }
             }
         }
         // a mixed Parallel: counted where it is, not a component

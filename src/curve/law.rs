@@ -351,6 +351,11 @@ impl Builder<'_> {
                     }
                     Decorator::Retry { attempts } => self.repeated(id, &law, attempts, false),
                     Decorator::Repeat { times } => self.repeated(id, &law, times, true),
+                    Decorator::UntilFailure | Decorator::UntilSuccess => {
+                        Err(AnalysisError::Unbounded {
+                            node: self.name(id),
+                        })
+                    }
                 }
             }
             _ => Err(budget_error),

@@ -23,7 +23,7 @@ use crate::compile::{
 use crate::solve::chain::PhaseChain;
 use crate::solve::transient::{self, uniformization_work};
 use crate::solve::{expm, quadrature};
-use crate::tree::{Duration, NodeId, NodeKind, Tree};
+use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
 
 pub use crate::solve::transient::CurvePoint;
 
@@ -126,6 +126,13 @@ pub fn curve(
                 }
             })
             .collect());
+    }
+    if let NodeKind::Decorator {
+        decorator: d @ (Decorator::UntilFailure | Decorator::UntilSuccess),
+        child,
+    } = &node.kind
+    {
+        return loop_curve(tree, id, *child, *d, times, options);
     }
     if options.method == Method::Exact {
         if let NodeKind::Parallel {
@@ -256,6 +263,73 @@ fn parallel_by_counts(
             }
         })
         .collect())
+}
+
+/// `π(t)` of a loop without a bound over a child with a phase chain: the
+/// child's chain with the exit that repeats it ("again": Success for
+/// `until_failure`) routed back to its entry distribution — a cyclic chain,
+/// solved by uniformization (which needs no order of the phases). An
+/// instantaneous "again" at entry is folded in by renormalising the entry:
+/// the entry is `initial / (1 − p₀)`, `p₀` the child's instantaneous
+/// probability of "again".
+fn loop_curve(
+    tree: &Tree,
+    id: NodeId,
+    child: NodeId,
+    decorator: Decorator,
+    times: &[f64],
+    options: &CurveOptions,
+) -> Result<Vec<CurvePoint>, AnalysisError> {
+    let node = tree.node(id);
+    let unbounded = || AnalysisError::Unbounded {
+        node: node.name.clone(),
+    };
+    let mut c = match phase::phase_chain(tree, child, options.max_states) {
+        Ok(c) => c,
+        Err(AnalysisError::NotMarkovian { .. }) => return Err(unbounded()),
+        Err(e) => return Err(e),
+    };
+    // work with "again" as the Success exit, then swap back
+    let until_success = decorator == Decorator::UntilSuccess;
+    if until_success {
+        std::mem::swap(&mut c.exit_success, &mut c.exit_failure);
+        std::mem::swap(&mut c.initial_success, &mut c.initial_failure);
+    }
+    let again0 = c.initial_success;
+    if again0 >= 1.0 || (c.initial.is_empty() && c.initial_failure <= 0.0) {
+        return Err(AnalysisError::NeverReturns {
+            node: node.name.clone(),
+            until: if until_success { "Success" } else { "Failure" },
+        });
+    }
+    let scale = 1.0 / (1.0 - again0);
+    let entry: Vec<(usize, f64)> = c.initial.iter().map(|&(j, p)| (j, p * scale)).collect();
+    let end0 = c.initial_failure * scale;
+    for i in 0..c.len() {
+        let again = std::mem::take(&mut c.exit_success[i]);
+        if again > 0.0 {
+            c.transitions[i].extend(entry.iter().map(|&(j, p)| (j, again * p)));
+            c.exit_failure[i] += again * end0;
+        }
+    }
+    c.initial = entry;
+    c.initial_success = 0.0;
+    c.initial_failure = end0;
+    let work = uniformization_work(&c, times);
+    if work > options.max_work {
+        return Err(AnalysisError::Stiff {
+            node: node.name.clone(),
+            work,
+            limit: options.max_work,
+        });
+    }
+    let mut points = transient::transient(&c, times, options.tolerance);
+    if until_success {
+        for p in &mut points {
+            std::mem::swap(&mut p.success, &mut p.failure);
+        }
+    }
+    Ok(points)
 }
 
 /// `π(t)` from a shifted phase-type law ([`shifted`]): each outcome's

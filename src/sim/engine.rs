@@ -219,6 +219,10 @@ impl Program {
                     Decorator::ForceFailure => (DecoratorOp::Force(false), 1),
                     Decorator::Retry { attempts } => (DecoratorOp::Retry, attempts as u32),
                     Decorator::Repeat { times } => (DecoratorOp::Repeat, times as u32),
+                    // without a bound (a loop whose child cannot end it is
+                    // refused before simulating: `never_returns`)
+                    Decorator::UntilSuccess => (DecoratorOp::Retry, u32::MAX),
+                    Decorator::UntilFailure => (DecoratorOp::Repeat, u32::MAX),
                 };
                 return self.push(Op::Decorator { child, kind, n });
             }

@@ -203,9 +203,78 @@ pub enum SimError {
         /// Number of nodes in the tree.
         len: usize,
     },
+    /// A loop decorator whose child can never end it (e.g. `until_failure`
+    /// over a child that always succeeds): an episode would never end.
+    #[error("node '{0}' never returns: its child can never end the loop")]
+    NeverReturns(String),
     /// The worker thread pool could not be created.
     #[error("cannot create the simulation thread pool: {0}")]
     ThreadPool(String),
+}
+
+/// The first loop (`until_failure` / `until_success`) in the subtree at
+/// `root` whose child can never return the outcome that ends it, judged from
+/// which outcomes each node can return at all (probability > 0).
+fn endless_loop(tree: &Tree, root: NodeId) -> Option<NodeId> {
+    use crate::tree::{Decorator, NodeKind};
+    let range = tree.subtree(root);
+    // (can succeed, can fail), filled bottom-up
+    let mut can = vec![(false, false); tree.nodes.len()];
+    for id in range.rev() {
+        let kids = tree.node(id).kind.children();
+        can[id] = match &tree.node(id).kind {
+            NodeKind::Action(a) => (a.ps > 0.0, a.pf > 0.0),
+            NodeKind::Condition { ps } => (*ps > 0.0, *ps < 1.0),
+            NodeKind::Sequence { .. } => {
+                let all = kids.iter().all(|&c| can[c].0);
+                let fail = kids
+                    .iter()
+                    .scan(true, |ok, &c| {
+                        let here = *ok && can[c].1;
+                        *ok &= can[c].0;
+                        Some(here)
+                    })
+                    .any(|x| x);
+                (all, fail)
+            }
+            NodeKind::Fallback { .. } => {
+                let all = kids.iter().all(|&c| can[c].1);
+                let succeed = kids
+                    .iter()
+                    .scan(true, |ok, &c| {
+                        let here = *ok && can[c].0;
+                        *ok &= can[c].1;
+                        Some(here)
+                    })
+                    .any(|x| x);
+                (succeed, all)
+            }
+            NodeKind::Parallel {
+                success_threshold,
+                failure_threshold,
+                ..
+            } => {
+                let s = kids.iter().filter(|&&c| can[c].0).count();
+                let f = kids.iter().filter(|&&c| can[c].1).count();
+                let f_needed = (*failure_threshold).min(kids.len() + 1 - success_threshold);
+                (s >= *success_threshold, f >= f_needed)
+            }
+            NodeKind::Decorator { decorator, child } => {
+                let (s, f) = can[*child];
+                match decorator {
+                    Decorator::Inverter => (f, s),
+                    Decorator::ForceSuccess => (true, false),
+                    Decorator::ForceFailure => (false, true),
+                    Decorator::Retry { .. } | Decorator::Repeat { .. } => (s, f),
+                    Decorator::UntilFailure if !f => return Some(id),
+                    Decorator::UntilSuccess if !s => return Some(id),
+                    Decorator::UntilFailure => (false, true),
+                    Decorator::UntilSuccess => (true, false),
+                }
+            }
+        };
+    }
+    None
 }
 
 /// Simulates the whole tree: root curve and (with `per_node`) every node.
@@ -249,6 +318,9 @@ pub fn simulate_node(
             node,
             len: tree.nodes.len(),
         });
+    }
+    if let Some(id) = endless_loop(tree, node) {
+        return Err(SimError::NeverReturns(tree.node(id).name.clone()));
     }
 
     let targets: Vec<usize> = if opts.per_node {

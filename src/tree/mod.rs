@@ -105,6 +105,12 @@ pub enum Decorator {
         /// Successes needed (≥ 1).
         times: usize,
     },
+    /// Run a fresh child until it fails, then return Failure
+    /// (BehaviorTree.CPP `KeepRunningUntilFailure`, `Repeat num_cycles="-1"`).
+    UntilFailure,
+    /// Run a fresh child until it succeeds, then return Success
+    /// (BehaviorTree.CPP `RetryUntilSuccessful num_attempts="-1"`).
+    UntilSuccess,
 }
 
 impl Decorator {
@@ -116,6 +122,8 @@ impl Decorator {
             Decorator::ForceFailure => "force_failure",
             Decorator::Retry { .. } => "retry",
             Decorator::Repeat { .. } => "repeat",
+            Decorator::UntilFailure => "until_failure",
+            Decorator::UntilSuccess => "until_success",
         }
     }
 }

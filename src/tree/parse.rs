@@ -60,6 +60,8 @@ const NODE_KINDS: &[&str] = &[
     "force_failure",
     "retry",
     "repeat",
+    "until_failure",
+    "until_success",
 ];
 
 impl NodeDef {
@@ -75,9 +77,11 @@ impl NodeDef {
                 }
                 NodeDef::Parallel(p) => stack.extend(p.children.value.iter().map(|c| &c.value)),
                 NodeDef::Action(_) | NodeDef::Condition(_) => {}
-                NodeDef::Inverter(d) | NodeDef::ForceSuccess(d) | NodeDef::ForceFailure(d) => {
-                    stack.push(&d.child.value)
-                }
+                NodeDef::Inverter(d)
+                | NodeDef::ForceSuccess(d)
+                | NodeDef::ForceFailure(d)
+                | NodeDef::UntilFailure(d)
+                | NodeDef::UntilSuccess(d) => stack.push(&d.child.value),
                 NodeDef::Retry(r) => stack.push(&r.child.value),
                 NodeDef::Repeat(r) => stack.push(&r.child.value),
             }
@@ -107,6 +111,8 @@ enum NodeDef {
     ForceFailure(Box<DecoratorDef>),
     Retry(Box<RetryDef>),
     Repeat(Box<RepeatDef>),
+    UntilFailure(Box<DecoratorDef>),
+    UntilSuccess(Box<DecoratorDef>),
 }
 
 #[derive(Deserialize)]
@@ -1018,6 +1024,8 @@ impl Builder<'_> {
             NodeDef::Inverter(d) => (&d.name, Decorator::Inverter, &d.child),
             NodeDef::ForceSuccess(d) => (&d.name, Decorator::ForceSuccess, &d.child),
             NodeDef::ForceFailure(d) => (&d.name, Decorator::ForceFailure, &d.child),
+            NodeDef::UntilFailure(d) => (&d.name, Decorator::UntilFailure, &d.child),
+            NodeDef::UntilSuccess(d) => (&d.name, Decorator::UntilSuccess, &d.child),
             NodeDef::Retry(d) => (
                 &d.name,
                 Decorator::Retry {
@@ -1158,7 +1166,11 @@ fn name_location(def: &At<NodeDef>) -> Option<(usize, usize)> {
         NodeDef::Condition(c) => &c.name,
         NodeDef::Sequence(c) | NodeDef::Fallback(c) => &c.name,
         NodeDef::Parallel(p) => &p.name,
-        NodeDef::Inverter(d) | NodeDef::ForceSuccess(d) | NodeDef::ForceFailure(d) => &d.name,
+        NodeDef::Inverter(d)
+        | NodeDef::ForceSuccess(d)
+        | NodeDef::ForceFailure(d)
+        | NodeDef::UntilFailure(d)
+        | NodeDef::UntilSuccess(d) => &d.name,
         NodeDef::Retry(d) => &d.name,
         NodeDef::Repeat(d) => &d.name,
     };

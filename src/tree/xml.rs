@@ -690,7 +690,7 @@ fn unsupported(ty: &str) -> Option<&'static str> {
         "Switch2" | "Switch3" | "Switch4" | "Switch5" | "Switch6" | "IfThenElse"
         | "WhileDoElse" | "ManualSelector" => "it branches on blackboard values or user input",
         "Timeout" | "Delay" | "Sleep" => "its outcome depends on the clock",
-        "KeepRunningUntilFailure" | "RunOnce" | "LoopInt" | "LoopDouble" | "LoopString"
+        "RunOnce" | "LoopInt" | "LoopDouble" | "LoopString"
         | "LoopBool" | "ConsumeQueue" | "ParallelAll" | "ForEach"
         | "RepeatUnlessFailureEachTick"
         // BT.CPP's LoopNode<Pose2D>, registered by its t18_waypoints example
@@ -1148,8 +1148,25 @@ impl<'a> Builder<'a> {
                 self.set_children(id, ids);
                 Ok(id)
             }
-            "Inverter" | "ForceSuccess" | "ForceFailure" | "RetryUntilSuccessful" | "Repeat" => {
+            "Inverter"
+            | "ForceSuccess"
+            | "ForceFailure"
+            | "RetryUntilSuccessful"
+            | "Repeat"
+            | "KeepRunningUntilFailure" => {
                 let (decorator, child_retry) = match canon {
+                    "KeepRunningUntilFailure" => {
+                        self.check_attrs(e, &attrs(&[]), false)?;
+                        (Decorator::UntilFailure, retry)
+                    }
+                    "RetryUntilSuccessful" if self.forever(e, "num_attempts") => {
+                        self.check_attrs(e, &attrs(&["num_attempts"]), false)?;
+                        (Decorator::UntilSuccess, Some("RetryUntilSuccessful"))
+                    }
+                    "Repeat" if self.forever(e, "num_cycles") => {
+                        self.check_attrs(e, &attrs(&["num_cycles"]), false)?;
+                        (Decorator::UntilFailure, retry)
+                    }
                     "Inverter" => {
                         self.check_attrs(e, &attrs(&[]), false)?;
                         (Decorator::Inverter, retry)
@@ -1639,6 +1656,12 @@ impl<'a> Builder<'a> {
 
     /// `num_attempts` / `num_cycles`: required, 1..=1e6. A count from the
     /// blackboard or −1 (forever) is recorded as a problem (`None`).
+    /// Whether the count attribute `key` is -1 (BT.CPP: repeat without a
+    /// bound, read as `until_success` / `until_failure`).
+    fn forever(&self, e: &Elem, key: &str) -> bool {
+        e.attr(key).is_some_and(|a| a.value.trim() == "-1")
+    }
+
     fn count(&mut self, e: &Elem, key: &str) -> Result<Option<usize>, TreeError> {
         if let Some(a) = e.attr(key).filter(|a| a.value.trim().starts_with('{')) {
             self.problem(

@@ -481,6 +481,8 @@ fn node(v: Value) -> Option<At<NodeDef>> {
         "force_failure" => NodeDef::ForceFailure(Box::new(decorator(body)?)),
         "retry" => NodeDef::Retry(Box::new(retry(body)?)),
         "repeat" => NodeDef::Repeat(Box::new(repeat(body)?)),
+        "until_failure" => NodeDef::UntilFailure(Box::new(decorator(body)?)),
+        "until_success" => NodeDef::UntilSuccess(Box::new(decorator(body)?)),
         _ => return None,
     };
     Some(At {
