@@ -301,3 +301,35 @@ fn random_mixed_trees_agree_with_simulation() {
     }
     assert!(checked >= 40, "only {checked} of 60 random trees answered");
 }
+
+#[test]
+fn bt_cpp_sleep_and_delay_are_fixed_times() {
+    // Sleep 500 ms, then Delay 1500 ms before Step (ps 0.8, Exp(2) / Exp(1)):
+    // Step starts at 2 s, so S(t) = 0.8 (1 − e^{-2(t−2)}), F(t) = 0.2 (1 −
+    // e^{-(t−2)}) for t ≥ 2, nothing before; MTTS = 2.5, MTTF = 3.
+    let xml = r#"<root BTCPP_format="4"><BehaviorTree ID="M"><Sequence>
+        <Sleep msec="500"/>
+        <Delay delay_msec="1500"><Step/></Delay>
+      </Sequence></BehaviorTree></root>"#;
+    let t = btrel::tree::xml::parse_xml_str(
+        xml,
+        "d.xml",
+        "Step: {ps: 0.8, mu: 2.0, nu: 1.0}\n",
+        "d.params.yaml",
+    )
+    .expect("read");
+    let f = root_figures(&t);
+    close("MTTS", f.mtts.unwrap(), 2.5);
+    close("MTTF", f.mttf.unwrap(), 3.0);
+    let pts =
+        btrel::curve::curve(&t, 0, &[1.0, 1.999, 2.0, 2.5, 4.0], &Default::default()).unwrap();
+    for p in pts {
+        let u = (p.t - 2.0).max(0.0);
+        let s = 0.8 * (1.0 - (-2.0 * u).exp());
+        let fl = 0.2 * (1.0 - (-u).exp());
+        assert!(
+            (p.success - s).abs() < 1e-12 && (p.failure - fl).abs() < 1e-12,
+            "{p:?}"
+        );
+    }
+}

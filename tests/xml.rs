@@ -267,13 +267,12 @@ fn refusals_have_locations() {
         ("<ScriptCondition code=\"x==1\"/>", (3, 1), "<ScriptCondition>: its outcome is computed from blackboard values"),
         ("<Sequence>\n <Switch2 variable=\"{v}\"><AlwaysSuccess/></Switch2></Sequence>", (4, 2), "<Switch2>"),
         ("<Timeout msec=\"10\"><AlwaysSuccess/></Timeout>", (3, 1), "<Timeout>"),
-        ("<Delay delay_msec=\"10\"><AlwaysSuccess/></Delay>", (3, 1), "<Delay>"),
-        ("<KeepRunningUntilFailure><AlwaysSuccess/></KeepRunningUntilFailure>", (3, 1), "KeepRunningUntilFailure"),
+        ("<Delay delay_msec=\"{d}\"><AlwaysSuccess/></Delay>", (3, 8), "blackboard"),
+        ("<Sleep msec=\"{t}\"/>", (3, 8), "blackboard"),
+        ("<Timeout msec=\"10\"><AlwaysSuccess/></Timeout>", (3, 1), "<Timeout>"),
         ("<Sequence _skipIf=\"x\"><AlwaysSuccess/></Sequence>", (3, 11), "`_skipIf`"),
         ("<Action ID=\"A\" _while=\"x\"/>", (3, 16), "`_while`"),
         ("<Sequence port=\"{x}\"><AlwaysSuccess/></Sequence>", (3, 11), "unknown attribute `port`"),
-        ("<Repeat num_cycles=\"-1\"><AlwaysSuccess/></Repeat>", (3, 9), "forever"),
-        ("<RetryUntilSuccessful num_attempts=\"-1\"><AlwaysSuccess/></RetryUntilSuccessful>", (3, 23), "forever"),
         ("<RetryUntilSuccessful><AlwaysSuccess/></RetryUntilSuccessful>", (3, 1), "needs `num_attempts`"),
         ("<Repeat num_cycles=\"{n}\"><AlwaysSuccess/></Repeat>", (3, 9), "blackboard"),
         ("<Repeat num_cycles=\"0\"><AlwaysSuccess/></Repeat>", (3, 9), "not a valid count"),
@@ -552,7 +551,7 @@ fn node_types_without_a_meaning_are_listed_at_once() {
     assert_eq!((e.line, e.column), (3, 5));
     // an unknown node with children is a front-end problem, listed first,
     // and the semantic ones follow
-    let src = wrap("<Sequence>\n<Fallbak><A/></Fallbak>\n<Delay delay_msec=\"3\"><A/></Delay>\n<Sequense><A/></Sequense>\n</Sequence>");
+    let src = wrap("<Sequence>\n<Fallbak><A/></Fallbak>\n<Timeout msec=\"3\"><A/></Timeout>\n<Sequense><A/></Sequense>\n</Sequence>");
     let e = err(&src, "A: {ps: 0.5, mu: 1, nu: 1}");
     assert!(!is_unsupported(&e), "{e}");
     assert!(e.message.starts_with("2 nodes cannot be read:"), "{e}");
@@ -568,8 +567,9 @@ fn node_types_without_a_meaning_are_listed_at_once() {
         "{e}"
     );
     assert!(
-        e.message
-            .contains("and btrel has no stochastic meaning yet for 1 node:\n  t.xml:5:1: <Delay>"),
+        e.message.contains(
+            "and btrel has no stochastic meaning yet for 1 node:\n  t.xml:5:1: <Timeout>"
+        ),
         "{e}"
     );
 }

@@ -689,7 +689,7 @@ fn unsupported(ty: &str) -> Option<&'static str> {
         }
         "Switch2" | "Switch3" | "Switch4" | "Switch5" | "Switch6" | "IfThenElse"
         | "WhileDoElse" | "ManualSelector" => "it branches on blackboard values or user input",
-        "Timeout" | "Delay" | "Sleep" => "its outcome depends on the clock",
+        "Timeout" => "its outcome depends on the clock",
         "RunOnce" | "LoopInt" | "LoopDouble" | "LoopString"
         | "LoopBool" | "ConsumeQueue" | "ParallelAll" | "ForEach"
         | "RepeatUnlessFailureEachTick"
@@ -872,6 +872,34 @@ impl<'a> Builder<'a> {
                 .with_help(hint));
         }
         Ok(())
+    }
+
+    /// A duration in milliseconds (BT.CPP's `msec`, `delay_msec`: a whole
+    /// number ≥ 0), in seconds; `None` (a problem recorded) for a blackboard
+    /// reference.
+    fn milliseconds(&mut self, e: &Elem, key: &str) -> Result<Option<f64>, TreeError> {
+        if let Some(a) = e.attr(key).filter(|a| a.value.trim().starts_with('{')) {
+            self.problem(
+                e.doc,
+                a.loc,
+                format!(
+                    "<{}> with {key} = \"{}\", a blackboard reference: the duration is only known at run time",
+                    e.name,
+                    a.value.trim()
+                ),
+                true,
+            );
+            return Ok(None);
+        }
+        match self.int_attr(e, key)? {
+            Some((n, _)) if n >= 0 => Ok(Some(n as f64 / 1000.0)),
+            Some((n, at)) => Err(self
+                .err(at, format!("{key} = {n} is not a valid duration"))
+                .with_help(format!("{key} is a whole number of milliseconds >= 0"))),
+            None => Err(self
+                .err(e.loc, format!("<{}> needs `{key}`", e.name))
+                .with_help(format!("write {key}=\"N\", N in milliseconds"))),
+        }
     }
 
     /// A whole-number attribute; `None` if absent.
@@ -1225,6 +1253,73 @@ impl<'a> Builder<'a> {
             "RecoveryNode" => {
                 self.check_attrs(e, &attrs(&["number_of_retries"]), false)?;
                 self.recovery(e, ty, parent, depth, path, prefix, retry)
+            }
+            // BT.CPP Sleep: Success after `msec`; Delay: waits `delay_msec`,
+            // then runs its child and returns what it returns
+            "Sleep" | "Delay" => {
+                let key = if canon == "Sleep" {
+                    "msec"
+                } else {
+                    "delay_msec"
+                };
+                self.check_attrs(e, &attrs(&[key]), false)?;
+                let Some(seconds) = self.milliseconds(e, key)? else {
+                    let base = self.name_attr(e)?.unwrap_or_else(default_name);
+                    return self.placeholder(e, &base, parent, depth, &path, prefix, retry);
+                };
+                let wait = |ps| {
+                    NodeKind::Action(crate::tree::Action {
+                        ps,
+                        pf: 0.0,
+                        success: Some(crate::tree::Duration::Fixed { time: seconds }),
+                        failure: None,
+                    })
+                };
+                let base = self.name_attr(e)?.unwrap_or_else(default_name);
+                if canon == "Sleep" {
+                    self.no_children(e)?;
+                    return self.push(e, &base, prefix, parent, depth, &path, wait(1.0));
+                }
+                if e.children.len() != 1 {
+                    return Err(self
+                        .err(
+                            e.loc,
+                            format!("<{ty}> needs exactly one child, found {}", e.children.len()),
+                        )
+                        .with_help(
+                            "a decorator wraps exactly one node; wrap several in a <Sequence>",
+                        ));
+                }
+                let sq = self.push(
+                    e,
+                    &base,
+                    prefix,
+                    parent,
+                    depth,
+                    &path,
+                    NodeKind::Sequence {
+                        children: Vec::new(),
+                    },
+                )?;
+                let w = self.push(
+                    e,
+                    &format!("{base}/wait"),
+                    prefix,
+                    Some(sq),
+                    depth + 1,
+                    &format!("{path}.0"),
+                    wait(1.0),
+                )?;
+                let c = self.node(
+                    e.children[0],
+                    Some(sq),
+                    depth + 1,
+                    format!("{path}.1"),
+                    prefix,
+                    retry,
+                )?;
+                self.set_children(sq, vec![w, c]);
+                Ok(sq)
             }
             "AlwaysSuccess" | "AlwaysFailure" => {
                 self.check_attrs(e, &attrs(&[]), false)?;
