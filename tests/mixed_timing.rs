@@ -78,20 +78,7 @@ fn mixed_parallels_nested_in_sequences_and_parallels() {
                                          {action: {ps: 0.8, tau_s: 1.1, tau_f: 0.4}}]}}, \
                   {action: {ps: 0.7, mu: 0.3, nu: 0.9}}]}}]}}";
     let t = tree(yaml);
-    let f = root_figures(&t);
-    let sim = simulate_root(&t, 400_000, &[]);
-    let r = &sim.nodes[0];
-    assert_within_z("ps", &r.ps, f.ps);
-    assert_within_z(
-        "MTTS",
-        r.mtts.as_ref().expect("successes"),
-        f.mtts.expect("MTTS"),
-    );
-    assert_within_z(
-        "MTTF",
-        r.mttf.as_ref().expect("failures"),
-        f.mttf.expect("MTTF"),
-    );
+    assert_root_matches_simulation(&t, 400_000);
     // the Parallel itself (path 0.1): report vs the limit of its curve
     let id = t.find("0.1").expect("the Parallel");
     let a = btrel::analyze(&t, &Default::default()).expect("analysed");

@@ -1230,16 +1230,7 @@ impl<'a> Builder<'a> {
                         (Decorator::Repeat { times }, retry)
                     }
                 };
-                if e.children.len() != 1 {
-                    return Err(self
-                        .err(
-                            e.loc,
-                            format!("<{ty}> needs exactly one child, found {}", e.children.len()),
-                        )
-                        .with_help(
-                            "a decorator wraps exactly one node; wrap several in a <Sequence>",
-                        ));
-                }
+                self.one_child(e, ty)?;
                 let base = self.name_attr(e)?.unwrap_or_else(default_name);
                 let kind = NodeKind::Decorator {
                     decorator,
@@ -1280,16 +1271,7 @@ impl<'a> Builder<'a> {
                     self.no_children(e)?;
                     return self.push(e, &base, prefix, parent, depth, &path, wait(1.0));
                 }
-                if e.children.len() != 1 {
-                    return Err(self
-                        .err(
-                            e.loc,
-                            format!("<{ty}> needs exactly one child, found {}", e.children.len()),
-                        )
-                        .with_help(
-                            "a decorator wraps exactly one node; wrap several in a <Sequence>",
-                        ));
-                }
+                self.one_child(e, ty)?;
                 let sq = self.push(
                     e,
                     &base,
@@ -1595,6 +1577,19 @@ impl<'a> Builder<'a> {
             total = total.saturating_add(self.elem_size(c, guard));
         }
         total
+    }
+
+    /// A decorator's child count must be one.
+    fn one_child(&self, e: &Elem, ty: &str) -> Result<(), TreeError> {
+        if e.children.len() != 1 {
+            return Err(self
+                .err(
+                    e.loc,
+                    format!("<{ty}> needs exactly one child, found {}", e.children.len()),
+                )
+                .with_help("a decorator wraps exactly one node; wrap several in a <Sequence>"));
+        }
+        Ok(())
     }
 
     fn no_children(&self, e: &Elem) -> Result<(), TreeError> {

@@ -131,3 +131,18 @@ fn random_node(rng: &mut rand_xoshiro::Xoshiro256PlusPlus, depth: usize) -> Stri
         _ => format!("{{fallback: {{children: [{kids}]}}}}"),
     }
 }
+
+/// Simulates the root `runs` times and checks its ps, MTTS and MTTF (where
+/// defined) against the exact report, |z| < [`Z`].
+pub fn assert_root_matches_simulation(tree: &Tree, runs: u64) {
+    let f = root_figures(tree);
+    let sim = simulate_root(tree, runs, &[]);
+    let r = &sim.nodes[0];
+    assert_within_z("ps", &r.ps, f.ps);
+    if let (Some(e), Some(m)) = (&r.mtts, f.mtts) {
+        assert_within_z("MTTS", e, m);
+    }
+    if let (Some(e), Some(m)) = (&r.mttf, f.mttf) {
+        assert_within_z("MTTF", e, m);
+    }
+}
