@@ -7,11 +7,20 @@
 //!
 //! The pipeline, one module per stage:
 //!
-//! 1. [`tree`]: parse and validate a YAML tree;
-//! 2. [`compile`]: build each control node's marking reachability graph and
-//!    the chain over it, bottom-up;
-//! 3. [`solve`]: linear algebra on those chains (faer);
-//! 4. [`report`]: per-node figures as a table, JSON or CSV.
+//! 1. [`tree`]: parse and validate a tree (YAML, BehaviorTree.CPP XML);
+//! 2. [`compile`]: the model — each node's marking reachability graph and
+//!    its outcome distribution, bottom-up (phase chains, atoms, shifted
+//!    phase-type mixtures, counted Parallels, composed laws), with each
+//!    node's figures and curve;
+//! 3. [`solve`]: the numerics those use (faer linear algebra, transient
+//!    analysis, quadrature, interpolation);
+//! 4. queries on the model: [`report`] (per-node figures as a table, JSON
+//!    or CSV), [`curve`] (π(t)), [`compare`] (Fallback orderings), [`plot`];
+//! 5. [`export`]: DOT, PRISM, Storm.
+//!
+//! [`sim`] (Monte Carlo) stands beside them and shares only the parsed tree.
+//! Dependencies run one way: `compile` uses `solve` and `tree`; the queries
+//! use `compile`; nothing below uses what is above it.
 //!
 //! ```
 //! let tree = btrel::tree::parse_str(

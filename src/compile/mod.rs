@@ -20,6 +20,8 @@
 pub mod atoms;
 pub mod book_ctmc;
 pub mod counts;
+pub mod curve;
+pub(crate) mod law;
 pub mod mrg;
 pub mod phase;
 pub mod shifted;
@@ -203,7 +205,7 @@ pub struct Analysis {
 /// Analyses every node of the tree, bottom-up.
 pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError> {
     let mut figures: Vec<Option<Figures>> = vec![None; tree.nodes.len()];
-    let memo = crate::curve::law::LawMemo::default();
+    let memo = law::LawMemo::default();
     // pre-order: children come after their parent, so reverse order is bottom-up
     for id in (0..tree.nodes.len()).rev() {
         let f = node_figures(
@@ -242,7 +244,7 @@ pub fn reanalyze(
     }
     dirty.sort_unstable();
     dirty.dedup();
-    let memo = crate::curve::law::LawMemo::default();
+    let memo = law::LawMemo::default();
     for &id in dirty.iter().rev() {
         let f = node_figures(tree, id, &|c| analysis.nodes[c], options, &memo)?;
         check(&f, &tree.node(id).name)?;
@@ -275,7 +277,7 @@ fn node_figures(
     id: NodeId,
     done: &dyn Fn(NodeId) -> Figures,
     options: &Options,
-    memo: &crate::curve::law::LawMemo,
+    memo: &law::LawMemo,
 ) -> Result<Figures, AnalysisError> {
     let node = tree.node(id);
     if let Some(f) = leaf_figures(&node.kind) {
@@ -351,7 +353,7 @@ fn node_figures(
                             success_threshold,
                             failure_threshold,
                         );
-                        let [ts, tf] = crate::curve::parallel_times_by_quadrature(
+                        let [ts, tf] = curve::parallel_times_by_quadrature(
                             tree,
                             id,
                             success_threshold,
@@ -394,7 +396,7 @@ fn parallel_by_counts(
     m: usize,
     child_figs: &[Figures],
     options: &Options,
-    memo: &crate::curve::law::LawMemo,
+    memo: &law::LawMemo,
 ) -> Result<Option<Figures>, AnalysisError> {
     let node = tree.node(id);
     let children = node.kind.children();
@@ -434,13 +436,8 @@ fn parallel_by_counts(
             m,
             children.len() + 1 - m,
         );
-        let [ts, tf] = crate::curve::parallel_times_by_quadrature(
-            tree,
-            id,
-            m,
-            child_figs,
-            options.max_states,
-        )?;
+        let [ts, tf] =
+            curve::parallel_times_by_quadrature(tree, id, m, child_figs, options.max_states)?;
         return Ok(Some(Figures {
             ps,
             pf,
@@ -468,7 +465,7 @@ pub const STIFF_STEPS: f64 = 1e5;
 
 /// Figures of a counted Parallel from composed laws: P(S), P(F) by counting
 /// the children's exact figures, the mean times as first moments of the
-/// node's outcome law ([`crate::curve::law::counted_parallel_times`]; an
+/// node's outcome law ([`law::counted_parallel_times`]; an
 /// error estimate, not a bound). Used when a child holds a wide Parallel
 /// itself, or when the children are stiff.
 fn means_from_laws(
@@ -477,13 +474,12 @@ fn means_from_laws(
     m: usize,
     child_figs: &[Figures],
     options: &Options,
-    memo: &crate::curve::law::LawMemo,
+    memo: &law::LawMemo,
 ) -> Result<Figures, AnalysisError> {
     let outcomes: Vec<(f64, f64)> = child_figs.iter().map(|f| (f.ps, f.pf)).collect();
     let (ps, pf) = counts::status_by_counts(&outcomes, m, child_figs.len() + 1 - m);
     let means: Vec<f64> = child_figs.iter().map(Figures::mean_time).collect();
-    let [ts, tf] =
-        crate::curve::law::counted_parallel_times(tree, id, m, &means, options.max_states, memo)?;
+    let [ts, tf] = law::counted_parallel_times(tree, id, m, &means, options.max_states, memo)?;
     Ok(Figures {
         ps,
         pf,

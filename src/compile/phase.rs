@@ -89,7 +89,7 @@ pub fn phase_chain(
 /// The phase chain of control node `id` from its children's chains (in
 /// child order): concatenation for Sequence/Fallback, the decorator's
 /// transformation, or the Parallel product. Lets a caller substitute a
-/// child's chain (e.g. by a marker, see [`crate::curve`]).
+/// child's chain (e.g. by a marker, see [`crate::compile::curve`]).
 pub fn combine(
     tree: &Tree,
     id: NodeId,
@@ -160,7 +160,7 @@ pub fn combine(
             let policy = Policy::of(&node.kind).expect("a Parallel has a policy");
             // with the book's thresholds the node is counted rather than
             // multiplied out when its product is large ([`super::counts`],
-            // [`crate::curve`]): refuse early instead of building it
+            // [`crate::compile::curve`]): refuse early instead of building it
             let bound: f64 = chains.iter().map(|c| (c.len() + 2) as f64).product();
             let limit = max_states / BOOK_PARALLEL_SHARE;
             if *failure_threshold == children.len() + 1 - success_threshold && bound > limit as f64

@@ -26,7 +26,7 @@
 //!   Retry N / Repeat N: a Fallback / Sequence of N copies;
 //! * a Parallel is a component only when its whole subtree is Markovian (its
 //!   product chain) or deterministic (atoms); a mixed Parallel has no such
-//!   form and is answered where it is, by counting (see `crate::curve`).
+//!   form and is answered where it is, by counting (see `crate::compile::curve`).
 //!
 //! Every operation is exact; the only approximations are the transient
 //! solutions of the chains (with their own bounds) and the rounding of the

@@ -4,7 +4,7 @@
 //! polynomials.
 //!
 //! This is the representation of outcome densities that have no phase chain
-//! (`crate::curve`'s laws). On each panel the function is sampled at the
+//! (`crate::compile`'s outcome laws). On each panel the function is sampled at the
 //! [`POINTS`] Chebyshev points of the second kind and represented by the
 //! interpolating polynomial (barycentric formula). A panel is accepted when
 //! the last two Chebyshev coefficients, times the panel's width, are below

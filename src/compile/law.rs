@@ -13,7 +13,7 @@
 //! * a Parallel with the book's thresholds (`F = N − M + 1`): until it
 //!   returns its children run independently and the thresholds cannot both
 //!   be met, so it has succeeded by t iff at least M children have
-//!   ([`super::parallel_by_counts`]); its densities are the time derivatives
+//!   ([`super::curve`]'s count programme); its densities are the time derivatives
 //!   of that count programme, computed in dual numbers from the children's
 //!   probabilities and densities
 //!   ([`counts::status_and_densities_by_counts`]);
@@ -36,7 +36,7 @@
 //! product-chain error; laws with atoms after 0 (deterministic times) are
 //! refused as mixed timing.
 
-use super::CurveOptions;
+use super::curve::CurveOptions;
 use crate::compile::{counts, phase, AnalysisError};
 use crate::solve::chain::PhaseChain;
 use crate::solve::expm;
@@ -239,7 +239,7 @@ fn sample_weighted(
         return None;
     }
     let (rows, bound) = expm::transient_dense_weighted(chain, points, weights);
-    (bound <= super::DENSE_TOLERANCE).then_some(rows)
+    (bound <= super::curve::DENSE_TOLERANCE).then_some(rows)
 }
 
 struct Builder<'a> {

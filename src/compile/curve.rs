@@ -1,0 +1,621 @@
+//! Probabilities over time: `π(t)` of any node, by three methods.
+//!
+//! * **exact** (default): the node's exact phase chain ([`compile::phase`])
+//!   solved by uniformization ([`solve::transient`](crate::solve::transient)) with a rigorous
+//!   truncation bound, or, when that would take too many steps (a stiff
+//!   chain over a long horizon) and the chain is small, by dense
+//!   exponentials in double-double ([`solve::expm`](crate::solve::expm)); for subtrees whose actions all have deterministic
+//!   times, the exact finitely many return instants ([`compile::atoms`],
+//!   Prop. 9.2's zero-order hold without rounding to a grid).
+//! * nodes whose chain exceeds the budget (wide Parallels and everything
+//!   above them): Parallels with the book's thresholds by counting their
+//!   children's curves, and every other node from composed outcome laws
+//!   (interpolated densities, `law`).
+//! * **book**: the chapter's recursion: the node's CTMC over its MRG with
+//!   every child replaced by an exponential ([`compile::book_ctmc`]).
+//! * **`Timing::Deterministic`**: every exponential time becomes a fixed
+//!   time `τ = 1/rate` first (the book's Figs. 9.20–9.21 comparison).
+
+use crate::compile::mrg::{Mrg, Policy};
+use crate::compile::{
+    self, analyze, atoms, book_ctmc, counts, phase, shifted, AnalysisError, Method,
+};
+use crate::solve::chain::PhaseChain;
+use crate::solve::transient::{self, uniformization_work};
+use crate::solve::{expm, quadrature};
+use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
+
+pub use crate::solve::transient::CurvePoint;
+
+/// How action times are taken.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Timing {
+    /// As written in the tree file.
+    #[default]
+    AsGiven,
+    /// Every exponential time replaced by a fixed time `1/rate`.
+    Deterministic,
+}
+
+/// Error bound accepted from the dense stiff solver.
+pub const DENSE_TOLERANCE: f64 = 1e-10;
+
+/// Default limit on uniformization work (vector operations × nonzeros; an
+/// upper bound, since the solver skips zero entries: about a few seconds).
+pub const DEFAULT_MAX_WORK: f64 = 1e11;
+
+/// Options of a curve computation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CurveOptions {
+    /// exact or book.
+    pub method: Method,
+    /// Times as given or made deterministic.
+    pub timing: Timing,
+    /// Largest chain or number of atoms.
+    pub max_states: usize,
+    /// Bound on the absolute error of the truncated series.
+    pub tolerance: f64,
+    /// Largest uniformization effort before refusing.
+    pub max_work: f64,
+}
+
+impl Default for CurveOptions {
+    fn default() -> Self {
+        CurveOptions {
+            method: Method::Exact,
+            timing: Timing::AsGiven,
+            max_states: compile::DEFAULT_MAX_STATES,
+            tolerance: transient::DEFAULT_TOLERANCE,
+            max_work: DEFAULT_MAX_WORK,
+        }
+    }
+}
+
+/// The tree with every exponential time replaced by its mean (`τ = 1/rate`).
+pub fn deterministic_version(tree: &Tree) -> Tree {
+    let mut t = tree.clone();
+    let fix = |d: Option<Duration>| {
+        d.map(|d| match d {
+            Duration::Exponential { rate } | Duration::TruncatedExponential { rate, .. } => {
+                Duration::Fixed { time: 1.0 / rate }
+            }
+            fixed => fixed,
+        })
+    };
+    for n in &mut t.nodes {
+        if let NodeKind::Action(a) = &mut n.kind {
+            a.success = fix(a.success);
+            a.failure = fix(a.failure);
+        }
+    }
+    t
+}
+
+/// `π(t)` of node `id` at `times` (finite, ≥ 0; any order), in the order given.
+pub fn curve(
+    tree: &Tree,
+    id: NodeId,
+    times: &[f64],
+    options: &CurveOptions,
+) -> Result<Vec<CurvePoint>, AnalysisError> {
+    if options.timing == Timing::Deterministic {
+        let det = deterministic_version(tree);
+        let opts = CurveOptions {
+            timing: Timing::AsGiven,
+            ..*options
+        };
+        return curve(&det, id, times, &opts);
+    }
+    let node = tree.node(id);
+    let is_control = !node.kind.children().is_empty();
+    // a leaf in closed form (any timing: exponential, fixed or hybrid)
+    if let NodeKind::Action(a) = &node.kind {
+        return Ok(times
+            .iter()
+            .map(|&t| {
+                // an outcome without a duration has probability 0
+                let cdf = |d: Option<Duration>| d.map_or(0.0, |d| d.cdf(t));
+                let (success, failure) = (a.ps * cdf(a.success), a.pf * cdf(a.failure));
+                CurvePoint {
+                    t,
+                    success,
+                    failure,
+                    running: (1.0 - success - failure).max(0.0),
+                }
+            })
+            .collect());
+    }
+    if let NodeKind::Decorator {
+        decorator: d @ (Decorator::UntilFailure | Decorator::UntilSuccess),
+        child,
+    } = &node.kind
+    {
+        return loop_curve(tree, id, *child, *d, times, options);
+    }
+    if options.method == Method::Exact {
+        if let NodeKind::Parallel {
+            success_threshold,
+            failure_threshold,
+            children,
+        } = &node.kind
+        {
+            if *failure_threshold == children.len() - success_threshold + 1 {
+                return parallel_by_counts(tree, children, *success_threshold, times, options);
+            }
+        }
+    }
+    // deterministic subtrees: exact atoms (both methods agree on a leaf)
+    if options.method == Method::Exact || !is_control {
+        if let Some(a) = atoms::atoms(tree, id, options.max_states)? {
+            return Ok(times
+                .iter()
+                .map(|&t| {
+                    let (s, f) = atoms::cumulative(&a, t);
+                    CurvePoint {
+                        t,
+                        success: s,
+                        failure: f,
+                        running: (1.0 - s - f).max(0.0),
+                    }
+                })
+                .collect());
+        }
+    }
+    let chain = match (options.method, is_control) {
+        (Method::Book, true) => {
+            let analysis = analyze(
+                tree,
+                &compile::Options {
+                    method: Method::Book,
+                    max_states: options.max_states,
+                },
+            )?;
+            let children = node.kind.children();
+            let figs: Vec<_> = children.iter().map(|&c| analysis.nodes[c]).collect();
+            if let NodeKind::Decorator { decorator, .. } = node.kind {
+                book_ctmc::book_decorator(decorator, figs[0])
+            } else {
+                let policy = Policy::of(&node.kind).expect("control node");
+                if let Policy::Parallel {
+                    success_threshold,
+                    failure_threshold,
+                } = policy
+                {
+                    let est = compile::mrg::parallel_marking_count(
+                        children.len(),
+                        success_threshold,
+                        failure_threshold,
+                    );
+                    if est > options.max_states as f64 {
+                        return Err(AnalysisError::StateBudget {
+                            node: node.name.clone(),
+                            states: est,
+                            budget: options.max_states,
+                        });
+                    }
+                }
+                book_ctmc::book_ctmc(&Mrg::build(policy, children.len()), &figs)
+            }
+        }
+        _ => match phase::phase_chain(tree, id, options.max_states) {
+            Ok(c) => c,
+            Err(AnalysisError::NotMarkovian { leaf }) => {
+                return match shifted::shifted_law(tree, id, options.max_states)? {
+                    Some(law) => curve_by_shifted(&law, times, options, &node.name),
+                    None => Err(AnalysisError::MixedTiming {
+                        node: node.name.clone(),
+                        leaf,
+                    }),
+                };
+            }
+            Err(e @ AnalysisError::StateBudget { .. }) if options.method == Method::Exact => {
+                return super::law::curve_by_laws(tree, id, times, options, e);
+            }
+            Err(e) => return Err(e),
+        },
+    };
+    solve_chain(&chain, times, options, &node.name)
+}
+
+/// `π(t)` of a Parallel node with the book's thresholds (F = N − M + 1),
+/// exactly, from its children's own curves.
+///
+/// Before the node returns its children run independently, and its two
+/// thresholds cannot both be met (M + (N − M + 1) > N). So the node has
+/// succeeded by t iff at least M children have succeeded by t — had it
+/// failed first, N − M + 1 children would have failed, leaving fewer than M
+/// to succeed — and likewise for Failure. With `S_h(t)`, `F_h(t)` the
+/// children's curves (independent), the counts of children that have
+/// succeeded and failed by t follow a trinomial Poisson-binomial law,
+/// computed by a dynamic programme over the children with both counts capped
+/// at their thresholds ([`counts::status_by_counts`]): O(N·M·(N−M+1)) per time point instead of a product
+/// chain of up to 4^N states. Children are analysed on their own (any kind,
+/// including deterministic ones).
+fn parallel_by_counts(
+    tree: &Tree,
+    children: &[NodeId],
+    m: usize,
+    times: &[f64],
+    options: &CurveOptions,
+) -> Result<Vec<CurvePoint>, AnalysisError> {
+    let n = children.len();
+    let f_cap = n - m + 1;
+    let curves = children
+        .iter()
+        .map(|&c| curve(tree, c, times, options))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(times
+        .iter()
+        .enumerate()
+        .map(|(k, &t)| {
+            let points: Vec<(f64, f64)> = curves
+                .iter()
+                .map(|c| (c[k].success, c[k].failure))
+                .collect();
+            let (success, failure) = counts::status_by_counts(&points, m, f_cap);
+            CurvePoint {
+                t,
+                success: success.clamp(0.0, 1.0),
+                failure: failure.clamp(0.0, 1.0),
+                running: (1.0 - success - failure).max(0.0),
+            }
+        })
+        .collect())
+}
+
+/// `π(t)` of a loop without a bound over a child with a phase chain: the
+/// child's chain with the exit that repeats it ("again": Success for
+/// `until_failure`) routed back to its entry distribution — a cyclic chain,
+/// solved by uniformization (which needs no order of the phases). An
+/// instantaneous "again" at entry is folded in by renormalising the entry:
+/// the entry is `initial / (1 − p₀)`, `p₀` the child's instantaneous
+/// probability of "again".
+fn loop_curve(
+    tree: &Tree,
+    id: NodeId,
+    child: NodeId,
+    decorator: Decorator,
+    times: &[f64],
+    options: &CurveOptions,
+) -> Result<Vec<CurvePoint>, AnalysisError> {
+    let node = tree.node(id);
+    let unbounded = || AnalysisError::Unbounded {
+        node: node.name.clone(),
+    };
+    let mut c = match phase::phase_chain(tree, child, options.max_states) {
+        Ok(c) => c,
+        Err(AnalysisError::NotMarkovian { .. }) => return Err(unbounded()),
+        Err(e) => return Err(e),
+    };
+    // work with "again" as the Success exit, then swap back
+    let until_success = decorator == Decorator::UntilSuccess;
+    if until_success {
+        std::mem::swap(&mut c.exit_success, &mut c.exit_failure);
+        std::mem::swap(&mut c.initial_success, &mut c.initial_failure);
+    }
+    let again0 = c.initial_success;
+    if again0 >= 1.0 || (c.initial.is_empty() && c.initial_failure <= 0.0) {
+        return Err(AnalysisError::NeverReturns {
+            node: node.name.clone(),
+            until: if until_success { "Success" } else { "Failure" },
+        });
+    }
+    let scale = 1.0 / (1.0 - again0);
+    let entry: Vec<(usize, f64)> = c.initial.iter().map(|&(j, p)| (j, p * scale)).collect();
+    let end0 = c.initial_failure * scale;
+    for i in 0..c.len() {
+        let again = std::mem::take(&mut c.exit_success[i]);
+        if again > 0.0 {
+            c.transitions[i].extend(entry.iter().map(|&(j, p)| (j, again * p)));
+            c.exit_failure[i] += again * end0;
+        }
+    }
+    c.initial = entry;
+    c.initial_success = 0.0;
+    c.initial_failure = end0;
+    let work = uniformization_work(&c, times);
+    if work > options.max_work {
+        return Err(AnalysisError::Stiff {
+            node: node.name.clone(),
+            work,
+            limit: options.max_work,
+        });
+    }
+    let mut points = transient::transient(&c, times, options.tolerance);
+    if until_success {
+        for p in &mut points {
+            std::mem::swap(&mut p.success, &mut p.failure);
+        }
+    }
+    Ok(points)
+}
+
+/// `π(t)` from a shifted phase-type law ([`shifted`]): each outcome's
+/// `Σ w · A(t − τ)`, every component's chain solved like any chain.
+fn curve_by_shifted(
+    law: &shifted::ShiftedLaw,
+    times: &[f64],
+    options: &CurveOptions,
+    name: &str,
+) -> Result<Vec<CurvePoint>, AnalysisError> {
+    let mut sums = vec![[0.0f64; 2]; times.len()];
+    for (o, part) in [&law.success, &law.failure].into_iter().enumerate() {
+        for c in part {
+            let (idx, local): (Vec<usize>, Vec<f64>) = times
+                .iter()
+                .enumerate()
+                .filter(|&(_, &t)| t >= c.shift || atoms_same_time(t, c.shift))
+                .map(|(k, &t)| (k, (t - c.shift).max(0.0)))
+                .unzip();
+            if idx.is_empty() {
+                continue;
+            }
+            if c.chain.is_empty() {
+                for &k in &idx {
+                    sums[k][o] += c.weight * c.chain.initial_success;
+                }
+                continue;
+            }
+            let points = solve_chain(&c.chain, &local, options, name)?;
+            for (&k, p) in idx.iter().zip(&points) {
+                sums[k][o] += c.weight * p.success;
+            }
+        }
+    }
+    Ok(times
+        .iter()
+        .zip(sums)
+        .map(|(&t, [s, f])| {
+            let (success, failure) = (s.clamp(0.0, 1.0), f.clamp(0.0, 1.0));
+            CurvePoint {
+                t,
+                success,
+                failure,
+                running: (1.0 - success - failure).max(0.0),
+            }
+        })
+        .collect())
+}
+
+/// Whether two instants are the same (within [`atoms::TIME_TOLERANCE`]).
+fn atoms_same_time(a: f64, b: f64) -> bool {
+    (a - b).abs() <= atoms::TIME_TOLERANCE * a.abs().max(b.abs()).max(1.0)
+}
+
+fn solve_chain(
+    chain: &PhaseChain,
+    times: &[f64],
+    options: &CurveOptions,
+    name: &str,
+) -> Result<Vec<CurvePoint>, AnalysisError> {
+    let work = uniformization_work(chain, times);
+    let small = chain.len() + 2 <= expm::MAX_DENSE_STATES;
+    // the cheaper of the two: uniformization needs ~Λt steps, the dense
+    // exponential of a small chain costs the same at any horizon
+    let dense = small && expm::dense_work(chain, times) < work;
+    let points = if !dense && work <= options.max_work {
+        transient::transient(chain, times, options.tolerance)
+    } else if small {
+        // long horizon or stiff, but small: dense exponentials with a
+        // rigorous bound
+        let (points, bound) = expm::transient_dense(chain, times);
+        if bound > options.tolerance.max(DENSE_TOLERANCE) {
+            return Err(AnalysisError::Numerical {
+                node: name.to_string(),
+                what: format!("the error bound {bound:.1e} of the stiff solver is too large"),
+            });
+        }
+        points
+    } else {
+        return Err(AnalysisError::Stiff {
+            node: name.to_string(),
+            work,
+            limit: options.max_work,
+        });
+    };
+    for p in &points {
+        if ![p.success, p.failure, p.running]
+            .iter()
+            .all(|x| x.is_finite())
+        {
+            return Err(AnalysisError::Numerical {
+                node: name.to_string(),
+                what: format!("non-finite probability at t = {}", p.t),
+            });
+        }
+    }
+    Ok(points)
+}
+
+/// Gauss–Legendre points per panel (the error is estimated against the
+/// rule with half as many).
+const MEAN_RULE: usize = 24;
+
+/// Relative accuracy asked of each mean time by quadrature.
+const MEAN_QUADRATURE_TOLERANCE: f64 = 1e-13;
+
+/// Most rounds of panel refinement (each halves the panels not yet accepted).
+const MAX_REFINEMENTS: usize = 40;
+
+/// `[E[T·1{S}], E[T·1{F}]]` of Parallel `id` with the book's thresholds
+/// (success threshold `m`) whose children have curves but not all phase
+/// chains — deterministic or hybrid actions beside stochastic ones, e.g. the
+/// book's Example 9.2 — or whose children are stiff (their curves then come
+/// from dense exponentials), by quadrature of its curve:
+/// `E[T·1{S}] = ∫₀^∞ (P(S) − S(t)) dt`, with `S(t)` the count programme over
+/// the children's exact curves ([`parallel_by_counts`]).
+///
+/// The integrand jumps or kinks only where a child's curve does — at the
+/// deterministic instants of its actions and atoms — and is smooth (a sum of
+/// exponential polynomials) between them, so the panels start at those
+/// instants (and, for fast phases, at 8^k / the fastest rate up to the
+/// longest child mean); beyond the last one they double in width until the probability
+/// still running times the next width is below 1e-16 of the integral. Each
+/// panel's `MEAN_RULE`-point Gauss–Legendre sum is accepted when it agrees
+/// with the half-order rule to 1e-13 of the integral (panels are halved
+/// otherwise). The result is an error *estimate*, not a bound.
+pub(crate) fn parallel_times_by_quadrature(
+    tree: &Tree,
+    id: NodeId,
+    m: usize,
+    child_figures: &[compile::Figures],
+    max_states: usize,
+) -> Result<[f64; 2], AnalysisError> {
+    let node = tree.node(id);
+    let children = node.kind.children();
+    let f_cap = children.len() + 1 - m;
+    let outcomes: Vec<(f64, f64)> = child_figures.iter().map(|f| (f.ps, f.pf)).collect();
+    let (ps, pf) = counts::status_by_counts(&outcomes, m, f_cap);
+    let longest = child_figures
+        .iter()
+        .map(compile::Figures::mean_time)
+        .fold(0.0, f64::max);
+    if longest == 0.0 {
+        return Ok([0.0, 0.0]);
+    }
+    let options = CurveOptions {
+        max_states,
+        ..CurveOptions::default()
+    };
+    // P(S) − S(t) and P(F) − F(t) at `times`
+    let gaps = |times: &[f64]| -> Result<Vec<[f64; 2]>, AnalysisError> {
+        let points = parallel_by_counts(tree, children, m, times, &options)?;
+        Ok(points
+            .iter()
+            .map(|p| [(ps - p.success).max(0.0), (pf - p.failure).max(0.0)])
+            .collect())
+    };
+    let mut cuts = vec![0.0];
+    for &c in children {
+        breakpoints(tree, c, max_states, &mut cuts)?;
+    }
+    // fast phases make boundary layers of width ~1/rate near 0: cut there
+    // too, geometrically up to the longest mean
+    let fastest = children
+        .iter()
+        .filter_map(|&c| phase::phase_chain(tree, c, max_states).ok())
+        .flat_map(|c| (0..c.len()).map(move |i| c.total_rate(i)))
+        .fold(0.0, f64::max);
+    if fastest > 0.0 {
+        let mut t = 1.0 / fastest;
+        while t < longest {
+            cuts.push(t);
+            t *= 8.0;
+        }
+    }
+    cuts.retain(|t| t.is_finite() && *t >= 0.0);
+    cuts.sort_by(f64::total_cmp);
+    cuts.dedup_by(|a, b| (*a - *b).abs() <= 1e-12 * a.abs().max(1.0));
+    let mut panels: Vec<(f64, f64)> = cuts.windows(2).map(|w| (w[0], w[1])).collect();
+    let full = quadrature::GaussLegendre::new(MEAN_RULE);
+    let half = quadrature::GaussLegendre::new(MEAN_RULE / 2);
+    let mut total = [0.0f64; 2];
+    // the tail: panels of doubling width after the last instant
+    let mut start = *cuts.last().expect("0 is a cut");
+    let mut width = longest.max(start / 8.0);
+    let mut pending = std::mem::take(&mut panels);
+    for _ in 0..MAX_REFINEMENTS + 64 {
+        let mut next = Vec::new();
+        let (sums, errors) = integrate_panels(&pending, &full, &half, &gaps)?;
+        let scale = (total[0] + total[1] + sums.iter().map(|s| s[0] + s[1]).sum::<f64>())
+            .max(f64::MIN_POSITIVE);
+        for ((p, s), e) in pending.iter().zip(&sums).zip(&errors) {
+            if *e <= MEAN_QUADRATURE_TOLERANCE * scale || p.1 - p.0 <= 1e-12 * p.1.max(1.0) {
+                total[0] += s[0];
+                total[1] += s[1];
+            } else {
+                let mid = 0.5 * (p.0 + p.1);
+                next.push((p.0, mid));
+                next.push((mid, p.1));
+            }
+        }
+        // extend the tail while the mass still running matters
+        let running = gaps(&[start])?[0];
+        if running[0] + running[1] > 0.0
+            && (running[0] + running[1]) * width > 1e-16 * (total[0] + total[1]).max(1e-300)
+        {
+            next.push((start, start + width));
+            start += width;
+            width *= 2.0;
+        }
+        if next.is_empty() {
+            return Ok(total);
+        }
+        pending = next;
+    }
+    Err(AnalysisError::Numerical {
+        node: node.name.clone(),
+        what: "the quadrature of its mean times did not converge".into(),
+    })
+}
+
+/// Integrals of `gaps` over each panel by the full rule, and the difference
+/// from the half rule (largest of the two outcomes).
+#[allow(clippy::type_complexity)]
+fn integrate_panels(
+    panels: &[(f64, f64)],
+    full: &quadrature::GaussLegendre,
+    half: &quadrature::GaussLegendre,
+    gaps: &dyn Fn(&[f64]) -> Result<Vec<[f64; 2]>, AnalysisError>,
+) -> Result<(Vec<[f64; 2]>, Vec<f64>), AnalysisError> {
+    let mut times = Vec::with_capacity(panels.len() * (full.len() + half.len()));
+    for &(a, b) in panels {
+        let (c, h) = (0.5 * (a + b), 0.5 * (b - a));
+        times.extend(full.nodes.iter().chain(&half.nodes).map(|x| c + h * x));
+    }
+    let values = gaps(&times)?;
+    let per = full.len() + half.len();
+    let mut sums = Vec::with_capacity(panels.len());
+    let mut errors = Vec::with_capacity(panels.len());
+    for (k, &(a, b)) in panels.iter().enumerate() {
+        let h = 0.5 * (b - a);
+        let v = &values[k * per..(k + 1) * per];
+        let rule = |w: &[f64], v: &[[f64; 2]], o: usize| -> f64 {
+            h * w.iter().zip(v).map(|(w, v)| w * v[o]).sum::<f64>()
+        };
+        let (vf, vh) = v.split_at(full.len());
+        let s = [rule(&full.weights, vf, 0), rule(&full.weights, vf, 1)];
+        let e = (0..2)
+            .map(|o| (s[o] - rule(&half.weights, vh, o)).abs())
+            .fold(0.0, f64::max);
+        sums.push(s);
+        errors.push(e);
+    }
+    Ok((sums, errors))
+}
+
+/// Instants where the curve of the subtree at `id` may jump or kink: the
+/// fixed times and hybrid caps of its actions, the atoms of a deterministic
+/// subtree, the union of a Parallel's children's. Subtrees of exponential
+/// actions have smooth curves and add none.
+fn breakpoints(
+    tree: &Tree,
+    id: NodeId,
+    max_states: usize,
+    out: &mut Vec<f64>,
+) -> Result<(), AnalysisError> {
+    match &tree.node(id).kind {
+        NodeKind::Action(a) => {
+            for d in [a.success, a.failure].into_iter().flatten() {
+                match d {
+                    Duration::Fixed { time } => out.push(time),
+                    Duration::TruncatedExponential { cap, .. } => out.push(cap),
+                    Duration::Exponential { .. } => {}
+                }
+            }
+        }
+        NodeKind::Condition { .. } => {}
+        kind => {
+            if let Some(a) = atoms::atoms(tree, id, max_states)? {
+                out.extend(a.iter().map(|a| a.time));
+            } else if matches!(kind, NodeKind::Parallel { .. }) {
+                for &c in kind.children() {
+                    breakpoints(tree, c, max_states, out)?;
+                }
+            } else if let Some(law) = shifted::shifted_law(tree, id, max_states)? {
+                out.extend(law.shifts());
+            }
+        }
+    }
+    Ok(())
+}
