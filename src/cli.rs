@@ -163,7 +163,11 @@ Examples:
   btrel compare trees/search-and-grasp.yaml --node search --deadline 100 --top 3 --curves top3.csv
 
 Without --node every Fallback is reordered (the product of their permutations).
-Default objective: success-by with --deadline, else mean-time.";
+Default objective: success-by with --deadline, else mean-time. Orderings are enumerated
+exhaustively when that fits the budget (about 2 s of estimated work, or --max-candidates N);
+beyond it, the exact ordering rule ps/E[T] (mean time; refined by a local search under a
+Parallel) or a local search answers. The output says which search was used and whether the
+best is proven optimal.";
 
 #[derive(clap::Args)]
 struct CompareArgs {
@@ -193,9 +197,10 @@ struct CompareArgs {
     /// Horizon (s) of --curves (default: 3 × the largest mean time shown).
     #[arg(long, value_name = "T", allow_hyphen_values = true)]
     t_end: Option<String>,
-    /// Largest number of orderings enumerated exhaustively.
-    #[arg(long, value_name = "N", default_value_t = btrel::compare::DEFAULT_MAX_CANDIDATES)]
-    max_candidates: usize,
+    /// Enumerate every ordering when there are at most N (default: as many as about
+    /// 2 s of estimated work allow, at most 100000); beyond, the ordering rule / local search.
+    #[arg(long, value_name = "N")]
+    max_candidates: Option<usize>,
     /// Write to this file (atomically) instead of standard output.
     #[arg(short, long, value_name = "FILE")]
     output: Option<PathBuf>,
@@ -811,10 +816,7 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
                 ..btrel::compare::CompareOptions::default()
             },
         )
-        .map_err(|e| match e {
-            btrel::compare::CompareError::Analysis(a) => Failure::analysis(a),
-            other => Failure::input(other),
-        })?;
+        .map_err(compare_failure)?;
         // the top K orderings, and the given one (as in Fig. 9.22)
         let shown: Vec<_> = cmp
             .candidates
@@ -1011,8 +1013,9 @@ fn find_nodes(tree: &Tree, names: &[String], file: &Path) -> Result<Vec<usize>, 
 }
 
 fn compare(args: CompareArgs) -> Result<(), Failure> {
-    use btrel::compare::{CompareError, CompareOptions, Objective};
+    use btrel::compare::{CompareOptions, Objective};
     use btrel::report::ranking;
+    use std::io::IsTerminal;
     let deadline = optional_time("--deadline", &args.deadline)?;
     let t_end = optional_time("--t-end", &args.t_end)?;
     if args.top == 0 {
@@ -1031,12 +1034,47 @@ fn compare(args: CompareArgs) -> Result<(), Failure> {
         deadline,
         method: method(args.method),
         max_candidates: args.max_candidates,
+        keep: args.top,
         ..CompareOptions::default()
     };
-    let cmp = btrel::compare::compare(&tree, &options).map_err(|e| match e {
-        CompareError::Analysis(a) => Failure::analysis(a),
-        other => Failure::input(other),
-    })?;
+    let bar = io::stderr().is_terminal().then(|| {
+        let b = indicatif::ProgressBar::hidden();
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "comparing {bar:40} {pos}/{len} orderings ({eta} left)",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        b
+    });
+    let started = std::time::Instant::now();
+    let progress = |done: u64, total: u64| {
+        if let Some(b) = &bar {
+            // only for runs long enough to watch
+            if b.is_hidden() && started.elapsed().as_secs_f64() > 0.5 && done < total {
+                b.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+            }
+            b.set_length(total);
+            b.set_position(done);
+        }
+    };
+    let result = btrel::compare::compare_with_progress(&tree, &options, &progress);
+    if let Some(b) = &bar {
+        b.finish_and_clear();
+    }
+    let cmp = result.map_err(compare_failure)?;
+    if matches!(
+        cmp.search,
+        btrel::compare::Search::OrderingRule | btrel::compare::Search::LocalSearch
+    ) && cmp.space < 1e15
+    {
+        eprintln!(
+            "note: `--max-candidates {}` enumerates all {} orderings (estimated {})",
+            cmp.space as u64,
+            btrel::compare::count_text(cmp.space),
+            btrel::compare::duration_text(cmp.budget.estimate(cmp.space))
+        );
+    }
     if let Some(path) = &args.curves {
         let top: Vec<_> = cmp.candidates.iter().take(args.top).collect();
         let end = t_end.unwrap_or_else(|| {
@@ -1088,6 +1126,18 @@ fn compare(args: CompareArgs) -> Result<(), Failure> {
         FormatArg::Json => ranking::write_json(&tree, &cmp, args.top, out),
         FormatArg::Csv => ranking::write_csv(&tree, &cmp, args.top, out),
     })
+}
+
+/// A failed comparison, with the CLI's advice.
+fn compare_failure(e: btrel::compare::CompareError) -> Failure {
+    use btrel::compare::CompareError;
+    match e {
+        CompareError::Analysis(a) => Failure::analysis(a),
+        CompareError::NeedsDeadline => Failure::input("--by success-by needs --deadline T"),
+        other @ CompareError::NotReorderable(..) => Failure::input(format!(
+            "{other}: give a Fallback with --node, or omit --node to reorder every Fallback"
+        )),
+    }
 }
 
 /// A failed output file, with what to do about it.
