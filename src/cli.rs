@@ -77,7 +77,7 @@ enum Command {
     /// Export the tree or a node's MRG as Graphviz DOT, or a node's exact CTMC for PRISM.
     #[command(after_help = EXPORT_EXAMPLES)]
     Export(ExportArgs),
-    /// Plot Success/Failure/Running over time as SVG (Figs. 9.18–9.22).
+    /// Plot Success/Failure/Running over time as SVG or PNG (Figs. 9.18–9.22).
     #[command(after_help = PLOT_EXAMPLES)]
     Plot(PlotArgs),
     /// Validate a tree file without analysing it.
@@ -227,6 +227,7 @@ For a simulated curve as CSV use `btrel curve --mc N`.";
 const PLOT_EXAMPLES: &str = "\
 Examples:
   btrel plot trees/search-and-grasp.yaml -o sg.svg --mc 1e5                 # Fig. 9.18
+  btrel plot trees/search-and-grasp.yaml -o sg.png --mc 1e5                 # the same as PNG
   btrel plot trees/search-and-grasp.yaml -o nodes.svg --node search --node grasp
   btrel plot trees/search-and-grasp.yaml -o det.svg --timing both           # Fig. 9.20
   btrel plot trees/search-and-grasp.yaml -o order.svg --compare search --deadline 100   # Fig. 9.22";
@@ -242,13 +243,13 @@ enum PlotTiming {
 struct PlotArgs {
     /// The tree file (YAML).
     tree: PathBuf,
-    /// The SVG file to write (atomically).
-    #[arg(short, long, value_name = "FILE.svg")]
+    /// The image to write (atomically): FILE.svg or FILE.png.
+    #[arg(short, long, value_name = "FILE.svg|FILE.png")]
     output: PathBuf,
     /// Node to plot, by name or path (repeatable); default: the root.
     #[arg(long = "node", value_name = "NAME")]
     nodes: Vec<String>,
-    /// Horizon (s); default: 3 × the largest mean time plotted.
+    /// Horizon (s); default: where every curve has settled (running below 1e-3), rounded up.
     #[arg(long, value_name = "T", allow_hyphen_values = true)]
     t_end: Option<String>,
     /// Points of each curve.
@@ -265,7 +266,7 @@ struct PlotArgs {
     /// Overlay the best orderings of this Fallback's children (with --deadline: by success by then).
     #[arg(long, value_name = "NODE")]
     compare: Option<String>,
-    /// Deadline (s) ranking the orderings of --compare.
+    /// Deadline (s): drawn as a marker; ranks the orderings of --compare.
     #[arg(long, value_name = "T", allow_hyphen_values = true)]
     deadline: Option<String>,
     /// How many orderings --compare overlays.
@@ -782,8 +783,65 @@ fn curve(args: CurveArgs) -> Result<(), Failure> {
     })
 }
 
+/// The image format of a plot's output file, from its extension.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum ImageFormat {
+    Svg,
+    Png,
+}
+
+fn image_format(path: &Path) -> Result<ImageFormat, Failure> {
+    match path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+        .as_deref()
+    {
+        Some("svg") => Ok(ImageFormat::Svg),
+        Some("png") => Ok(ImageFormat::Png),
+        other => Err(Failure::input(format!(
+            "-o {}: {}; btrel writes SVG and PNG images: name the file *.svg or *.png",
+            path.display(),
+            match other {
+                Some(e) => format!("unknown image format '.{e}'"),
+                None => "the file name has no extension".to_string(),
+            }
+        ))),
+    }
+}
+
+/// Timing of the actions of a node's subtree: all exponential, all fixed,
+/// or a mixture.
+fn subtree_timing(tree: &Tree, node: usize) -> (&'static str, bool) {
+    use btrel::tree::{Duration, NodeKind};
+    let (mut random, mut fixed) = (false, false);
+    let mut stack = vec![node];
+    while let Some(id) = stack.pop() {
+        let n = tree.node(id);
+        if let NodeKind::Action(a) = &n.kind {
+            for (d, p) in [(a.success, a.ps), (a.failure, a.pf)] {
+                match d {
+                    Some(Duration::Fixed { .. }) if p > 0.0 => fixed = true,
+                    Some(_) if p > 0.0 => random = true,
+                    _ => {}
+                }
+            }
+        }
+        stack.extend_from_slice(n.kind.children());
+    }
+    match (random, fixed) {
+        (true, false) => ("stochastic", false),
+        (false, _) => ("deterministic (as given)", true),
+        (true, true) => ("as given", false),
+    }
+}
+
 fn plot(args: PlotArgs) -> Result<(), Failure> {
-    use btrel::plot::{curve_series, mc_series, render_svg, PlotSpec, Series, Style};
+    use btrel::plot::{
+        curve_series, default_horizon, mc_series, render_png, render_svg, Marker, PlotSpec, Series,
+        Style, VerticalMarker,
+    };
+    let format = image_format(&args.output)?;
     if args.points < 2 || args.points > 100_000 {
         return Err(Failure::input("--points must be between 2 and 100000"));
     }
@@ -813,10 +871,14 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
                 nodes: vec![node],
                 deadline,
                 method: base.method,
+                keep: args.top,
                 ..btrel::compare::CompareOptions::default()
             },
         )
         .map_err(compare_failure)?;
+        for n in &cmp.notes {
+            eprintln!("note: {n}");
+        }
         // the top K orderings, and the given one (as in Fig. 9.22)
         let shown: Vec<_> = cmp
             .candidates
@@ -845,28 +907,32 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
             } else {
                 String::new()
             };
-            let timings: &[(Timing, &str)] = match args.timing {
-                PlotTiming::AsGiven => &[(Timing::AsGiven, "")],
-                PlotTiming::Deterministic => &[(Timing::Deterministic, "deterministic")],
-                PlotTiming::Both => &[
-                    (Timing::AsGiven, "stochastic"),
-                    (Timing::Deterministic, "deterministic"),
+            let (as_given, all_fixed) = subtree_timing(&tree, id);
+            let timings: Vec<(Timing, &str)> = match args.timing {
+                PlotTiming::AsGiven => vec![(Timing::AsGiven, "")],
+                PlotTiming::Deterministic => vec![(Timing::Deterministic, "deterministic")],
+                PlotTiming::Both if all_fixed => {
+                    eprintln!(
+                        "note: every action of '{}' has fixed times already: --timing both \
+                         draws one set of curves",
+                        tree.node(id).name
+                    );
+                    vec![(Timing::AsGiven, as_given)]
+                }
+                PlotTiming::Both => vec![
+                    (Timing::AsGiven, as_given),
+                    (Timing::Deterministic, "deterministic (τ = 1/rate)"),
                 ],
             };
-            for (j, &(timing, what)) in timings.iter().enumerate() {
+            let k = timings.len();
+            for (j, (timing, what)) in timings.into_iter().enumerate() {
                 let label = [name.as_str(), what]
                     .iter()
                     .filter(|x| !x.is_empty())
                     .copied()
                     .collect::<Vec<_>>()
                     .join(", ");
-                drawn.push((
-                    label,
-                    tree.clone(),
-                    id,
-                    Style::overlay(i * timings.len() + j),
-                    timing,
-                ));
+                drawn.push((label, tree.clone(), id, Style::overlay(i * k + j), timing));
             }
         }
     }
@@ -874,38 +940,49 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
         Some(t) if t > 0.0 => t,
         Some(_) => return Err(Failure::input("--t-end must be > 0")),
         None => {
-            let longest = drawn
+            let items: Vec<(&Tree, usize, Timing)> = drawn
                 .iter()
-                .map(|(_, t, id, _, _)| {
-                    analyze(
-                        t,
-                        &Options {
-                            method: base.method,
-                            ..Options::default()
-                        },
-                    )
-                    .map(|a| a.nodes[*id].mean_time())
-                    .unwrap_or(0.0)
-                })
-                .fold(0.0, f64::max);
-            deadline.unwrap_or(0.0).max(3.0 * longest).max(1e-9)
+                .map(|(_, t, id, _, tm)| (t, *id, *tm))
+                .collect();
+            let h = default_horizon(&items, base.method);
+            match deadline {
+                Some(d) if d * 1.1 > h => btrel::plot::nice_ceil(d * 1.1),
+                _ => h,
+            }
         }
     };
     let times: Vec<f64> = (0..args.points)
         .map(|k| end * k as f64 / (args.points - 1) as f64)
         .collect();
     let mut series: Vec<Series> = Vec::new();
+    let mut exact_drawn = false;
     for (label, t, id, style, timing) in &drawn {
         let options = CurveOptions {
             timing: *timing,
             ..base
         };
-        let points = btrel::curve::curve(t, *id, &times, &options).map_err(Failure::analysis)?;
-        series.extend(curve_series(label, &points, *style));
+        match btrel::curve::curve(t, *id, &times, &options) {
+            Ok(points) => {
+                exact_drawn = true;
+                series.extend(curve_series(label, &points, *style))
+            }
+            Err(e) if mc.is_some() => eprintln!(
+                "note: no exact curves for '{}' ({e}); plotting the simulation only",
+                t.node(*id).name
+            ),
+            Err(e) => {
+                return Err(Failure::analysis(format!(
+                    "cannot plot the exact curves of '{}': {e}; plot a simulation instead \
+                     with --mc N",
+                    t.node(*id).name
+                )))
+            }
+        }
     }
     if let Some(runs) = mc {
         let mc_times: Vec<f64> = (0..41).map(|k| end * k as f64 / 40.0).collect();
         let o = sim_options(&args.sim, runs, mc_times, false)?;
+        let mut i = 0;
         for (label, t, id, _, timing) in &drawn {
             if *timing == Timing::Deterministic {
                 continue;
@@ -916,30 +993,41 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
             } else {
                 format!("{label}, Monte Carlo")
             };
-            series.extend(mc_series(&prefix, &r.curve));
+            series.extend(mc_series(&prefix, &r.curve, Marker::overlay(i)));
+            i += 1;
         }
     }
+    let tree_title = tree
+        .title
+        .clone()
+        .unwrap_or_else(|| tree.nodes[0].name.clone());
     let title = match (&args.compare, deadline) {
         (Some(n), Some(d)) => format!(
-            "{}: orderings of '{n}' (best by P(success by {} s) first)",
-            tree.title
-                .clone()
-                .unwrap_or_else(|| tree.nodes[0].name.clone()),
+            "{tree_title}: orderings of '{n}', best by P(success by {} s) first",
             full(d)
         ),
-        (Some(n), None) => format!(
-            "{}: orderings of '{n}' (best by mean time first)",
-            tree.title
-                .clone()
-                .unwrap_or_else(|| tree.nodes[0].name.clone())
-        ),
+        (Some(n), None) => format!("{tree_title}: orderings of '{n}', best by mean time first"),
         _ => {
             let names: Vec<&str> = nodes.iter().map(|&n| tree.node(n).name.as_str()).collect();
-            format!("{} — {} method", names.join(", "), base.method.name())
+            if exact_drawn {
+                format!("{} — {} method", names.join(", "), base.method.name())
+            } else {
+                format!("{} — Monte Carlo only", names.join(", "))
+            }
         }
     };
-    let svg = render_svg(&PlotSpec::new(title, series)).map_err(Failure::analysis)?;
-    btrel::output::write_atomic(&args.output, |out| out.write_all(svg.as_bytes()))
+    let mut spec = PlotSpec::new(title, series);
+    if let Some(d) = deadline {
+        spec.markers.push(VerticalMarker {
+            t: d,
+            label: format!("deadline {} s", full(d)),
+        });
+    }
+    let bytes = match format {
+        ImageFormat::Svg => render_svg(&spec).map_err(Failure::analysis)?.into_bytes(),
+        ImageFormat::Png => render_png(&spec).map_err(Failure::analysis)?,
+    };
+    btrel::output::write_atomic(&args.output, |out| out.write_all(&bytes))
         .map_err(|e| Failure::input(write_error(&args.output, &e)))
 }
 
