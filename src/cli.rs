@@ -194,7 +194,7 @@ struct CompareArgs {
     /// Also write the root's π(t) of the top K orderings to this CSV file.
     #[arg(long, value_name = "FILE")]
     curves: Option<PathBuf>,
-    /// Horizon (s) of --curves (default: 3 × the largest mean time shown).
+    /// Horizon (s) of --curves (default: where the curves have settled, as in `plot`).
     #[arg(long, value_name = "T", allow_hyphen_values = true)]
     t_end: Option<String>,
     /// Enumerate every ordering when there are at most N (default: as many as about
@@ -246,6 +246,9 @@ struct PlotArgs {
     /// The image to write (atomically): FILE.svg or FILE.png.
     #[arg(short, long, value_name = "FILE.svg|FILE.png")]
     output: PathBuf,
+    /// Image format; default: from the extension of -o (.svg or .png).
+    #[arg(long, value_enum)]
+    format: Option<ImageFormatArg>,
     /// Node to plot, by name or path (repeatable); default: the root.
     #[arg(long = "node", value_name = "NAME")]
     nodes: Vec<String>,
@@ -783,14 +786,18 @@ fn curve(args: CurveArgs) -> Result<(), Failure> {
     })
 }
 
-/// The image format of a plot's output file, from its extension.
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum ImageFormat {
+/// The image format of a plot's output file.
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum ImageFormatArg {
     Svg,
     Png,
 }
+use ImageFormatArg as ImageFormat;
 
-fn image_format(path: &Path) -> Result<ImageFormat, Failure> {
+fn image_format(path: &Path, given: Option<ImageFormat>) -> Result<ImageFormat, Failure> {
+    if let Some(f) = given {
+        return Ok(f);
+    }
     match path
         .extension()
         .and_then(|e| e.to_str())
@@ -800,7 +807,8 @@ fn image_format(path: &Path) -> Result<ImageFormat, Failure> {
         Some("svg") => Ok(ImageFormat::Svg),
         Some("png") => Ok(ImageFormat::Png),
         other => Err(Failure::input(format!(
-            "-o {}: {}; btrel writes SVG and PNG images: name the file *.svg or *.png",
+            "-o {}: {}; btrel writes SVG and PNG images: name the file *.svg or *.png, \
+             or give --format svg|png",
             path.display(),
             match other {
                 Some(e) => format!("unknown image format '.{e}'"),
@@ -841,7 +849,6 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
         curve_series, default_horizon, mc_series, render_png, render_svg, Marker, PlotSpec, Series,
         Style, VerticalMarker,
     };
-    let format = image_format(&args.output)?;
     if args.points < 2 || args.points > 100_000 {
         return Err(Failure::input("--points must be between 2 and 100000"));
     }
@@ -851,6 +858,7 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
     let t_end = optional_time("--t-end", &args.t_end)?;
     let deadline = optional_time("--deadline", &args.deadline)?;
     let mc = optional_count("--mc", &args.mc)?;
+    let format = image_format(&args.output, args.format)?;
     let tree = load(&args.tree)?;
     let nodes = if args.nodes.is_empty() {
         vec![Tree::ROOT]
@@ -989,7 +997,10 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
             }
             let r = run_simulation(t, *id, &o)?;
             let prefix = if label.is_empty() {
-                "Monte Carlo".to_string()
+                format!(
+                    "Monte Carlo, {} runs",
+                    btrel::compare::count_text(runs as f64)
+                )
             } else {
                 format!("{label}, Monte Carlo")
             };
@@ -1165,27 +1176,41 @@ fn compare(args: CompareArgs) -> Result<(), Failure> {
     }
     if let Some(path) = &args.curves {
         let top: Vec<_> = cmp.candidates.iter().take(args.top).collect();
-        let end = t_end.unwrap_or_else(|| {
-            3.0 * top
-                .iter()
-                .map(|c| c.root.mean_time())
-                .fold(0.0, f64::max)
-                .max(1e-9)
-        });
+        let trees: Vec<Tree> = top
+            .iter()
+            .map(|c| {
+                let mut t = tree.clone();
+                for (&n, o) in cmp.nodes.iter().zip(&c.orders) {
+                    if let btrel::tree::NodeKind::Fallback { children } = &mut t.nodes[n].kind {
+                        children.clone_from(o);
+                    }
+                }
+                t
+            })
+            .collect();
+        let end = match t_end {
+            Some(t) if t > 0.0 => t,
+            Some(_) => return Err(Failure::input("--t-end must be > 0")),
+            None => {
+                let items: Vec<(&Tree, usize, Timing)> = trees
+                    .iter()
+                    .map(|t| (t, Tree::ROOT, Timing::AsGiven))
+                    .collect();
+                let h = btrel::plot::default_horizon(&items, options.method);
+                match deadline {
+                    Some(d) if d * 1.1 > h => btrel::plot::nice_ceil(d * 1.1),
+                    _ => h,
+                }
+            }
+        };
         let times: Vec<f64> = (0..=200).map(|k| end * k as f64 / 200.0).collect();
         let curve_options = CurveOptions {
             method: options.method,
             ..CurveOptions::default()
         };
         let mut rows = Vec::new();
-        for c in &top {
-            let mut t = tree.clone();
-            for (&n, o) in cmp.nodes.iter().zip(&c.orders) {
-                if let btrel::tree::NodeKind::Fallback { children } = &mut t.nodes[n].kind {
-                    children.clone_from(o);
-                }
-            }
-            let points = btrel::curve::curve(&t, Tree::ROOT, &times, &curve_options)
+        for (c, t) in top.iter().zip(&trees) {
+            let points = btrel::curve::curve(t, Tree::ROOT, &times, &curve_options)
                 .map_err(Failure::analysis)?;
             rows.push((ranking::label(&tree, &cmp, c), points));
         }

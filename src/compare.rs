@@ -350,6 +350,8 @@ impl Space {
 }
 
 type Scored = (f64, u64, Candidate);
+/// A chunk's kept candidates and the given ordering if the chunk had it.
+type Chunk = (Vec<Scored>, Option<Scored>);
 
 fn prune(objective: Objective, kept: &mut Vec<Scored>, keep: usize) {
     kept.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
@@ -370,11 +372,11 @@ fn exhaustive(
     objective: Objective,
     keep: usize,
     progress: &(dyn Fn(u64, u64) + Sync),
-) -> Result<(Vec<Scored>, Option<Scored>), CompareError> {
+) -> Result<Chunk, CompareError> {
     let threads = rayon::current_num_threads().max(1) as u64;
     let chunks = (threads * 8).min(total).max(1);
     let done = AtomicU64::new(0);
-    let parts: Vec<Result<(Vec<Scored>, Option<Scored>), CompareError>> = (0..chunks)
+    let parts: Vec<Result<Chunk, CompareError>> = (0..chunks)
         .into_par_iter()
         .map(|k| {
             let (lo, hi) = (total * k / chunks, total * (k + 1) / chunks);

@@ -384,7 +384,7 @@ pub fn time_scale(tree: &Tree, node: NodeId) -> f64 {
 
 /// `x` rounded up to 1, 1.2, 1.5, 2, 2.5, 3, 4, 5, 6 or 8 times a power of 10.
 pub fn nice_ceil(x: f64) -> f64 {
-    if !(x > 0.0) || !x.is_finite() {
+    if !(x.is_finite() && x > 0.0) {
         return 1.0;
     }
     let p = 10f64.powf(x.log10().floor());
@@ -419,7 +419,7 @@ pub fn default_horizon(items: &[(&Tree, NodeId, Timing)], method: Method) -> f64
             Some(f) => f.mtts.unwrap_or(0.0).max(f.mttf.unwrap_or(0.0)),
             None => time_scale(tree, node),
         };
-        if !(scale > 0.0) || !scale.is_finite() {
+        if !(scale.is_finite() && scale > 0.0) {
             continue;
         }
         // scale · 1.1^k, k = -24..=160 (1.1^160 ≈ 4e6)

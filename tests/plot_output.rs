@@ -121,6 +121,17 @@ fn unknown_extensions_are_refused_and_svg_is_svg() {
         assert!(err.contains(".svg") && err.contains(".png"), "{err}");
         assert!(!path.exists());
     }
+    let path = dir.path().join("noext");
+    let (code, _, err) = btrel(&[
+        "plot",
+        "trees/search-and-grasp.yaml",
+        "-o",
+        path.to_str().unwrap(),
+        "--format",
+        "png",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(&std::fs::read(&path).unwrap()[..8], b"\x89PNG\r\n\x1a\n");
     let path = dir.path().join("X.SVG");
     let (code, _, err) = btrel(&[
         "plot",

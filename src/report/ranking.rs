@@ -59,11 +59,18 @@ fn width(s: &str) -> usize {
     textwrap::core::display_width(s)
 }
 
+/// Joins words that [`wrap_prose`] keeps on one line (printed as a space).
+const NBSP: char = '\u{a0}';
+
+fn unbreakable(s: &str) -> String {
+    s.replace(' ', &NBSP.to_string())
+}
+
 /// Wraps prose to `TABLE_WIDTH`, continuation lines indented by two.
 fn wrap_prose(text: &str, out: &mut dyn Write) -> io::Result<()> {
     let options = textwrap::Options::new(TABLE_WIDTH).subsequent_indent("  ");
     for line in textwrap::wrap(text, options) {
-        writeln!(out, "{line}")?;
+        writeln!(out, "{}", line.replace(NBSP, " "))?;
     }
     Ok(())
 }
@@ -152,10 +159,10 @@ fn shown(cmp: &Comparison, k: usize) -> impl Iterator<Item = &Candidate> {
 /// whose order differs from the given one are listed. Tied ranks are
 /// marked `=`.
 pub fn write_table(tree: &Tree, cmp: &Comparison, k: usize, out: &mut dyn Write) -> io::Result<()> {
-    let names: Vec<&str> = cmp
+    let names: Vec<String> = cmp
         .nodes
         .iter()
-        .map(|&n| tree.node(n).name.as_str())
+        .map(|&n| unbreakable(&tree.node(n).name))
         .collect();
     let title = tree
         .title
@@ -190,7 +197,12 @@ pub fn write_table(tree: &Tree, cmp: &Comparison, k: usize, out: &mut dyn Write)
     let what = if names.len() == 1 {
         format!("'{}'", names[0])
     } else {
-        format!("{} Fallbacks ({})", names.len(), names.join(", "))
+        let list = if names.len() > 4 {
+            format!("{}, {}, …, {}", names[0], names[1], names[names.len() - 1])
+        } else {
+            names.join(", ")
+        };
+        format!("{} Fallbacks ({list})", names.len())
     };
     wrap_prose(
         &format!(
