@@ -883,7 +883,7 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
                 ..btrel::compare::CompareOptions::default()
             },
         )
-        .map_err(compare_failure)?;
+        .map_err(|e| compare_failure(e, true))?;
         for n in &cmp.notes {
             eprintln!("note: {n}");
         }
@@ -1161,7 +1161,7 @@ fn compare(args: CompareArgs) -> Result<(), Failure> {
     if let Some(b) = &bar {
         b.finish_and_clear();
     }
-    let cmp = result.map_err(compare_failure)?;
+    let cmp = result.map_err(|e| compare_failure(e, false))?;
     if matches!(
         cmp.search,
         btrel::compare::Search::OrderingRule | btrel::compare::Search::LocalSearch
@@ -1242,11 +1242,14 @@ fn compare(args: CompareArgs) -> Result<(), Failure> {
 }
 
 /// A failed comparison, with the CLI's advice.
-fn compare_failure(e: btrel::compare::CompareError) -> Failure {
+fn compare_failure(e: btrel::compare::CompareError, plot: bool) -> Failure {
     use btrel::compare::CompareError;
     match e {
         CompareError::Analysis(a) => Failure::analysis(a),
         CompareError::NeedsDeadline => Failure::input("--by success-by needs --deadline T"),
+        other @ CompareError::NotReorderable(..) if plot => {
+            Failure::input(format!("{other}: give a Fallback with --compare"))
+        }
         other @ CompareError::NotReorderable(..) => Failure::input(format!(
             "{other}: give a Fallback with --node, or omit --node to reorder every Fallback"
         )),

@@ -350,8 +350,9 @@ impl Space {
 }
 
 type Scored = (f64, u64, Candidate);
-/// A chunk's kept candidates and the given ordering if the chunk had it.
-type Chunk = (Vec<Scored>, Option<Scored>);
+/// A chunk's kept candidates, the given ordering if the chunk had it, and
+/// how many of its candidates are better than / tied with the given one.
+type Chunk = (Vec<Scored>, Option<Scored>, u64, u64);
 
 fn prune(objective: Objective, kept: &mut Vec<Scored>, keep: usize) {
     kept.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
@@ -371,6 +372,7 @@ fn exhaustive(
     total: u64,
     objective: Objective,
     keep: usize,
+    given_value: f64,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<Chunk, CompareError> {
     let threads = rayon::current_num_threads().max(1) as u64;
@@ -383,6 +385,7 @@ fn exhaustive(
             let mut ev = ev.clone();
             let mut kept: Vec<Scored> = Vec::new();
             let mut given = None;
+            let (mut better, mut tied) = (0u64, 0u64);
             let mut digits = space.digits(lo);
             for (h, &d) in digits.iter().enumerate() {
                 let o = space.order(h, d);
@@ -414,6 +417,10 @@ fn exhaustive(
                 let v = objective_value(objective, &c);
                 if index == 0 {
                     given = Some((v, index, c.clone()));
+                } else if ties(objective, v, given_value) {
+                    tied += 1;
+                } else if v < given_value {
+                    better += 1;
                 }
                 kept.push((v, index, c));
                 if kept.len() >= 2 * keep.max(16) {
@@ -427,18 +434,21 @@ fn exhaustive(
                 }
             }
             prune(objective, &mut kept, keep);
-            Ok((kept, given))
+            Ok((kept, given, better, tied))
         })
         .collect();
     let mut all = Vec::new();
     let mut given = None;
+    let (mut better, mut tied) = (0, 0);
     for p in parts {
-        let (kept, g) = p?;
+        let (kept, g, b, t) = p?;
         all.extend(kept);
         given = given.or(g);
+        better += b;
+        tied += t;
     }
     prune(objective, &mut all, keep);
-    Ok((all, given))
+    Ok((all, given, better, tied))
 }
 
 /// Compares the orderings of the chosen Fallback nodes' children.
@@ -577,16 +587,28 @@ pub fn compare_with_progress(
     };
     let keep = options.keep.max(1);
 
+    let mut given_rank: Option<(u64, bool)> = None;
     let (search, proven_optimal, evaluated, mut scored) = if space <= budget.limit as f64 {
         let sp = Space {
             perms: sizes.iter().map(|&k| permutations(k)).collect(),
             originals: nodes.iter().map(|&n| ev.children(n)).collect(),
         };
         let total = space as u64;
-        let (kept, g) = exhaustive(&ev, &nodes, &sp, total, objective, keep, progress)?;
+        let given_value = objective_value(objective, &given);
+        let (kept, g, better, tied) = exhaustive(
+            &ev,
+            &nodes,
+            &sp,
+            total,
+            objective,
+            keep,
+            given_value,
+            progress,
+        )?;
         if let Some(g) = g {
             given = g.2;
         }
+        given_rank = Some((better + 1, tied > 0));
         (Search::Exhaustive, true, total, kept)
     } else {
         let (reason, advice) = if budget.explicit {
@@ -732,11 +754,12 @@ pub fn compare_with_progress(
         }
         start = end;
     }
-    let given_value = objective_value(objective, &given);
     if !candidates.iter().any(|c| c.given) {
-        // exhaustive with the given ordering beyond the kept ones
-        let better = count_better(&scored, objective, given_value);
-        given.rank = better + 1;
+        // exhaustive with the given ordering beyond the kept ones: its rank
+        // was counted during the enumeration
+        let (rank, tied) = given_rank.unwrap_or((scored.len() as u64 + 1, false));
+        given.rank = rank;
+        given.tied = tied;
         given.given = true;
         candidates.push(given);
     }
@@ -758,14 +781,6 @@ pub fn compare_with_progress(
         candidates,
         notes,
     })
-}
-
-/// A lower bound of the given ordering's rank when it is not among the kept
-/// candidates: every kept candidate is better.
-fn count_better(kept: &[Scored], objective: Objective, given: f64) -> u64 {
-    kept.iter()
-        .filter(|s| s.0 < given && !ties(objective, s.0, given))
-        .count() as u64
 }
 
 /// `65,536`, or `2.1e+13` beyond a trillion.

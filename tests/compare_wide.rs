@@ -226,6 +226,14 @@ fn csv_rows_follow_the_table_with_the_given_ordering() {
             })
             .collect();
         assert_eq!(table_ranks(&table), rows, "{table}\n{csv}");
+        // the given ordering's rank does not depend on how many rows are shown
+        let mut all_args = args.clone();
+        let k = all_args.iter().position(|a| *a == "--top").unwrap();
+        all_args[k + 1] = "1000";
+        let (_, all, _) = btrel(&all_args);
+        let all_ranks = table_ranks(&all);
+        let given_rank = |r: &[(String, bool)]| r.iter().find(|x| x.1).unwrap().0.clone();
+        assert_eq!(given_rank(&rows), given_rank(&all_ranks), "{all}");
         assert!(rows.iter().any(|r| r.1), "the given ordering is listed");
     }
 }
