@@ -20,8 +20,8 @@
 //! When the series form several overlays (line styles or marker shapes)
 //! with the three probabilities each, the legend is compact: one entry per
 //! colour and one per overlay; otherwise one entry per series. It is placed
-//! in the corner of the plot where it covers the least data, or to the right
-//! of the plot if every corner would hide some.
+//! in a corner of the plot where it covers no data, else to the right of the
+//! plot, else below it.
 //!
 //! ```
 //! use btrel::plot::{render_svg, PlotSpec, Series, SeriesKind, Style};
@@ -135,15 +135,26 @@ pub enum Style {
     Dotted,
     /// A dash-dot line.
     DashDot,
+    /// A long-dashed line.
+    LongDash,
+    /// A dash-dot-dot line.
+    DashDotDot,
     /// A marker at each point, no line (Monte Carlo estimates).
     Markers(Marker),
 }
 
 impl Style {
     /// Line style of the `i`-th overlay: solid, dashed, dotted, dash-dot,
-    /// then again.
+    /// long-dashed, dash-dot-dot, then again.
     pub fn overlay(i: usize) -> Style {
-        [Style::Solid, Style::Dashed, Style::Dotted, Style::DashDot][i % 4]
+        [
+            Style::Solid,
+            Style::Dashed,
+            Style::Dotted,
+            Style::DashDot,
+            Style::LongDash,
+            Style::DashDotDot,
+        ][i % 6]
     }
 
     /// Dash pattern of a line style in output pixels, as in SVG
@@ -153,6 +164,8 @@ impl Style {
             Style::Dashed => Some("10 6"),
             Style::Dotted => Some("2 5"),
             Style::DashDot => Some("12 5 2 5"),
+            Style::LongDash => Some("20 6"),
+            Style::DashDotDot => Some("12 4 2 4 2 4"),
             Style::Solid | Style::Markers(_) => None,
         }
     }
@@ -173,6 +186,8 @@ impl Style {
             Style::Dashed => Some("0.998"),
             Style::Dotted => Some("0.997"),
             Style::DashDot => Some("0.996"),
+            Style::LongDash => Some("0.995"),
+            Style::DashDotDot => Some("0.994"),
             Style::Solid | Style::Markers(_) => None,
         }
     }
@@ -557,9 +572,8 @@ fn layout(spec: &PlotSpec, series: &[Vec<(f64, f64)>]) -> Result<Placement, Plot
     } else if legend.w + 2 * S * LEGEND_INSET <= S * spec.width as i32 * 2 / 5 && legend.h <= plot_h
     {
         Placement::Right
-    } else if fits_inside {
-        Placement::Inside
     } else {
+        // a legend that would hide data goes below the plot
         Placement::Below
     })
 }
@@ -581,8 +595,7 @@ fn backend_size(spec: &PlotSpec, legend: &Legend, placement: Placement) -> (u32,
 ///
 /// The legend goes in the corner of the plot where it hides no data; if every
 /// corner would hide some, to the right of the plot; if it is too wide for
-/// that, in the least crowded corner; and if it does not fit in the plot at
-/// all (many or very long labels), in columns below the plot, the image
+/// that (many or very long labels), in columns below the plot, the image
 /// growing taller to hold it.
 ///
 /// Errors: no series, an image smaller than [`MIN_WIDTH`] × [`MIN_HEIGHT`]
@@ -663,7 +676,13 @@ fn finish(mut svg: String) -> String {
             }
         }
     }
-    for style in [Style::Dashed, Style::Dotted, Style::DashDot] {
+    for style in [
+        Style::Dashed,
+        Style::Dotted,
+        Style::DashDot,
+        Style::LongDash,
+        Style::DashDotDot,
+    ] {
         let tag = format!("opacity=\"{}\"", style.opacity_tag().expect("dashed"));
         let dashes: Vec<String> = style
             .dashes()

@@ -332,7 +332,7 @@ fn overlays_keep_colours_and_differ_by_dashes() {
         assert!(texts.contains(&format!("overlay {i}")));
     }
     assert_eq!(Style::overlay(0), Style::Solid);
-    assert_eq!(Style::overlay(5), Style::Dashed);
+    assert_eq!(Style::overlay(7), Style::Dashed);
 }
 
 #[test]
