@@ -344,3 +344,24 @@ fn prism_numbers_round_trip_in_prism_syntax() {
         assert!(PRISM_PROPERTIES.contains(p));
     }
 }
+
+#[test]
+fn dot_control_nodes_are_compact_boxes_not_squares() {
+    // a `square` grows to its label's width in both directions
+    let tree =
+        btrel::tree::parse_file(std::path::Path::new("trees/search-and-grasp.yaml")).unwrap();
+    let dot = btrel::export::dot_tree(&tree, None);
+    assert!(
+        !dot.contains("shape=square") && !dot.contains("shape=diamond"),
+        "{dot}"
+    );
+    let control = dot
+        .lines()
+        .filter(|l| l.contains("label=\"?\\n") || l.contains("label=\"→\\n"))
+        .count();
+    assert_eq!(control, 5, "{dot}");
+    assert!(dot
+        .lines()
+        .filter(|l| l.contains("label=\"?\\n") || l.contains("label=\"→\\n"))
+        .all(|l| l.contains("shape=box, style=\"rounded,filled\"")));
+}
