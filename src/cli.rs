@@ -119,7 +119,7 @@ enum Command {
     /// Export the tree or a node's MRG as Graphviz DOT, or a node's exact CTMC for PRISM.
     #[command(after_help = EXPORT_EXAMPLES)]
     Export(ExportArgs),
-    /// Plot Success/Failure/Running over time as SVG (Figs. 9.18–9.22).
+    /// Plot Success/Failure/Running over time as SVG or PNG (Figs. 9.18–9.22).
     #[command(after_help = PLOT_EXAMPLES)]
     Plot(PlotArgs),
     /// Validate a tree file without analysing it.
@@ -222,7 +222,11 @@ Examples:
   btrel compare trees/search-and-grasp.xml --params trees/search-and-grasp.params.yaml --node search
 
 Without --node every Fallback is reordered (the product of their permutations).
-Default objective: success-by with --deadline, else mean-time.";
+Default objective: success-by with --deadline, else mean-time. Orderings are enumerated
+exhaustively when that fits the budget (about 2 s of estimated work, or --max-candidates N);
+beyond it, the exact ordering rule ps/E[T] (mean time; refined by a local search under a
+Parallel) or a local search answers. The output says which search was used and whether the
+best is proven optimal.";
 
 #[derive(clap::Args)]
 struct CompareArgs {
@@ -249,12 +253,13 @@ struct CompareArgs {
     /// Also write the root's π(t) of the top K orderings to this CSV file.
     #[arg(long, value_name = "FILE")]
     curves: Option<PathBuf>,
-    /// Horizon (s) of --curves (default: 3 × the largest mean time shown).
+    /// Horizon (s) of --curves (default: where the curves have settled, as in `plot`).
     #[arg(long, value_name = "T", allow_hyphen_values = true)]
     t_end: Option<String>,
-    /// Largest number of orderings enumerated exhaustively.
-    #[arg(long, value_name = "N", default_value_t = btrel::compare::DEFAULT_MAX_CANDIDATES)]
-    max_candidates: usize,
+    /// Enumerate every ordering when there are at most N (default: as many as about
+    /// 2 s of estimated work allow, at most 100000); beyond, the ordering rule / local search.
+    #[arg(long, value_name = "N")]
+    max_candidates: Option<usize>,
     /// Largest chain (number of states) an exact analysis may build.
     #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_STATES)]
     max_states: usize,
@@ -285,6 +290,7 @@ For a simulated curve as CSV use `btrel curve --mc N`.";
 const PLOT_EXAMPLES: &str = "\
 Examples:
   btrel plot trees/search-and-grasp.yaml -o sg.svg --mc 1e5                 # Fig. 9.18
+  btrel plot trees/search-and-grasp.yaml -o sg.png --mc 1e5                 # the same as PNG
   btrel plot trees/search-and-grasp.yaml -o nodes.svg --node search --node grasp
   btrel plot trees/search-and-grasp.yaml -o det.svg --timing both           # Fig. 9.20
   btrel plot trees/search-and-grasp.yaml -o order.svg --compare search --deadline 100   # Fig. 9.22
@@ -304,13 +310,17 @@ enum PlotTiming {
 struct PlotArgs {
     /// The tree: YAML, or BehaviorTree.CPP v4 XML (.xml; actions' parameters from --params); - reads standard input.
     tree: PathBuf,
-    /// The SVG file to write (atomically); - writes to standard output.
-    #[arg(short, long, value_name = "FILE.svg")]
+    /// The image to write (atomically): FILE.svg or FILE.png; - writes SVG (or
+    /// --format png) to standard output.
+    #[arg(short, long, value_name = "FILE.svg|FILE.png")]
     output: PathBuf,
+    /// Image format; default: from the extension of -o (.svg or .png).
+    #[arg(long, value_enum)]
+    format: Option<ImageFormatArg>,
     /// Node to plot, by name or path (repeatable); default: the root.
     #[arg(long = "node", value_name = "NAME", conflicts_with = "compare")]
     nodes: Vec<String>,
-    /// Horizon (s); default: 3 × the largest mean time plotted.
+    /// Horizon (s); default: where every curve has settled (running below 1e-3), rounded up.
     #[arg(long, value_name = "T", allow_hyphen_values = true)]
     t_end: Option<String>,
     /// Points of each curve.
@@ -327,13 +337,8 @@ struct PlotArgs {
     /// Overlay the best orderings of this Fallback's children (with --deadline: by success by then).
     #[arg(long, value_name = "NODE")]
     compare: Option<String>,
-    /// Deadline (s) ranking the orderings of --compare.
-    #[arg(
-        long,
-        value_name = "T",
-        allow_hyphen_values = true,
-        requires = "compare"
-    )]
+    /// Deadline (s): drawn as a marker; ranks the orderings of --compare.
+    #[arg(long, value_name = "T", allow_hyphen_values = true)]
     deadline: Option<String>,
     /// How many orderings --compare overlays.
     #[arg(long, value_name = "K", default_value_t = 2, requires = "compare")]
@@ -603,6 +608,9 @@ fn analysis_failure(cmd: Cmd, method: Method) -> impl Fn(AnalysisError) -> Failu
             AnalysisError::Unbounded { .. } => fixes.push(simulate),
             AnalysisError::Numerical { .. } | AnalysisError::NeverReturns { .. } => {}
         }
+        if cmd == Cmd::Plot && !matches!(e, AnalysisError::NeverReturns { .. }) {
+            fixes.push("`--mc N` (plot a simulation alone)".to_string());
+        }
         let mut message = e.to_string();
         if !fixes.is_empty() {
             message.push_str(&format!("\n  help: instead use {}", or_list(&fixes)));
@@ -635,7 +643,6 @@ fn compare_failure(cmd: Cmd, method: Method) -> impl Fn(btrel::compare::CompareE
         CompareError::NeedsDeadline => {
             Failure::input("--by success-by needs a deadline: add --deadline T")
         }
-        other => Failure::input(other),
     }
     }
 }
@@ -1149,8 +1156,73 @@ fn curve(args: CurveArgs) -> Result<(), Failure> {
     })
 }
 
+/// The image format of a plot's output file.
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum ImageFormatArg {
+    Svg,
+    Png,
+}
+use ImageFormatArg as ImageFormat;
+
+fn image_format(path: &Path, given: Option<ImageFormat>) -> Result<ImageFormat, Failure> {
+    if let Some(f) = given {
+        return Ok(f);
+    }
+    // standard output: SVG unless --format says otherwise
+    if path == Path::new("-") {
+        return Ok(ImageFormat::Svg);
+    }
+    match path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+        .as_deref()
+    {
+        Some("svg") => Ok(ImageFormat::Svg),
+        Some("png") => Ok(ImageFormat::Png),
+        other => Err(Failure::input(format!(
+            "-o {}: {}; btrel writes SVG and PNG images: name the file *.svg or *.png, \
+             or give --format svg|png",
+            path.display(),
+            match other {
+                Some(e) => format!("unknown image format '.{e}'"),
+                None => "the file name has no extension".to_string(),
+            }
+        ))),
+    }
+}
+
+/// Timing of the actions of a node's subtree: all exponential, all fixed,
+/// or a mixture.
+fn subtree_timing(tree: &Tree, node: usize) -> (&'static str, bool) {
+    use btrel::tree::{Duration, NodeKind};
+    let (mut random, mut fixed) = (false, false);
+    let mut stack = vec![node];
+    while let Some(id) = stack.pop() {
+        let n = tree.node(id);
+        if let NodeKind::Action(a) = &n.kind {
+            for (d, p) in [(a.success, a.ps), (a.failure, a.pf)] {
+                match d {
+                    Some(Duration::Fixed { .. }) if p > 0.0 => fixed = true,
+                    Some(_) if p > 0.0 => random = true,
+                    _ => {}
+                }
+            }
+        }
+        stack.extend_from_slice(n.kind.children());
+    }
+    match (random, fixed) {
+        (true, false) => ("stochastic", false),
+        (false, _) => ("deterministic (as given)", true),
+        (true, true) => ("as given", false),
+    }
+}
+
 fn plot(args: PlotArgs) -> Result<(), Failure> {
-    use btrel::plot::{curve_series, mc_series, render_svg, PlotSpec, Series, Style};
+    use btrel::plot::{
+        curve_series, default_horizon, mc_series, render_png, render_svg, Marker, PlotSpec, Series,
+        Style, VerticalMarker,
+    };
     if args.points < 2 || args.points > 100_000 {
         return Err(Failure::input("--points must be between 2 and 100000"));
     }
@@ -1165,6 +1237,7 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
     let t_end = optional_time("--t-end", &args.t_end)?;
     let deadline = optional_time("--deadline", &args.deadline)?;
     let mc = optional_count("--mc", &args.mc)?;
+    let format = image_format(&args.output, args.format)?;
     let tree = load(&args.tree)?;
     let nodes = if args.nodes.is_empty() {
         vec![Tree::ROOT]
@@ -1187,10 +1260,14 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
                 deadline,
                 method: base.method,
                 max_states: args.max_states,
+                keep: args.top,
                 ..btrel::compare::CompareOptions::default()
             },
         )
         .map_err(compare_failure(Cmd::Plot, base.method))?;
+        for n in &cmp.notes {
+            eprintln!("note: {n}");
+        }
         // the top K orderings, and the given one (as in Fig. 9.22)
         let shown: Vec<_> = cmp
             .candidates
@@ -1219,28 +1296,32 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
             } else {
                 String::new()
             };
-            let timings: &[(Timing, &str)] = match args.timing {
-                PlotTiming::AsGiven => &[(Timing::AsGiven, "")],
-                PlotTiming::Deterministic => &[(Timing::Deterministic, "deterministic")],
-                PlotTiming::Both => &[
-                    (Timing::AsGiven, "stochastic"),
-                    (Timing::Deterministic, "deterministic"),
+            let (as_given, all_fixed) = subtree_timing(&tree, id);
+            let timings: Vec<(Timing, &str)> = match args.timing {
+                PlotTiming::AsGiven => vec![(Timing::AsGiven, "")],
+                PlotTiming::Deterministic => vec![(Timing::Deterministic, "deterministic")],
+                PlotTiming::Both if all_fixed => {
+                    eprintln!(
+                        "note: every action of '{}' has fixed times already: --timing both \
+                         draws one set of curves",
+                        tree.node(id).name
+                    );
+                    vec![(Timing::AsGiven, as_given)]
+                }
+                PlotTiming::Both => vec![
+                    (Timing::AsGiven, as_given),
+                    (Timing::Deterministic, "deterministic (τ = 1/rate)"),
                 ],
             };
-            for (j, &(timing, what)) in timings.iter().enumerate() {
+            let k = timings.len();
+            for (j, (timing, what)) in timings.into_iter().enumerate() {
                 let label = [name.as_str(), what]
                     .iter()
                     .filter(|x| !x.is_empty())
                     .copied()
                     .collect::<Vec<_>>()
                     .join(", ");
-                drawn.push((
-                    label,
-                    tree.clone(),
-                    id,
-                    Style::overlay(i * timings.len() + j),
-                    timing,
-                ));
+                drawn.push((label, tree.clone(), id, Style::overlay(i * k + j), timing));
             }
         }
     }
@@ -1248,73 +1329,99 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
         Some(t) if t > 0.0 => t,
         Some(_) => return Err(Failure::input("--t-end must be > 0")),
         None => {
-            let longest = drawn
+            let items: Vec<(&Tree, usize, Timing)> = drawn
                 .iter()
-                .map(|(_, t, id, _, _)| {
-                    analyze(
-                        t,
-                        &Options {
-                            method: base.method,
-                            max_states: args.max_states,
-                        },
-                    )
-                    .map(|a| a.nodes[*id].mean_time())
-                    .unwrap_or(0.0)
-                })
-                .fold(0.0, f64::max);
-            deadline.unwrap_or(0.0).max(3.0 * longest).max(1e-9)
+                .map(|(_, t, id, _, tm)| (t, *id, *tm))
+                .collect();
+            let h = default_horizon(&items, base.method);
+            match deadline {
+                Some(d) if d * 1.1 > h => btrel::plot::nice_ceil(d * 1.1),
+                _ => h,
+            }
         }
     };
     let times: Vec<f64> = (0..args.points)
         .map(|k| end * k as f64 / (args.points - 1) as f64)
         .collect();
     let mut series: Vec<Series> = Vec::new();
+    let mut exact_drawn = false;
     for (label, t, id, style, timing) in &drawn {
         let options = CurveOptions {
             timing: *timing,
             ..base
         };
-        let points = btrel::curve::curve(t, *id, &times, &options)
-            .map_err(analysis_failure(Cmd::Plot, base.method))?;
-        series.extend(curve_series(label, &points, *style));
+        match btrel::curve::curve(t, *id, &times, &options) {
+            Ok(points) => {
+                exact_drawn = true;
+                series.extend(curve_series(label, &points, *style))
+            }
+            Err(e) if mc.is_some() => eprintln!(
+                "note: no exact curves for '{}' ({e}); plotting the simulation only",
+                t.node(*id).name
+            ),
+            Err(e) => {
+                let mut f = analysis_failure(Cmd::Plot, base.method)(e);
+                f.message = format!(
+                    "cannot plot the exact curves of '{}': {}",
+                    t.node(*id).name,
+                    f.message
+                );
+                return Err(f);
+            }
+        }
     }
     if let Some(runs) = mc {
         let mc_times: Vec<f64> = (0..41).map(|k| end * k as f64 / 40.0).collect();
         let o = sim_options(&args.sim.sim(), runs, mc_times, false)?;
+        let mut i = 0;
         for (label, t, id, _, timing) in &drawn {
             if *timing == Timing::Deterministic {
                 continue;
             }
             let r = run_simulation(t, *id, &o)?;
             let prefix = if label.is_empty() {
-                "Monte Carlo".to_string()
+                format!(
+                    "Monte Carlo, {} runs",
+                    btrel::compare::count_text(runs as f64)
+                )
             } else {
                 format!("{label}, Monte Carlo")
             };
-            series.extend(mc_series(&prefix, &r.curve));
+            series.extend(mc_series(&prefix, &r.curve, Marker::overlay(i)));
+            i += 1;
         }
     }
+    let tree_title = tree
+        .title
+        .clone()
+        .unwrap_or_else(|| tree.nodes[0].name.clone());
     let title = match (&args.compare, deadline) {
         (Some(n), Some(d)) => format!(
-            "{}: orderings of '{n}' (best by P(success by {} s) first)",
-            tree.title
-                .clone()
-                .unwrap_or_else(|| tree.nodes[0].name.clone()),
+            "{tree_title}: orderings of '{n}', best by P(success by {} s) first",
             full(d)
         ),
-        (Some(n), None) => format!(
-            "{}: orderings of '{n}' (best by mean time first)",
-            tree.title
-                .clone()
-                .unwrap_or_else(|| tree.nodes[0].name.clone())
-        ),
+        (Some(n), None) => format!("{tree_title}: orderings of '{n}', best by mean time first"),
         _ => {
             let names: Vec<&str> = nodes.iter().map(|&n| tree.node(n).name.as_str()).collect();
-            format!("{} — {} method", names.join(", "), base.method.name())
+            if exact_drawn {
+                format!("{} — {} method", names.join(", "), base.method.name())
+            } else {
+                format!("{} — Monte Carlo only", names.join(", "))
+            }
         }
     };
-    let svg = render_svg(&PlotSpec::new(title, series)).map_err(Failure::analysis)?;
-    emit(Some(&args.output), |out| out.write_all(svg.as_bytes()))
+    let mut spec = PlotSpec::new(title, series);
+    if let Some(d) = deadline {
+        spec.markers.push(VerticalMarker {
+            t: d,
+            label: format!("deadline {} s", full(d)),
+        });
+    }
+    let bytes = match format {
+        ImageFormat::Svg => render_svg(&spec).map_err(Failure::analysis)?.into_bytes(),
+        ImageFormat::Png => render_png(&spec).map_err(Failure::analysis)?,
+    };
+    emit(Some(&args.output), |out| out.write_all(&bytes))
 }
 
 fn export(args: ExportArgs) -> Result<(), Failure> {
@@ -1491,6 +1598,7 @@ fn find_nodes(tree: &Tree, names: &[String], file: &Path) -> Result<Vec<usize>, 
 fn compare(args: CompareArgs) -> Result<(), Failure> {
     use btrel::compare::{CompareOptions, Objective};
     use btrel::report::ranking;
+    use std::io::IsTerminal;
     let deadline = optional_time("--deadline", &args.deadline)?;
     let t_end = optional_time("--t-end", &args.t_end)?;
     if args.top == 0 {
@@ -1509,34 +1617,85 @@ fn compare(args: CompareArgs) -> Result<(), Failure> {
         deadline,
         method: method(args.method),
         max_candidates: args.max_candidates,
+        keep: args.top,
         ..CompareOptions::default()
     };
     options.max_states = args.max_states;
-    let cmp = btrel::compare::compare(&tree, &options)
-        .map_err(compare_failure(Cmd::Compare, options.method))?;
+    let bar = io::stderr().is_terminal().then(|| {
+        let b = indicatif::ProgressBar::hidden();
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "comparing {bar:40} {pos}/{len} orderings ({eta} left)",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        b
+    });
+    let started = std::time::Instant::now();
+    let progress = |done: u64, total: u64| {
+        if let Some(b) = &bar {
+            // only for runs long enough to watch
+            if b.is_hidden() && started.elapsed().as_secs_f64() > 0.5 && done < total {
+                b.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+            }
+            b.set_length(total);
+            b.set_position(done);
+        }
+    };
+    let result = btrel::compare::compare_with_progress(&tree, &options, &progress);
+    if let Some(b) = &bar {
+        b.finish_and_clear();
+    }
+    let cmp = result.map_err(compare_failure(Cmd::Compare, options.method))?;
+    if matches!(
+        cmp.search,
+        btrel::compare::Search::OrderingRule | btrel::compare::Search::LocalSearch
+    ) && cmp.space < 1e15
+    {
+        eprintln!(
+            "note: `--max-candidates {}` enumerates all {} orderings (estimated {})",
+            cmp.space as u64,
+            btrel::compare::count_text(cmp.space),
+            btrel::compare::duration_text(cmp.budget.estimate(cmp.space))
+        );
+    }
     if let Some(path) = &args.curves {
         let top: Vec<_> = cmp.candidates.iter().take(args.top).collect();
-        let end = t_end.unwrap_or_else(|| {
-            3.0 * top
-                .iter()
-                .map(|c| c.root.mean_time())
-                .fold(0.0, f64::max)
-                .max(1e-9)
-        });
+        let trees: Vec<Tree> = top
+            .iter()
+            .map(|c| {
+                let mut t = tree.clone();
+                for (&n, o) in cmp.nodes.iter().zip(&c.orders) {
+                    if let btrel::tree::NodeKind::Fallback { children } = &mut t.nodes[n].kind {
+                        children.clone_from(o);
+                    }
+                }
+                t
+            })
+            .collect();
+        let end = match t_end {
+            Some(t) if t > 0.0 => t,
+            Some(_) => return Err(Failure::input("--t-end must be > 0")),
+            None => {
+                let items: Vec<(&Tree, usize, Timing)> = trees
+                    .iter()
+                    .map(|t| (t, Tree::ROOT, Timing::AsGiven))
+                    .collect();
+                let h = btrel::plot::default_horizon(&items, options.method);
+                match deadline {
+                    Some(d) if d * 1.1 > h => btrel::plot::nice_ceil(d * 1.1),
+                    _ => h,
+                }
+            }
+        };
         let times: Vec<f64> = (0..=200).map(|k| end * k as f64 / 200.0).collect();
         let curve_options = CurveOptions {
             method: options.method,
             ..CurveOptions::default()
         };
         let mut rows = Vec::new();
-        for c in &top {
-            let mut t = tree.clone();
-            for (&n, o) in cmp.nodes.iter().zip(&c.orders) {
-                if let btrel::tree::NodeKind::Fallback { children } = &mut t.nodes[n].kind {
-                    children.clone_from(o);
-                }
-            }
-            let points = btrel::curve::curve(&t, Tree::ROOT, &times, &curve_options)
+        for (c, t) in top.iter().zip(&trees) {
+            let points = btrel::curve::curve(t, Tree::ROOT, &times, &curve_options)
                 .map_err(analysis_failure(Cmd::Compare, options.method))?;
             rows.push((ranking::label(&tree, &cmp, c), points));
         }

@@ -34,6 +34,11 @@
 //! is globally optimal. Under a Parallel the mean time is not linear in the
 //! children's means, and the rule is then reported as not proven.
 
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Instant;
+
+use rayon::prelude::*;
+
 use crate::compile::{self, analyze, AnalysisError, Figures, Method};
 use crate::curve::{curve, CurveOptions};
 use crate::tree::{NodeId, NodeKind, Tree};
@@ -72,6 +77,8 @@ pub enum Search {
     OrderingRule,
     /// Local search from the ordering rule.
     LocalSearch,
+    /// Nothing to reorder: the given ordering is the only one.
+    NothingToReorder,
 }
 
 impl Search {
@@ -81,6 +88,7 @@ impl Search {
             Search::Exhaustive => "exhaustive",
             Search::OrderingRule => "ordering rule ps/E[T]",
             Search::LocalSearch => "local search from the ordering rule",
+            Search::NothingToReorder => "none (nothing to reorder)",
         }
     }
 }
@@ -96,8 +104,13 @@ pub struct CompareOptions {
     pub deadline: Option<f64>,
     /// exact or book.
     pub method: Method,
-    /// Largest number of orderings enumerated exhaustively.
-    pub max_candidates: usize,
+    /// Largest number of orderings enumerated exhaustively. `None`: the
+    /// automatic budget — at most [`DEFAULT_MAX_CANDIDATES`], and only as
+    /// many as [`WORK_BUDGET_SECONDS`] of estimated work allow.
+    pub max_candidates: Option<usize>,
+    /// How many of the best candidates are kept (the given ordering is kept
+    /// in any case).
+    pub keep: usize,
     /// State budget of each analysis.
     pub max_states: usize,
 }
@@ -109,7 +122,8 @@ impl Default for CompareOptions {
             objective: None,
             deadline: None,
             method: Method::Exact,
-            max_candidates: DEFAULT_MAX_CANDIDATES,
+            max_candidates: None,
+            keep: 1000,
             max_states: compile::DEFAULT_MAX_STATES,
         }
     }
@@ -117,6 +131,10 @@ impl Default for CompareOptions {
 
 /// Default limit of exhaustive enumeration (8! = 40,320 fits).
 pub const DEFAULT_MAX_CANDIDATES: usize = 100_000;
+
+/// Estimated work (seconds of one core, times the number of worker
+/// threads) the automatic budget allows for exhaustive enumeration.
+pub const WORK_BUDGET_SECONDS: f64 = 2.0;
 
 /// One ordering and the root's figures under it.
 #[derive(Debug, Clone, PartialEq)]
@@ -130,6 +148,40 @@ pub struct Candidate {
     pub success_by_deadline: Option<f64>,
     /// Whether this is the ordering of the input file.
     pub given: bool,
+    /// Rank among the evaluated orderings (1 = best); tied candidates share
+    /// the rank of the first of them.
+    pub rank: u64,
+    /// Whether another evaluated ordering has the same objective value
+    /// (within [`TIE_RELATIVE`] for times, [`TIE_ABSOLUTE`] for
+    /// probabilities).
+    pub tied: bool,
+}
+
+/// Two mean times closer than this, relative, are a tie (the certified
+/// error of a counted Parallel's mean times is below 1e-9).
+pub const TIE_RELATIVE: f64 = 1e-9;
+/// Two probabilities closer than this are a tie.
+pub const TIE_ABSOLUTE: f64 = 1e-11;
+
+/// The enumeration budget that decided the search.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Budget {
+    /// Largest number of orderings enumerated exhaustively.
+    pub limit: usize,
+    /// Whether the limit was given (`max_candidates`) rather than derived
+    /// from the estimated work.
+    pub explicit: bool,
+    /// Measured time of one evaluation (s, one thread).
+    pub seconds_per_candidate: f64,
+    /// Worker threads of the exhaustive enumeration.
+    pub threads: usize,
+}
+
+impl Budget {
+    /// Estimated wall time (s) of enumerating `n` orderings.
+    pub fn estimate(&self, n: f64) -> f64 {
+        n * self.seconds_per_candidate / self.threads.max(1) as f64
+    }
 }
 
 /// A ranked comparison.
@@ -149,10 +201,14 @@ pub struct Comparison {
     pub proven_optimal: bool,
     /// Number of orderings in the full space (may be huge).
     pub space: f64,
-    /// Candidates, best first; ties keep enumeration order (the given
-    /// ordering first).
+    /// Number of orderings evaluated.
+    pub evaluated: u64,
+    /// The budget that chose the search.
+    pub budget: Budget,
+    /// Candidates, best first, at most `keep` of them plus the given
+    /// ordering; ties keep enumeration order (the given ordering first).
     pub candidates: Vec<Candidate>,
-    /// Remarks (e.g. Parallel nodes skipped).
+    /// Remarks (e.g. Parallel nodes skipped, why the search was chosen).
     pub notes: Vec<String>,
 }
 
@@ -161,27 +217,35 @@ pub struct Comparison {
 pub enum CompareError {
     /// A node that cannot be reordered.
     #[error(
-        "node '{0}' is a {1}: only the children of Fallback nodes can be reordered (Def. 9.10); \
-         give a Fallback with --node, or omit --node to reorder every Fallback"
+        "node '{0}' is a {1}: only the children of Fallback nodes can be reordered (Def. 9.10)"
     )]
     NotReorderable(String, &'static str),
-    /// Nothing to compare.
-    #[error("the tree has no Fallback node with two or more children to reorder")]
-    NothingToCompare,
     /// success-by needs a deadline.
-    #[error("--by success-by needs --deadline T")]
+    #[error("the success-by objective needs a deadline")]
     NeedsDeadline,
     /// An analysis failed.
     #[error(transparent)]
     Analysis(#[from] AnalysisError),
 }
 
-fn objective_value(objective: Objective, c: &Candidate) -> f64 {
+/// The value minimised (success-by is negated).
+pub fn objective_value(objective: Objective, c: &Candidate) -> f64 {
     match objective {
         Objective::MeanTime => c.root.mean_time(),
         Objective::Mtts => c.root.mtts.unwrap_or(f64::INFINITY),
         Objective::Mttf => c.root.mttf.unwrap_or(f64::INFINITY),
         Objective::SuccessBy => -c.success_by_deadline.unwrap_or(0.0),
+    }
+}
+
+/// Whether two objective values are a tie.
+fn ties(objective: Objective, a: f64, b: f64) -> bool {
+    if a == b {
+        return true;
+    }
+    match objective {
+        Objective::SuccessBy => (a - b).abs() <= TIE_ABSOLUTE,
+        _ => (a - b).abs() <= TIE_RELATIVE * a.abs().max(b.abs()),
     }
 }
 
@@ -200,6 +264,7 @@ fn permutations(k: usize) -> Vec<Vec<usize>> {
     }
 }
 
+#[derive(Clone)]
 struct Evaluator<'a> {
     tree: Tree,
     analysis: compile::Analysis,
@@ -251,12 +316,153 @@ impl Evaluator<'_> {
             root: self.analysis.nodes[Tree::ROOT],
             success_by_deadline,
             given,
+            rank: 0,
+            tied: false,
         })
     }
 }
 
+/// The exhaustive enumeration: orderings numbered in mixed radix (the last
+/// node fastest, identity first), evaluated in parallel chunks, each chunk
+/// keeping its best `keep`.
+struct Space {
+    perms: Vec<Vec<Vec<usize>>>,
+    originals: Vec<Vec<NodeId>>,
+}
+
+impl Space {
+    fn digits(&self, mut index: u64) -> Vec<usize> {
+        let mut d = vec![0; self.perms.len()];
+        for h in (0..self.perms.len()).rev() {
+            let r = self.perms[h].len() as u64;
+            d[h] = (index % r) as usize;
+            index /= r;
+        }
+        d
+    }
+
+    fn order(&self, h: usize, digit: usize) -> Vec<NodeId> {
+        self.perms[h][digit]
+            .iter()
+            .map(|&i| self.originals[h][i])
+            .collect()
+    }
+}
+
+type Scored = (f64, u64, Candidate);
+/// A chunk's kept candidates, the given ordering if the chunk had it, and
+/// how many of its candidates are better than / tied with the given one.
+type Chunk = (Vec<Scored>, Option<Scored>, u64, u64);
+
+fn prune(objective: Objective, kept: &mut Vec<Scored>, keep: usize) {
+    kept.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    // keep the tie group straddling the cut, so ranks stay right
+    let mut cut = keep.min(kept.len());
+    while cut > 0 && cut < kept.len() && ties(objective, kept[cut - 1].0, kept[cut].0) {
+        cut += 1;
+    }
+    kept.truncate(cut);
+}
+
+#[allow(clippy::too_many_arguments)]
+fn exhaustive(
+    ev: &Evaluator,
+    nodes: &[NodeId],
+    space: &Space,
+    total: u64,
+    objective: Objective,
+    keep: usize,
+    given_value: f64,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<Chunk, CompareError> {
+    let threads = rayon::current_num_threads().max(1) as u64;
+    let chunks = (threads * 8).min(total).max(1);
+    let done = AtomicU64::new(0);
+    let parts: Vec<Result<Chunk, CompareError>> = (0..chunks)
+        .into_par_iter()
+        .map(|k| {
+            let (lo, hi) = (total * k / chunks, total * (k + 1) / chunks);
+            let mut ev = ev.clone();
+            let mut kept: Vec<Scored> = Vec::new();
+            let mut given = None;
+            let (mut better, mut tied) = (0u64, 0u64);
+            let mut digits = space.digits(lo);
+            for (h, &d) in digits.iter().enumerate() {
+                let o = space.order(h, d);
+                ev.set_order(nodes[h], &o);
+            }
+            let mut changed: Vec<NodeId> = nodes.to_vec();
+            let mut since = 0u64;
+            for index in lo..hi {
+                if index > lo {
+                    // odometer step
+                    changed.clear();
+                    let mut h = nodes.len();
+                    while h > 0 {
+                        h -= 1;
+                        digits[h] += 1;
+                        let wrapped = digits[h] == space.perms[h].len();
+                        if wrapped {
+                            digits[h] = 0;
+                        }
+                        let o = space.order(h, digits[h]);
+                        ev.set_order(nodes[h], &o);
+                        changed.push(nodes[h]);
+                        if !wrapped {
+                            break;
+                        }
+                    }
+                }
+                let c = ev.evaluate(&changed, nodes, index == 0)?;
+                let v = objective_value(objective, &c);
+                if index == 0 {
+                    given = Some((v, index, c.clone()));
+                } else if ties(objective, v, given_value) {
+                    tied += 1;
+                } else if v < given_value {
+                    better += 1;
+                }
+                kept.push((v, index, c));
+                if kept.len() >= 2 * keep.max(16) {
+                    prune(objective, &mut kept, keep);
+                }
+                since += 1;
+                if since == 64 || index + 1 == hi {
+                    let d = done.fetch_add(since, Ordering::Relaxed) + since;
+                    progress(d, total);
+                    since = 0;
+                }
+            }
+            prune(objective, &mut kept, keep);
+            Ok((kept, given, better, tied))
+        })
+        .collect();
+    let mut all = Vec::new();
+    let mut given = None;
+    let (mut better, mut tied) = (0, 0);
+    for p in parts {
+        let (kept, g, b, t) = p?;
+        all.extend(kept);
+        given = given.or(g);
+        better += b;
+        tied += t;
+    }
+    prune(objective, &mut all, keep);
+    Ok((all, given, better, tied))
+}
+
 /// Compares the orderings of the chosen Fallback nodes' children.
 pub fn compare(tree: &Tree, options: &CompareOptions) -> Result<Comparison, CompareError> {
+    compare_with_progress(tree, options, &|_, _| {})
+}
+
+/// [`compare`], calling `progress(done, total)` now and then during an
+/// exhaustive enumeration (from worker threads).
+pub fn compare_with_progress(
+    tree: &Tree,
+    options: &CompareOptions,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<Comparison, CompareError> {
     let objective = match (options.objective, options.deadline) {
         (Some(Objective::SuccessBy), None) => return Err(CompareError::NeedsDeadline),
         (Some(o), _) => o,
@@ -295,9 +501,6 @@ pub fn compare(tree: &Tree, options: &CompareOptions) -> Result<Comparison, Comp
     }
     nodes.sort_unstable();
     nodes.dedup();
-    if nodes.is_empty() {
-        return Err(CompareError::NothingToCompare);
-    }
     let compile_options = compile::Options {
         method: options.method,
         max_states: options.max_states,
@@ -309,6 +512,41 @@ pub fn compare(tree: &Tree, options: &CompareOptions) -> Result<Comparison, Comp
         options,
         compile_options,
     };
+    let threads = rayon::current_num_threads().max(1);
+    let mut given = ev.evaluate(&[], &nodes, true)?;
+    given.rank = 1;
+    if nodes.is_empty() {
+        if options.nodes.is_empty() {
+            notes.push(
+                "the tree has no Fallback with two or more children: there is nothing to \
+                 reorder, so the given ordering is the only one"
+                    .into(),
+            );
+        } else {
+            notes.push(
+                "the chosen nodes have nothing to reorder: the given ordering is the only one"
+                    .into(),
+            );
+        }
+        return Ok(Comparison {
+            objective,
+            deadline: options.deadline,
+            method: options.method,
+            nodes,
+            search: Search::NothingToReorder,
+            proven_optimal: true,
+            space: 1.0,
+            evaluated: 1,
+            budget: Budget {
+                limit: options.max_candidates.unwrap_or(DEFAULT_MAX_CANDIDATES),
+                explicit: options.max_candidates.is_some(),
+                seconds_per_candidate: 0.0,
+                threads,
+            },
+            candidates: vec![given],
+            notes,
+        });
+    }
     let sizes: Vec<usize> = nodes
         .iter()
         .map(|&n| tree.node(n).kind.children().len())
@@ -328,46 +566,71 @@ pub fn compare(tree: &Tree, options: &CompareOptions) -> Result<Comparison, Comp
         false
     });
 
-    let (search, proven_optimal, mut candidates) = if space <= options.max_candidates as f64 {
-        let perms: Vec<Vec<Vec<usize>>> = sizes.iter().map(|&k| permutations(k)).collect();
-        let originals: Vec<Vec<NodeId>> = nodes.iter().map(|&n| ev.children(n)).collect();
-        let mut pick = vec![0usize; nodes.len()];
-        let mut candidates = Vec::with_capacity(space as usize);
-        let mut changed: Vec<NodeId> = Vec::new();
-        loop {
-            let c = ev.evaluate(&changed, &nodes, candidates.is_empty())?;
-            candidates.push(c);
-            // odometer: advance the last node fastest
-            changed.clear();
-            let mut h = nodes.len();
-            loop {
-                if h == 0 {
-                    break;
-                }
-                h -= 1;
-                pick[h] += 1;
-                let wrapped = pick[h] == perms[h].len();
-                if wrapped {
-                    pick[h] = 0;
-                }
-                let order: Vec<NodeId> =
-                    perms[h][pick[h]].iter().map(|&i| originals[h][i]).collect();
-                ev.set_order(nodes[h], &order);
-                changed.push(nodes[h]);
-                if !wrapped {
-                    break;
-                }
-                if h == 0 {
-                    changed.clear();
-                }
-            }
-            if changed.is_empty() {
-                break;
-            }
+    // cost of one candidate: re-analyse the last node and its ancestors
+    // (what most odometer steps do), median of three
+    let last = *nodes.last().expect("nodes");
+    let mut times = Vec::new();
+    for _ in 0..3 {
+        let start = Instant::now();
+        ev.evaluate(&[last], &nodes, false)?;
+        times.push(start.elapsed().as_secs_f64());
+    }
+    times.sort_by(f64::total_cmp);
+    let per = times[1].max(1e-9);
+    let budget = Budget {
+        limit: options.max_candidates.unwrap_or_else(|| {
+            ((WORK_BUDGET_SECONDS * threads as f64 / per) as usize).min(DEFAULT_MAX_CANDIDATES)
+        }),
+        explicit: options.max_candidates.is_some(),
+        seconds_per_candidate: per,
+        threads,
+    };
+    let keep = options.keep.max(1);
+
+    let mut given_rank: Option<(u64, bool)> = None;
+    let (search, proven_optimal, evaluated, mut scored) = if space <= budget.limit as f64 {
+        let sp = Space {
+            perms: sizes.iter().map(|&k| permutations(k)).collect(),
+            originals: nodes.iter().map(|&n| ev.children(n)).collect(),
+        };
+        let total = space as u64;
+        let given_value = objective_value(objective, &given);
+        let (kept, g, better, tied) = exhaustive(
+            &ev,
+            &nodes,
+            &sp,
+            total,
+            objective,
+            keep,
+            given_value,
+            progress,
+        )?;
+        if let Some(g) = g {
+            given = g.2;
         }
-        (Search::Exhaustive, true, candidates)
+        given_rank = Some((better + 1, tied > 0));
+        (Search::Exhaustive, true, total, kept)
     } else {
-        let given = ev.evaluate(&[], &nodes, true)?;
+        let (reason, advice) = if budget.explicit {
+            (format!("--max-candidates {}", budget.limit), String::new())
+        } else {
+            (
+                format!(
+                    "the default budget ({} s of estimated work, at most {} orderings)",
+                    WORK_BUDGET_SECONDS,
+                    count_text(DEFAULT_MAX_CANDIDATES as f64)
+                ),
+                format!(
+                    "; enumerating all would take about {}",
+                    duration_text(budget.estimate(space))
+                ),
+            )
+        };
+        notes.push(format!(
+            "{} orderings exceed {reason}{advice}",
+            count_text(space)
+        ));
+        let mut evaluated = 1u64;
         // ordering rule, bottom-up (children have larger ids)
         for &n in nodes.iter().rev() {
             let mut kids = ev.children(n);
@@ -387,30 +650,57 @@ pub fn compare(tree: &Tree, options: &CompareOptions) -> Result<Comparison, Comp
             compile::reanalyze(&ev.tree, &mut ev.analysis, &[n], &ev.compile_options)?;
         }
         let mut best = ev.evaluate(&nodes, &nodes, false)?;
-        let mut candidates = vec![given];
-        if objective == Objective::MeanTime {
+        evaluated += 1;
+        let mut candidates = vec![given.clone()];
+        if objective == Objective::MeanTime && !under_parallel {
             candidates.push(best);
-            (Search::OrderingRule, !under_parallel, candidates)
+            let scored = candidates
+                .into_iter()
+                .enumerate()
+                .map(|(i, c)| (objective_value(objective, &c), i as u64, c))
+                .collect();
+            (Search::OrderingRule, true, evaluated, scored)
         } else {
-            // best-improvement swaps
+            if objective == Objective::MeanTime {
+                notes.push(
+                    "the ordering rule is proven for Sequence/Fallback trees only; under a \
+                     Parallel a local search refines it"
+                        .into(),
+                );
+            }
+            // best-improvement swaps, within the budget of evaluations
+            let max_evaluations = (budget.limit as u64).max(64);
             let mut improved = true;
-            let mut rounds = 0;
-            while improved && rounds < 1000 {
+            let mut stopped = false;
+            while improved {
                 improved = false;
-                rounds += 1;
                 let mut best_swap: Option<(NodeId, Vec<NodeId>, Candidate)> = None;
-                for (k, &n) in nodes.iter().enumerate() {
+                'nodes: for (k, &n) in nodes.iter().enumerate() {
                     let base = best.orders[k].clone();
                     for i in 0..base.len() {
                         for j in i + 1..base.len() {
+                            if evaluated >= max_evaluations {
+                                stopped = true;
+                                ev.set_order(n, &base);
+                                compile::reanalyze(
+                                    &ev.tree,
+                                    &mut ev.analysis,
+                                    &[n],
+                                    &ev.compile_options,
+                                )?;
+                                break 'nodes;
+                            }
                             let mut o = base.clone();
                             o.swap(i, j);
                             ev.set_order(n, &o);
                             let c = ev.evaluate(&[n], &nodes, false)?;
+                            evaluated += 1;
                             let target = best_swap.as_ref().map_or(&best, |b| &b.2);
-                            if objective_value(objective, &c)
-                                < objective_value(objective, target) - 1e-15
-                            {
+                            let (cv, tv) = (
+                                objective_value(objective, &c),
+                                objective_value(objective, target),
+                            );
+                            if cv < tv && !ties(objective, cv, tv) {
                                 best_swap = Some((n, o, c));
                             }
                         }
@@ -423,25 +713,61 @@ pub fn compare(tree: &Tree, options: &CompareOptions) -> Result<Comparison, Comp
                     compile::reanalyze(&ev.tree, &mut ev.analysis, &[n], &ev.compile_options)?;
                     candidates.push(best.clone());
                     best = c;
-                    improved = true;
+                    improved = !stopped;
                 }
             }
+            if stopped {
+                notes.push(format!(
+                    "the local search stopped after {evaluated} evaluations (the budget)"
+                ));
+            }
             candidates.push(best);
-            (Search::LocalSearch, false, candidates)
+            let scored = candidates
+                .into_iter()
+                .enumerate()
+                .map(|(i, c)| (objective_value(objective, &c), i as u64, c))
+                .collect();
+            (Search::LocalSearch, false, evaluated, scored)
         }
     };
-    let given_orders: Vec<Vec<NodeId>> = nodes
-        .iter()
-        .map(|&n| tree.node(n).kind.children().to_vec())
-        .collect();
-    for c in &mut candidates {
-        c.given = c.orders == given_orders;
-    }
-    candidates
-        .sort_by(|a, b| objective_value(objective, a).total_cmp(&objective_value(objective, b)));
-    // the given ordering may appear twice (e.g. rule == given): keep the first
+    // the same ordering may have been found twice (e.g. rule == given)
+    let given_orders = given.orders.clone();
+    scored.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
     let mut seen = std::collections::HashSet::new();
-    candidates.retain(|c| seen.insert(c.orders.clone()));
+    scored.retain(|s| seen.insert(s.2.orders.clone()));
+    // tie groups: within one, enumeration order (the given ordering first)
+    let mut candidates: Vec<Candidate> = Vec::with_capacity(scored.len());
+    let mut start = 0;
+    while start < scored.len() {
+        let mut end = start + 1;
+        while end < scored.len() && ties(objective, scored[start].0, scored[end].0) {
+            end += 1;
+        }
+        let mut group: Vec<Scored> = scored[start..end].to_vec();
+        group.sort_by_key(|s| s.1);
+        let tied = group.len() > 1;
+        for (_, _, mut c) in group {
+            c.rank = start as u64 + 1;
+            c.tied = tied;
+            c.given = c.orders == given_orders;
+            candidates.push(c);
+        }
+        start = end;
+    }
+    if !candidates.iter().any(|c| c.given) {
+        // exhaustive with the given ordering beyond the kept ones: its rank
+        // was counted during the enumeration
+        let (rank, tied) = given_rank.unwrap_or((scored.len() as u64 + 1, false));
+        given.rank = rank;
+        given.tied = tied;
+        given.given = true;
+        candidates.push(given);
+    }
+    let mut i = 0;
+    candidates.retain(|c| {
+        i += 1;
+        i <= keep || c.given
+    });
     Ok(Comparison {
         objective,
         deadline: options.deadline,
@@ -450,9 +776,43 @@ pub fn compare(tree: &Tree, options: &CompareOptions) -> Result<Comparison, Comp
         search,
         proven_optimal,
         space,
+        evaluated,
+        budget,
         candidates,
         notes,
     })
+}
+
+/// `65,536`, or `2.1e+13` beyond a trillion.
+pub fn count_text(n: f64) -> String {
+    if n < 1e12 {
+        let s = format!("{}", n as u64);
+        let mut out = String::new();
+        for (i, ch) in s.chars().enumerate() {
+            if i > 0 && (s.len() - i) % 3 == 0 {
+                out.push(',');
+            }
+            out.push(ch);
+        }
+        out
+    } else {
+        format!("{n:.2e}")
+    }
+}
+
+/// `3 s`, `19 min`, `5.2 h`, `40 days`.
+pub fn duration_text(s: f64) -> String {
+    if s < 90.0 {
+        format!("{} s", (s.max(0.1) * 10.0).round() / 10.0)
+    } else if s < 5400.0 {
+        format!("{} min", (s / 60.0).round())
+    } else if s < 2.0 * 86400.0 {
+        format!("{:.1} h", s / 3600.0)
+    } else if s < 1e4 * 86400.0 * 365.0 {
+        format!("{:.0} days", s / 86400.0)
+    } else {
+        format!("{:.1e} years", s / (86400.0 * 365.0))
+    }
 }
 
 #[cfg(test)]

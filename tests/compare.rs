@@ -108,10 +108,12 @@ fn refusals_and_notes() {
         "t.yaml",
     )
     .unwrap();
-    assert_eq!(
-        compare(&single, &CompareOptions::default()).unwrap_err(),
-        CompareError::NothingToCompare
-    );
+    // nothing to reorder is an answer, not an error: the given ordering alone
+    let alone = compare(&single, &CompareOptions::default()).unwrap();
+    assert_eq!(alone.search, Search::NothingToReorder);
+    assert_eq!(alone.candidates.len(), 1);
+    assert!(alone.candidates[0].given);
+    assert!(alone.notes.iter().any(|n| n.contains("nothing to reorder")));
     let par = parse_str(
         "tree: {sequence: {children: [{parallel: {name: p, children: [{action: {ps: .5, mu: 1, nu: 1}}, {action: {ps: .5, mu: 2, nu: 1}}]}}, {fallback: {children: [{action: {ps: .5, mu: 1, nu: 1}}, {action: {ps: .9, mu: 3, nu: 1}}]}}]}}",
         "t.yaml",
@@ -180,7 +182,7 @@ proptest! {
         prop_assert!(is_fallback);
         let brute = compare(&t, &CompareOptions { nodes: vec![f], ..CompareOptions::default() }).unwrap();
         prop_assert_eq!(brute.search, Search::Exhaustive);
-        let rule = compare(&t, &CompareOptions { nodes: vec![f], max_candidates: 1, ..CompareOptions::default() }).unwrap();
+        let rule = compare(&t, &CompareOptions { nodes: vec![f], max_candidates: Some(1), ..CompareOptions::default() }).unwrap();
         prop_assert_eq!(rule.search, Search::OrderingRule);
         prop_assert!(rule.proven_optimal);
         let best = brute.candidates[0].root.mean_time();

@@ -627,3 +627,24 @@ fn cli_explicit_and_drn_exports() {
         assert!(!blocked.with_extension(ext).exists(), ".{ext} written");
     }
 }
+
+#[test]
+fn dot_control_nodes_are_compact_boxes_not_squares() {
+    // a `square` grows to its label's width in both directions
+    let tree =
+        btrel::tree::parse_file(std::path::Path::new("trees/search-and-grasp.yaml")).unwrap();
+    let dot = btrel::export::dot_tree(&tree, None);
+    assert!(
+        !dot.contains("shape=square") && !dot.contains("shape=diamond"),
+        "{dot}"
+    );
+    let control = dot
+        .lines()
+        .filter(|l| l.contains("label=\"?\\n") || l.contains("label=\"→\\n"))
+        .count();
+    assert_eq!(control, 5, "{dot}");
+    assert!(dot
+        .lines()
+        .filter(|l| l.contains("label=\"?\\n") || l.contains("label=\"→\\n"))
+        .all(|l| l.contains("shape=box, style=\"rounded,filled\"")));
+}

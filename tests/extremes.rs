@@ -394,6 +394,8 @@ fn cli_curve_of_a_parallel_at_1e7_is_fast() {
             TREE,
             "-o",
             "/dev/null",
+            "--format",
+            "svg",
             "--node",
             "pair",
             "--t-end",

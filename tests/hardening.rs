@@ -760,7 +760,7 @@ fn output_into_a_missing_directory_fails_cleanly() {
         vec!["curve", SG, "--t-end", "10", "-o", target],
         vec!["simulate", SG, "--runs", "100", "-o", target],
         vec!["export", SG, "--to", "dot", "-o", target],
-        vec!["plot", SG, "-o", target],
+        vec!["plot", SG, "--format", "svg", "-o", target],
         vec!["compare", SG, "--curves", target],
     ] {
         let r = run(&args);

@@ -39,7 +39,14 @@ fn duration_text(d: &Duration, rate_symbol: &str, tau_symbol: &str) -> String {
     }
 }
 
-/// The label lines of a node (unescaped).
+/// Attributes of control nodes: a compact grey box whose size follows its
+/// label (a `square` would grow to the label's width in both directions).
+const CONTROL: &str = "box, style=\"rounded,filled\", fillcolor=\"#E6E6E6\", margin=\"0.08,0.03\"";
+/// Attributes of decorators: as control nodes, dashed.
+const DECORATOR: &str =
+    "box, style=\"rounded,filled,dashed\", fillcolor=\"#F2F2F2\", margin=\"0.08,0.03\"";
+
+/// The label lines of a node (unescaped) and its shape attributes.
 fn node_lines(tree: &Tree, id: NodeId) -> (Vec<String>, &'static str) {
     let node = tree.node(id);
     let name = node.name.clone();
@@ -63,8 +70,8 @@ fn node_lines(tree: &Tree, id: NodeId) -> (Vec<String>, &'static str) {
             (lines, "box")
         }
         NodeKind::Condition { ps } => (vec![name, format!("ps = {}", short(*ps))], "ellipse"),
-        NodeKind::Sequence { .. } => (vec!["→".to_string(), name], "square"),
-        NodeKind::Fallback { .. } => (vec!["?".to_string(), name], "square"),
+        NodeKind::Sequence { .. } => (vec!["→".to_string(), name], CONTROL),
+        NodeKind::Fallback { .. } => (vec!["?".to_string(), name], CONTROL),
         NodeKind::Parallel {
             success_threshold: m,
             failure_threshold: f,
@@ -75,7 +82,7 @@ fn node_lines(tree: &Tree, id: NodeId) -> (Vec<String>, &'static str) {
             if *f != n - m + 1 {
                 let _ = write!(head, ", F = {f}");
             }
-            (vec![head, name], "square")
+            (vec![head, name], CONTROL)
         }
         NodeKind::Decorator { decorator, .. } => {
             let kind = match decorator {
@@ -83,17 +90,17 @@ fn node_lines(tree: &Tree, id: NodeId) -> (Vec<String>, &'static str) {
                 Decorator::Repeat { times } => format!("repeat {times}"),
                 d => d.keyword().to_string(),
             };
-            (vec![format!("◇ {kind}"), name], "diamond")
+            (vec![format!("◇ {kind}"), name], DECORATOR)
         }
     }
 }
 
 /// The tree as a DOT digraph in the book's notation.
 ///
-/// Nodes are `n<id>` (ids as in [`Tree::nodes`]); control nodes are squares
-/// labelled `→` (Sequence), `?` (Fallback), `⇒ M/N = m/n` (Parallel, with
-/// `F = f` when it is not the book's N − M + 1); decorators are diamonds
-/// labelled `◇ kind` (e.g. `◇ retry 3`); actions are boxes with their name,
+/// Nodes are `n<id>` (ids as in [`Tree::nodes`]); control nodes are grey
+/// rounded boxes labelled `→` (Sequence), `?` (Fallback), `⇒ M/N = m/n`
+/// (Parallel, with `F = f` when it is not the book's N − M + 1);
+/// decorators are dashed grey boxes labelled `◇ kind` (e.g. `◇ retry 3`); actions are boxes with their name,
 /// ps and mean times (with the rate or fixed time they come from);
 /// conditions are ellipses with their ps. With `analysis`, control nodes and
 /// decorators also show their analysed ps, MTTS and MTTF. Children are drawn

@@ -5,7 +5,7 @@ use std::io::{self, Write};
 use serde_json::{json, Map, Value};
 
 use super::number::{full, significant, significant_or_dash};
-use crate::compare::{Candidate, Comparison, Objective};
+use crate::compare::{Candidate, Comparison, Objective, Search};
 use crate::tree::Tree;
 
 fn order_label(tree: &Tree, order: &[usize]) -> String {
@@ -17,7 +17,9 @@ fn order_label(tree: &Tree, order: &[usize]) -> String {
 }
 
 fn candidate_label(tree: &Tree, cmp: &Comparison, c: &Candidate) -> String {
-    if cmp.nodes.len() == 1 {
+    if cmp.nodes.is_empty() {
+        "(as given)".to_string()
+    } else if cmp.nodes.len() == 1 {
         order_label(tree, &c.orders[0])
     } else {
         cmp.nodes
@@ -50,72 +52,317 @@ fn value(cmp: &Comparison, c: &Candidate) -> Option<f64> {
     }
 }
 
+/// Width of the table (and of every line of `compare`'s text output).
+pub const TABLE_WIDTH: usize = 100;
+
+fn width(s: &str) -> usize {
+    textwrap::core::display_width(s)
+}
+
+/// Joins words that [`wrap_prose`] keeps on one line (printed as a space).
+const NBSP: char = '\u{a0}';
+
+fn unbreakable(s: &str) -> String {
+    s.replace(' ', &NBSP.to_string())
+}
+
+/// Wraps prose to `TABLE_WIDTH`, continuation lines indented by two.
+fn wrap_prose(text: &str, out: &mut dyn Write) -> io::Result<()> {
+    let options = textwrap::Options::new(TABLE_WIDTH).subsequent_indent("  ");
+    for line in textwrap::wrap(text, options) {
+        writeln!(out, "{}", line.replace(NBSP, " "))?;
+    }
+    Ok(())
+}
+
+/// The ordering as units that stay on one line: `name >`, `node:`, `name;`.
+fn ordering_units(
+    tree: &Tree,
+    cmp: &Comparison,
+    c: &Candidate,
+    given: Option<&Candidate>,
+) -> Vec<String> {
+    let order_units = |o: &[usize], last_sep: &str| -> Vec<String> {
+        o.iter()
+            .enumerate()
+            .map(|(i, &n)| {
+                let sep = if i + 1 < o.len() { " >" } else { last_sep };
+                format!("{}{sep}", tree.node(n).name)
+            })
+            .collect()
+    };
+    if cmp.nodes.len() <= 1 {
+        return c
+            .orders
+            .first()
+            .map_or_else(|| vec!["(as given)".to_string()], |o| order_units(o, ""));
+    }
+    let differing: Vec<usize> = (0..cmp.nodes.len())
+        .filter(|&k| given.is_none_or(|g| g.orders[k] != c.orders[k]))
+        .collect();
+    if differing.is_empty() {
+        return vec!["(as given)".to_string()];
+    }
+    let mut units = Vec::new();
+    for (i, &k) in differing.iter().enumerate() {
+        units.push(format!("{}:", tree.node(cmp.nodes[k]).name));
+        let sep = if i + 1 < differing.len() { ";" } else { "" };
+        units.extend(order_units(&c.orders[k], sep));
+    }
+    units
+}
+
+/// Greedy line filling of units joined by spaces; a unit wider than
+/// `w` is broken.
+fn fill(units: &[String], w: usize) -> Vec<String> {
+    let mut lines: Vec<String> = Vec::new();
+    let mut line = String::new();
+    for u in units {
+        let pieces: Vec<String> = if width(u) > w {
+            textwrap::wrap(u, textwrap::Options::new(w).break_words(true))
+                .into_iter()
+                .map(|c| c.into_owned())
+                .collect()
+        } else {
+            vec![u.clone()]
+        };
+        for p in pieces {
+            if line.is_empty() {
+                line = p;
+            } else if width(&line) + 1 + width(&p) <= w {
+                line.push(' ');
+                line.push_str(&p);
+            } else {
+                lines.push(std::mem::take(&mut line));
+                line = p;
+            }
+        }
+    }
+    if !line.is_empty() || lines.is_empty() {
+        lines.push(line);
+    }
+    lines
+}
+
+/// The candidates shown, in order: the top `k` and the given ordering.
+fn shown(cmp: &Comparison, k: usize) -> impl Iterator<Item = &Candidate> {
+    cmp.candidates
+        .iter()
+        .enumerate()
+        .filter(move |(i, c)| *i < k || c.given)
+        .map(|(_, c)| c)
+}
+
 /// The ranked table, best first, top `k` rows (plus the given ordering if
-/// it is not among them).
+/// it is not among them), at most [`TABLE_WIDTH`] columns wide: long
+/// orderings wrap within their column; with several Fallbacks only those
+/// whose order differs from the given one are listed. Tied ranks are
+/// marked `=`.
 pub fn write_table(tree: &Tree, cmp: &Comparison, k: usize, out: &mut dyn Write) -> io::Result<()> {
-    let names: Vec<&str> = cmp
+    let names: Vec<String> = cmp
         .nodes
         .iter()
-        .map(|&n| tree.node(n).name.as_str())
+        .map(|&n| unbreakable(&tree.node(n).name))
         .collect();
-    writeln!(
-        out,
-        "{} orderings of {} — objective: {} — method: {} — search: {}{}",
-        cmp.candidates.len(),
-        names.join(", "),
-        objective_text(cmp),
-        cmp.method.name(),
-        cmp.search.name(),
-        if cmp.proven_optimal {
-            " (best is proven optimal)"
-        } else {
-            " (best is not proven optimal)"
+    let title = tree
+        .title
+        .clone()
+        .unwrap_or_else(|| tree.node(Tree::ROOT).name.clone());
+    let given = cmp.candidates.iter().find(|c| c.given);
+    let ps = given.map_or(f64::NAN, |g| g.root.ps);
+    if cmp.search == Search::NothingToReorder {
+        wrap_prose(&format!("{title}: nothing to reorder."), out)?;
+        for n in &cmp.notes {
+            wrap_prose(&format!("note: {n}"), out)?;
         }
+        if let Some(g) = given {
+            wrap_prose(
+                &format!(
+                    "the tree as given: ps {}, MTTS {}, MTTF {}, E[T] {}{}",
+                    significant(g.root.ps, 5),
+                    significant_or_dash(g.root.mtts, 5),
+                    significant_or_dash(g.root.mttf, 5),
+                    significant(g.root.mean_time(), 5),
+                    match (cmp.deadline, g.success_by_deadline) {
+                        (Some(d), Some(p)) =>
+                            format!(", P(success by {} s) {}", full(d), significant(p, 5)),
+                        _ => String::new(),
+                    }
+                ),
+                out,
+            )?;
+        }
+        return Ok(());
+    }
+    let what = if names.len() == 1 {
+        format!("'{}'", names[0])
+    } else {
+        let list = if names.len() > 4 {
+            format!("{}, {}, …, {}", names[0], names[1], names[names.len() - 1])
+        } else {
+            names.join(", ")
+        };
+        format!("{} Fallbacks ({list})", names.len())
+    };
+    wrap_prose(
+        &format!(
+            "{title}: {} orderings of the children of {what}",
+            crate::compare::count_text(cmp.space)
+        ),
+        out,
+    )?;
+    wrap_prose(
+        &format!(
+            "objective: {} — method: {} — root ps {} for every ordering",
+            objective_text(cmp),
+            cmp.method.name(),
+            significant(ps, 5)
+        ),
+        out,
+    )?;
+    wrap_prose(
+        &format!(
+            "search: {} ({} of {} orderings evaluated) — the best is {}",
+            cmp.search.name(),
+            crate::compare::count_text(cmp.evaluated as f64),
+            crate::compare::count_text(cmp.space),
+            if cmp.proven_optimal {
+                "proven optimal"
+            } else {
+                "not proven optimal"
+            }
+        ),
+        out,
     )?;
     for n in &cmp.notes {
-        writeln!(out, "note: {n}")?;
+        wrap_prose(&format!("note: {n}"), out)?;
     }
-    let given = cmp.candidates.iter().find(|c| c.given);
-    let mut header = vec!["rank", "ordering", "ps", "MTTS", "MTTF", "E[T]"];
-    let deadline_header = cmp.deadline.map(|d| format!("P(S by {})", full(d)));
-    if let Some(h) = &deadline_header {
-        header.push(h);
+    if cmp.nodes.len() > 1 {
+        wrap_prose(
+            "orderings list only the Fallbacks whose children are in another order than given",
+            out,
+        )?;
     }
-    header.push("");
-    let mut rows: Vec<Vec<String>> = Vec::new();
-    for (i, c) in cmp.candidates.iter().enumerate() {
-        if i >= k && !c.given {
-            continue;
-        }
-        let mut row = vec![
-            (i + 1).to_string(),
-            candidate_label(tree, cmp, c),
-            significant(c.root.ps, 5),
+
+    let mut header: Vec<String> = ["rank", "ordering", "MTTS", "MTTF", "E[T]"]
+        .map(String::from)
+        .to_vec();
+    if let Some(d) = cmp.deadline {
+        header.push(format!("P(S by {})", full(d)));
+    }
+    header.push(String::new());
+    let mut rows: Vec<(Vec<String>, Vec<String>)> = Vec::new();
+    for c in shown(cmp, k) {
+        let rank = format!("{}{}", c.rank, if c.tied { "=" } else { "" });
+        let mut cells = vec![
+            rank,
+            String::new(),
             significant_or_dash(c.root.mtts, 5),
             significant_or_dash(c.root.mttf, 5),
             significant(c.root.mean_time(), 5),
         ];
         if cmp.deadline.is_some() {
-            row.push(significant_or_dash(c.success_by_deadline, 5));
+            cells.push(significant_or_dash(c.success_by_deadline, 5));
         }
-        let mut mark = Vec::new();
-        if i == 0 {
-            mark.push("best".to_string());
+        let mark = match (c.rank == 1, c.given) {
+            (true, true) => "best, given",
+            (true, false) => "best",
+            (false, true) => "given",
+            _ => "",
+        };
+        cells.push(mark.to_string());
+        rows.push((cells, ordering_units(tree, cmp, c, given)));
+    }
+    let n = header.len();
+    let mut widths: Vec<usize> = header.iter().map(|h| width(h)).collect();
+    for (cells, _) in &rows {
+        for (j, c) in cells.iter().enumerate() {
+            widths[j] = widths[j].max(width(c));
         }
-        if c.given {
-            mark.push("given".to_string());
+    }
+    let others: usize = widths
+        .iter()
+        .enumerate()
+        .filter(|&(j, _)| j != 1)
+        .map(|(_, w)| w)
+        .sum::<usize>()
+        + 2 * (n - 1);
+    let widest_ordering = rows
+        .iter()
+        .map(|(_, u)| width(&u.join(" ")))
+        .max()
+        .unwrap_or(0)
+        .max(width("ordering"));
+    widths[1] = widest_ordering.min(TABLE_WIDTH.saturating_sub(others).max(16));
+    let line = |cells: &[String], out: &mut dyn Write| -> io::Result<()> {
+        let mut s = String::new();
+        for (j, c) in cells.iter().enumerate() {
+            let pad = " ".repeat(widths[j].saturating_sub(width(c)));
+            if j == 1 || j + 1 == n {
+                s.push_str(c);
+                s.push_str(&pad);
+            } else {
+                s.push_str(&pad);
+                s.push_str(c);
+            }
+            s.push_str("  ");
         }
-        if i == 0 && !c.given {
-            if let (Some(b), Some(g)) = (value(cmp, c), given.and_then(|g| value(cmp, g))) {
-                let sign = if b >= g { "+" } else { "" };
-                mark.push(format!("{sign}{} vs given", significant(b - g, 4)));
+        writeln!(out, "{}", s.trim_end())
+    };
+    line(&header, out)?;
+    for (mut cells, units) in rows {
+        let mut lines = fill(&units, widths[1]);
+        if lines.len() > 1 && cmp.nodes.len() > 1 {
+            // one Fallback per line (or more)
+            lines.clear();
+            let mut part: Vec<String> = Vec::new();
+            for u in units {
+                let end = u.ends_with(';');
+                part.push(u);
+                if end {
+                    lines.extend(fill(&part, widths[1]));
+                    part.clear();
+                }
+            }
+            if !part.is_empty() {
+                lines.extend(fill(&part, widths[1]));
             }
         }
-        row.push(mark.join(", "));
-        rows.push(row);
+        cells[1] = lines[0].clone();
+        line(&cells, out)?;
+        for l in &lines[1..] {
+            let mut blank = vec![String::new(); n];
+            blank[1] = l.clone();
+            line(&blank, out)?;
+        }
     }
-    rows.insert(0, header.iter().map(|h| h.to_string()).collect());
-    super::table::write_aligned(&rows, |j, n| j == 1 || j + 1 == n, out)?;
+    if cmp.candidates.iter().any(|c| c.tied) {
+        wrap_prose(
+            "= : tied with another ordering (objective equal within 1e-9 relative for times, 1e-11 for probabilities)",
+            out,
+        )?;
+    }
+    if let (Some(b), Some(g)) = (cmp.candidates.first(), given) {
+        if !b.given {
+            if let (Some(bv), Some(gv)) = (value(cmp, b), value(cmp, g)) {
+                let sign = if bv >= gv { "+" } else { "" };
+                let unit = if cmp.objective == Objective::SuccessBy {
+                    ""
+                } else {
+                    " s"
+                };
+                wrap_prose(
+                    &format!(
+                        "best vs given: {} vs {} ({sign}{}{unit})",
+                        significant(bv, 5),
+                        significant(gv, 5),
+                        significant(bv - gv, 4)
+                    ),
+                    out,
+                )?;
+            }
+        }
+    }
     Ok(())
 }
 
@@ -123,7 +370,10 @@ fn candidate_json(tree: &Tree, cmp: &Comparison, c: &Candidate) -> Value {
     let names =
         |o: &[usize]| -> Vec<String> { o.iter().map(|&i| tree.node(i).name.clone()).collect() };
     let mut m = Map::new();
-    m.insert("order".into(), json!(names(&c.orders[0])));
+    m.insert(
+        "order".into(),
+        json!(c.orders.first().map_or_else(Vec::new, |o| names(o))),
+    );
     if cmp.nodes.len() > 1 {
         let mut orders = Map::new();
         for (&n, o) in cmp.nodes.iter().zip(&c.orders) {
@@ -131,6 +381,8 @@ fn candidate_json(tree: &Tree, cmp: &Comparison, c: &Candidate) -> Value {
         }
         m.insert("orders".into(), Value::Object(orders));
     }
+    m.insert("rank".into(), json!(c.rank));
+    m.insert("tied".into(), json!(c.tied));
     m.insert("given".into(), json!(c.given));
     m.insert("ps".into(), json!(c.root.ps));
     m.insert("mtts".into(), json!(c.root.mtts));
@@ -141,7 +393,8 @@ fn candidate_json(tree: &Tree, cmp: &Comparison, c: &Candidate) -> Value {
 }
 
 /// JSON: `{"objective", "deadline", "method", "nodes", "search",
-/// "proven_optimal", "orderings": [...]}` with the top `k` orderings.
+/// "proven_optimal", "orderings_total", "evaluated", "notes", "orderings":
+/// [...]}` with the top `k` orderings and the given one, in table order.
 pub fn write_json(tree: &Tree, cmp: &Comparison, k: usize, out: &mut dyn Write) -> io::Result<()> {
     let v = json!({
         "objective": cmp.objective.name(),
@@ -150,14 +403,17 @@ pub fn write_json(tree: &Tree, cmp: &Comparison, k: usize, out: &mut dyn Write) 
         "nodes": cmp.nodes.iter().map(|&n| tree.node(n).name.clone()).collect::<Vec<_>>(),
         "search": cmp.search.name(),
         "proven_optimal": cmp.proven_optimal,
+        "orderings_total": cmp.space,
+        "evaluated": cmp.evaluated,
         "notes": cmp.notes,
-        "orderings": cmp.candidates.iter().take(k).map(|c| candidate_json(tree, cmp, c)).collect::<Vec<_>>(),
+        "orderings": shown(cmp, k).map(|c| candidate_json(tree, cmp, c)).collect::<Vec<_>>(),
     });
     serde_json::to_writer_pretty(&mut *out, &v)?;
     writeln!(out)
 }
 
-/// CSV: `rank,ordering,given,ps,mtts,mttf,mean_time,success_by_deadline`.
+/// CSV: `rank,ordering,given,ps,mtts,mttf,mean_time,success_by_deadline,tied`,
+/// the rows of the table in its order (the top `k` and the given ordering).
 pub fn write_csv(tree: &Tree, cmp: &Comparison, k: usize, out: &mut dyn Write) -> io::Result<()> {
     write_csv_inner(tree, cmp, k, out).map_err(super::csv::io_error)
 }
@@ -178,11 +434,12 @@ fn write_csv_inner(
         "mttf",
         "mean_time",
         "success_by_deadline",
+        "tied",
     ])?;
     let opt = |x: Option<f64>| x.map_or_else(String::new, full);
-    for (i, c) in cmp.candidates.iter().take(k).enumerate() {
+    for c in shown(cmp, k) {
         w.write_record([
-            (i + 1).to_string(),
+            c.rank.to_string(),
             candidate_label(tree, cmp, c),
             c.given.to_string(),
             full(c.root.ps),
@@ -190,6 +447,7 @@ fn write_csv_inner(
             opt(c.root.mttf),
             full(c.root.mean_time()),
             opt(c.success_by_deadline),
+            c.tied.to_string(),
         ])?;
     }
     w.flush()?;
