@@ -22,6 +22,10 @@
 //!   tick the period the referee measured in that run (gaps between an
 //!   action's onRunning calls), in params units.
 //!
+//! * A ReactiveSequence with actions in two children, which btrel refuses:
+//!   BT.CPP restarts the first action while the second runs, so the node
+//!   never succeeds (asserted: no successes in BT.CPP, and btrel's refusal).
+//!
 //! The test needs a Python with behaviortreepy: `BTREL_PYTHON=/path/to/python`
 //! (`bash .ci/run` creates target/pyvenv from tests/python-requirements.txt and
 //! sets it). Without the variable it prints a note and passes. All trees run
@@ -64,9 +68,9 @@ struct Case {
     runs: u64,
     scale: f64,
     steps: Option<f64>,
-    /// A documented difference between btrel's reading and BT.CPP: the
-    /// BT.CPP frequency is asserted to be this value exactly, btrel's is
-    /// printed beside it.
+    /// A tree btrel refuses because BT.CPP does something the SBT model does
+    /// not: the BT.CPP frequency is asserted to be this value exactly and
+    /// btrel must refuse the tree (node semantics).
     btcpp_ps: Option<f64>,
 }
 
@@ -180,11 +184,11 @@ fn cases() -> Vec<Case> {
             steps: None,
             btcpp_ps: None,
         },
-        // The difference: BT.CPP's ReactiveSequence halts (resets) its earlier
-        // children when a later one returns RUNNING and re-ticks them from
-        // IDLE on the next tick, so A1 is restarted while A2 runs, A2 is
-        // halted, and the node can only end by A1 failing: ps = 0. btrel reads
-        // a ReactiveSequence as a Sequence: ps = 0.7 · 1.
+        // The difference this referee found: BT.CPP's ReactiveSequence halts
+        // (resets) its earlier children when a later one returns RUNNING and
+        // re-ticks them from IDLE on the next tick, so A1 is restarted while
+        // A2 runs, A2 is halted, and the node can only end by A1 failing:
+        // ps = 0, where a Sequence has 0.7 · 1. btrel refuses the tree.
         Case {
             name: "reactive sequence of two actions",
             xml: main_tree(r#"<ReactiveSequence><A1/><A2/></ReactiveSequence>"#),
@@ -230,14 +234,29 @@ fn cases() -> Vec<Case> {
     ]
 }
 
-fn btrel_root(case: &Case) -> Figures {
+fn read(case: &Case) -> Result<btrel::Tree, btrel::tree::TreeError> {
     let params = case.params.to_string();
     let file = format!("{}.xml", case.name);
-    let tree = parse_xml_str(&case.xml, &file, &params, &format!("{file}.params.yaml"))
-        .unwrap_or_else(|e| panic!("{}: btrel reads the tree: {e}", case.name));
-    analyze(&tree, &Options::default())
-        .unwrap_or_else(|e| panic!("{}: analysed: {e:?}", case.name))
-        .nodes[0]
+    parse_xml_str(&case.xml, &file, &params, &format!("{file}.params.yaml"))
+}
+
+/// btrel's root figures; `None` for a tree btrel must refuse.
+fn btrel_root(case: &Case) -> Option<Figures> {
+    if case.btcpp_ps.is_some() {
+        let e = read(case).expect_err("btrel refuses the tree");
+        assert!(
+            btrel::tree::xml::is_unsupported(&e),
+            "{}: refused for node semantics: {e}",
+            case.name
+        );
+        return None;
+    }
+    let tree = read(case).unwrap_or_else(|e| panic!("{}: btrel reads the tree: {e}", case.name));
+    Some(
+        analyze(&tree, &Options::default())
+            .unwrap_or_else(|e| panic!("{}: analysed: {e:?}", case.name))
+            .nodes[0],
+    )
 }
 
 fn referee(python: &Path, cases: &[Case]) -> Vec<Value> {
@@ -281,18 +300,18 @@ fn f(v: &Value, key: &str) -> Option<f64> {
 fn btrel_matches_behaviortree_cpp_runs() {
     let Some(python) = python() else { return };
     let cases = cases();
-    let btrel: Vec<Figures> = cases.iter().map(btrel_root).collect();
+    let btrel: Vec<Option<Figures>> = cases.iter().map(btrel_root).collect();
     let runs = referee(&python, &cases);
     assert_eq!(runs.len(), cases.len());
     let mut failures = Vec::new();
     for ((case, fig), run) in cases.iter().zip(&btrel).zip(&runs) {
         let n = case.runs as f64;
         let ps_b = f(run, "ps").expect("ps");
-        let se = (fig.ps * (1.0 - fig.ps) / n).sqrt();
-        if let Some(expected) = case.btcpp_ps {
+        let Some(fig) = fig else {
+            let expected = case.btcpp_ps.expect("a refused tree has BT.CPP's ps");
             eprintln!(
-                "{:34} KNOWN DIFFERENCE: btrel ps {:.4}, BT.CPP {ps_b:.4} (asserted {expected})",
-                case.name, fig.ps
+                "{:34} refused by btrel; BT.CPP ps {ps_b:.4} (asserted {expected})",
+                case.name
             );
             if ps_b != expected {
                 failures.push(format!(
@@ -301,7 +320,8 @@ fn btrel_matches_behaviortree_cpp_runs() {
                 ));
             }
             continue;
-        }
+        };
+        let se = (fig.ps * (1.0 - fig.ps) / n).sqrt();
         let ok = if se == 0.0 {
             (ps_b - fig.ps).abs() < 1e-12
         } else {
@@ -348,4 +368,55 @@ fn btrel_matches_behaviortree_cpp_runs() {
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// The refusal without Python: two children of a Reactive node holding
+/// actions (directly or below decorators and composites) are refused for node
+/// semantics; conditions before one action child, and actions in one child
+/// only, are read as Sequence / Fallback.
+#[test]
+fn reactive_nodes_with_actions_in_two_children_are_refused() {
+    // the params of the leaves the tree uses (an unused key is an error)
+    let parse = |body: &str| {
+        let mut params = serde_json::Map::new();
+        for (id, p) in [
+            ("A1", json!({"ps": 0.5, "mu": 1.0, "nu": 1.0})),
+            ("A2", json!({"ps": 0.5, "mu": 1.0, "nu": 1.0})),
+            ("C1", json!({"ps": 0.5})),
+            ("C2", json!({"ps": 0.5})),
+        ] {
+            if body.contains(&format!("<{id}/>")) {
+                params.insert(id.to_string(), p);
+            }
+        }
+        let params = Value::Object(params).to_string();
+        parse_xml_str(&main_tree(body), "t.xml", &params, "t.params.yaml")
+    };
+    for body in [
+        "<ReactiveSequence><A1/><A2/></ReactiveSequence>",
+        "<ReactiveFallback><C1/><A1/><A2/></ReactiveFallback>",
+        "<ReactiveSequence><Inverter><A1/></Inverter><C1/><Sequence><C2/><A2/></Sequence></ReactiveSequence>",
+        "<Sequence><C1/><ReactiveFallback><Sequence><A1/></Sequence><RetryUntilSuccessful num_attempts=\"2\"><A2/></RetryUntilSuccessful></ReactiveFallback></Sequence>",
+    ] {
+        let e = parse(body).expect_err(body);
+        assert!(btrel::tree::xml::is_unsupported(&e), "{body}: {e}");
+        assert!(e.message.contains("restarted"), "{body}: {e}");
+    }
+    for body in [
+        "<ReactiveSequence><C1/><C2/><A1/></ReactiveSequence>",
+        "<ReactiveFallback><C1/><Sequence><A1/><A2/></Sequence></ReactiveFallback>",
+        "<ReactiveSequence><A1/><C1/></ReactiveSequence>",
+        "<Sequence><ReactiveSequence><C1/><A1/></ReactiveSequence><ReactiveSequence><C2/><A2/></ReactiveSequence></Sequence>",
+    ] {
+        let t = parse(body).unwrap_or_else(|e| panic!("{body}: {e}"));
+        let kind = t.nodes[if body.starts_with("<Sequence>") { 1 } else { 0 }]
+            .kind
+            .keyword();
+        let want = if body.contains("<ReactiveFallback>") {
+            "fallback"
+        } else {
+            "sequence"
+        };
+        assert_eq!(kind, want, "{body}");
+    }
 }
