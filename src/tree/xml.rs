@@ -44,7 +44,11 @@
 //!   Fallback. Under the SBT assumptions (a condition is evaluated once per
 //!   execution of its parent and keeps its outcome; a running action is never
 //!   interrupted by a re-evaluated sibling) a reactive node runs exactly like
-//!   its non-reactive counterpart. `SequenceWithMemory` resumes at the failed
+//!   its non-reactive counterpart — when at most one child holds actions. BT.CPP
+//!   halts the other children when one returns RUNNING and re-ticks them from
+//!   IDLE, so with actions in two children an earlier action is restarted
+//!   while a later one runs: refused (found by `tests/btcpp_referee.rs`).
+//!   `SequenceWithMemory` resumes at the failed
 //!   child when ticked again after a failure, so below a node that ticks a
 //!   failed child again (`RetryUntilSuccessful` with more than one attempt,
 //!   the main branch of a `RecoveryNode`) it differs from a fresh Sequence:
@@ -777,6 +781,9 @@ struct Builder<'a> {
     used: HashSet<String>,
     name_bytes: usize,
     leaves: Vec<Leaf>,
+    /// ReactiveSequence / ReactiveFallback nodes (node, source, location,
+    /// type), checked once the leaves are known to be actions or conditions.
+    reactive: Vec<(usize, usize, Loc, &'a str)>,
     problems: Vec<Problem>,
     seen_problems: HashSet<(usize, Loc, String)>,
     /// The source of the element being built (for error locations).
@@ -1174,6 +1181,9 @@ impl<'a> Builder<'a> {
                     }
                 }
                 self.set_children(id, ids);
+                if matches!(canon, "ReactiveSequence" | "ReactiveFallback") {
+                    self.reactive.push((id, e.doc, e.loc, ty));
+                }
                 Ok(id)
             }
             "Inverter"
@@ -2129,6 +2139,7 @@ fn build(files: Files, params: &str, params_file: &str) -> Result<Tree, TreeErro
         used: HashSet::new(),
         name_bytes: 0,
         leaves: Vec::new(),
+        reactive: Vec::new(),
         problems: Vec::new(),
         seen_problems: HashSet::new(),
         cur: std::cell::Cell::new(0),
@@ -2477,6 +2488,67 @@ fn build(files: Files, params: &str, params_file: &str) -> Result<Tree, TreeErro
             format!("params key `{key}` matches no action or condition"),
             hint,
         ));
+    }
+    // A Reactive node halts (resets) its other children when one returns
+    // RUNNING and ticks them again from IDLE on the next tick: an action in
+    // an earlier child is restarted while a later child runs (and that one
+    // is halted), which a Sequence / Fallback does not model. Refused when
+    // two or more children hold actions; conditions only re-read their value.
+    let has_action = |root: usize| {
+        let mut stack = vec![root];
+        while let Some(n) = stack.pop() {
+            match &b.nodes[n].kind {
+                NodeKind::Action(_) => return true,
+                k => stack.extend(k.children().iter().copied()),
+            }
+        }
+        false
+    };
+    let mut restarts: Vec<Problem> = Vec::new();
+    for &(id, doc, loc, ty) in &b.reactive {
+        let with_actions = b.nodes[id]
+            .kind
+            .children()
+            .iter()
+            .filter(|&&c| has_action(c))
+            .count();
+        if with_actions >= 2 {
+            restarts.push(Problem {
+                doc,
+                loc,
+                text: format!(
+                    "<{ty}> with actions in {with_actions} children: BT.CPP halts its other \
+                     children when one returns RUNNING and ticks them again from IDLE, so an \
+                     earlier action is restarted while a later one runs (and that one is \
+                     halted); a {} does not model this (keep actions in one child, e.g. the last)",
+                    if ty == "ReactiveSequence" {
+                        "Sequence"
+                    } else {
+                        "Fallback"
+                    }
+                ),
+                semantic: true,
+            });
+        }
+    }
+    if let Some(first) = restarts.first() {
+        let n = restarts.len();
+        let refs: Vec<&Problem> = restarts.iter().collect();
+        return Err(b
+            .err_in(
+                first.doc,
+                first.loc,
+                format!(
+                    "{UNSUPPORTED} {n} node{} of this tree:\n{}",
+                    if n == 1 { "" } else { "s" },
+                    problem_lines(&sources, &refs)
+                ),
+            )
+            .with_help(
+                "ReactiveSequence and ReactiveFallback are read as Sequence and Fallback when \
+                 at most one child holds actions (conditions before it are re-ticked, which \
+                 changes nothing while they keep their value)",
+            ));
     }
     Ok(Tree {
         title: main_id.map(str::to_string),
