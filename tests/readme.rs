@@ -12,13 +12,16 @@
 //!   more): the one elision marker, for output that may legitimately vary
 //!   (none does today: simulations are seeded and bit-identical for any thread
 //!   count). The commands must exit with 0, or with the code given in the
-//!   fence's info string: ```` ```console exit=2 ````.
+//!   fence's info string: ```` ```console exit=2 ````; a command that fails
+//!   must leave its standard output empty.
 //! * Every line of a ```` ```sh ```` block that starts with `btrel` or
 //!   `cargo run ... --` names an existing command and only options of that
 //!   command (from `btrel COMMAND --help`), with valid values where the option
 //!   has a fixed set. A line whose `-o` writes a file that exists under `docs/`
 //!   is run with the output redirected to a temporary file, which must equal
 //!   the committed file byte for byte (the figures in the README).
+//! * Inline code spans outside blocks that start with `btrel COMMAND` are
+//!   checked the same way (a `...` word stands for elided arguments).
 //! * The synopsis (the first block under `## Commands`) lists every option of
 //!   every command and no option that does not exist; a `btrel [...] COMMAND`
 //!   line lists the global options.
@@ -269,8 +272,9 @@ fn lines_of(s: &str) -> Vec<String> {
     s.lines().map(str::to_string).collect()
 }
 
-/// Runs a transcript; returns (exit code, output lines).
-fn run(p: &Pipeline) -> (i32, Vec<String>) {
+/// Runs a transcript; returns (exit code, output lines, whether the
+/// standard output was empty).
+fn run(p: &Pipeline) -> (i32, Vec<String>, bool) {
     let stdin = match &p.stdin {
         Some(f) => std::fs::File::open(root().join(f))
             .map(Stdio::from)
@@ -295,8 +299,9 @@ fn run(p: &Pipeline) -> (i32, Vec<String>) {
             }
         };
     }
+    let quiet = out.stdout.is_empty();
     stdout.extend(lines_of(&String::from_utf8_lossy(&out.stderr)));
-    (out.status.code().unwrap_or(-1), stdout)
+    (out.status.code().unwrap_or(-1), stdout, quiet)
 }
 
 #[test]
@@ -315,7 +320,13 @@ fn console_examples_print_what_the_binary_prints() {
                 continue;
             }
         };
-        let (code, actual) = run(&pipeline);
+        let (code, actual, quiet) = run(&pipeline);
+        if code != 0 && !quiet {
+            failures.push(format!(
+                "README.md:{}: `$ {}` failed (exit {code}) but wrote to standard output",
+                t.line, t.command
+            ));
+        }
         if code != t.exit {
             failures.push(format!(
                 "README.md:{}: `$ {}` exited with {code}, the README expects {} \
@@ -657,6 +668,68 @@ fn sh_examples_name_existing_commands_and_options() {
     assert!(
         failures.is_empty(),
         "README sh examples that do not fit the binary:\n{}",
+        failures.join("\n")
+    );
+}
+
+/// Single-backtick code spans outside code blocks, with their README lines.
+fn inline_spans(text: &str) -> Vec<(usize, String)> {
+    let mut out = Vec::new();
+    let mut in_block = false;
+    for (i, line) in text.lines().enumerate() {
+        if line.trim_start().starts_with("```") {
+            in_block = !in_block;
+            continue;
+        }
+        if in_block {
+            continue;
+        }
+        // split at backtick runs; single-backtick spans are the odd pieces
+        let mut rest = line;
+        while let Some(a) = rest.find('`') {
+            let run = rest[a..].chars().take_while(|&c| c == '`').count();
+            let after = &rest[a + run..];
+            let fence = "`".repeat(run);
+            let Some(b) = after.find(&fence) else { break };
+            if run == 1 {
+                out.push((i + 1, after[..b].to_string()));
+            }
+            rest = &after[b + run..];
+        }
+    }
+    out
+}
+
+#[test]
+fn inline_commands_name_existing_commands_and_options() {
+    let cli = Cli::get();
+    let mut failures = Vec::new();
+    let mut checked = 0;
+    for (no, span) in inline_spans(&readme()) {
+        if !span.starts_with("btrel ") {
+            continue;
+        }
+        let Some(Ok(w)) = btrel_words(&span) else {
+            continue;
+        };
+        let w: Vec<String> = w.into_iter().filter(|t| t != "...").collect();
+        let Some(cmd) = w.first() else { continue };
+        if !cli.commands.contains_key(cmd) && !cmd.starts_with('-') {
+            // prose such as `btrel <command>`: only real command names count
+            if cmd.chars().all(|c| c.is_ascii_lowercase()) {
+                failures.push(format!("README.md:{no}: `{span}`: no command `{cmd}`"));
+            }
+            continue;
+        }
+        checked += 1;
+        if let Err(e) = check_words(&cli, &w) {
+            failures.push(format!("README.md:{no}: `{span}`: {e}"));
+        }
+    }
+    assert!(checked >= 5, "found only {checked} inline btrel commands");
+    assert!(
+        failures.is_empty(),
+        "README inline commands that do not fit the binary:\n{}",
         failures.join("\n")
     );
 }
