@@ -640,7 +640,11 @@ fn sh_examples_name_existing_commands_and_options() {
             if !committed.is_file() {
                 continue;
             }
-            let fresh = dir.path().join(format!("out{no}"));
+            // the same extension: it may choose the format (plot: .svg, .png)
+            let mut fresh = dir.path().join(format!("out{no}"));
+            if let Some(ext) = committed.extension() {
+                fresh.set_extension(ext);
+            }
             let mut args = w.clone();
             args[k + 1] = fresh.display().to_string();
             let out = Command::new(BIN)
