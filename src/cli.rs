@@ -889,7 +889,12 @@ fn fit(args: FitArgs) -> Result<(), Failure> {
                 std::env::temp_dir().join(format!(".btrel-fit-{}.params.yaml", std::process::id()));
             let r = std::fs::write(&dir, &text)
                 .map_err(|e| Failure::analysis(format!("cannot write a temporary file: {e}")))
-                .map(|()| btrel::tree::xml::parse_xml_files(tree, &dir, &include));
+                .map(|()| {
+                    btrel::tree::xml::parse_xml_files(tree, &dir, &include).map_err(|mut e| {
+                        e.message = e.message.replace(&dir.display().to_string(), &params_name);
+                        e
+                    })
+                });
             let _ = std::fs::remove_file(&dir);
             Some((tree.display().to_string(), r?))
         }

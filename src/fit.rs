@@ -138,7 +138,6 @@ pub fn mle_exponential(c: &Counts) -> Option<Mle> {
         }
         let rate = n / t;
         // boundary: the information for p is not defined; exact bound
-        let k = c.episodes() as f64;
         let bound = 0.025f64.powf(1.0 / (ns + nf).max(1.0));
         let ps = if c.failures == 0 {
             Estimate {
@@ -153,7 +152,6 @@ pub fn mle_exponential(c: &Counts) -> Option<Mle> {
                 ci95: (0.0, 1.0 - bound),
             }
         };
-        let _ = k;
         let r = Some(rate_est(rate, n));
         return Some(if c.failures == 0 {
             Mle {
@@ -413,21 +411,24 @@ pub fn fit_leaf(key: &str, declared: Declared, counts: Counts) -> Option<LeafFit
     };
     if counts.episodes() < FEW {
         warnings.push(format!(
-            "ps rests on {} episodes (fewer than {FEW}): its interval is rough",
-            counts.episodes()
+            "ps rests on {} episode{} (fewer than {FEW}): its interval is rough",
+            counts.episodes(),
+            if counts.episodes() == 1 { "" } else { "s" }
         ));
     }
     if let Timing::Exponential { mu, nu, .. } = &timing {
         if mu.is_some() && counts.successes < FEW {
             warnings.push(format!(
-                "mu rests on {} completed successes (fewer than {FEW})",
-                counts.successes
+                "mu rests on {} completed success{} (fewer than {FEW})",
+                counts.successes,
+                if counts.successes == 1 { "" } else { "es" }
             ));
         }
         if nu.is_some() && counts.failures < FEW {
             warnings.push(format!(
-                "nu rests on {} completed failures (fewer than {FEW})",
-                counts.failures
+                "nu rests on {} completed failure{} (fewer than {FEW})",
+                counts.failures,
+                if counts.failures == 1 { "" } else { "s" }
             ));
         }
     }

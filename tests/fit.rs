@@ -102,7 +102,7 @@ fn btlog_records_halts_and_instants() {
 
     // by ID, A pools a and a2: successes 1, 2, 3, 2 s; halts 1, 3 s; no
     // failure, so p = 1 and mu = 4 / (8 + 4) = 1/3 (events over exposure)
-    let f = fit_logs(&[log.clone()], By::Id).unwrap();
+    let f = fit_logs(std::slice::from_ref(&log), By::Id).unwrap();
     let a = &f.leaves[0];
     assert_eq!(a.key, "A");
     assert_eq!(a.ps.value, 1.0);
@@ -502,4 +502,67 @@ fn real_btcpp_logs() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{o:?}");
+}
+
+#[test]
+fn names_shared_by_two_ids_are_refused() {
+    let xml = XML.replace(r#"<C name="c""#, r#"<C name="a""#);
+    let log = read_bytes(&btlog(&xml, &sample()), "x.btlog", "btlog").unwrap();
+    let e = fit_logs(&[log], By::Name).unwrap_err();
+    assert!(
+        e.contains("`a`") && e.contains("`A`") && e.contains("`C`"),
+        "{e}"
+    );
+}
+
+#[test]
+fn tree_option_checks_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = write(
+        &dir,
+        "e.csv",
+        b"run,node,start,end,status\n1,A,0,1,success\n1,C,1,1,failure\n",
+    );
+    let xml = write(&dir, "tree.xml", XML.as_bytes());
+    let out = dir.path().join("p.yaml");
+    // C fitted, A fitted: the tree is complete
+    let o = bin()
+        .args([
+            "fit".as_ref(),
+            csv.as_os_str(),
+            "--tree".as_ref(),
+            xml.as_os_str(),
+        ])
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8(o.stderr).unwrap();
+    assert!(o.status.success() && !err.contains("analysable"), "{err}");
+    // without C the warning names the missing leaf and the output file
+    let csv = write(
+        &dir,
+        "f.csv",
+        b"run,node,start,end,status\n1,A,0,1,success\n",
+    );
+    let o = bin()
+        .args([
+            "fit".as_ref(),
+            csv.as_os_str(),
+            "--tree".as_ref(),
+            xml.as_os_str(),
+        ])
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8(o.stderr).unwrap();
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("not make") && err.contains("`c`") && err.contains(&out.display().to_string()),
+        "{err}"
+    );
+    // a CSV alone: a note that nothing was checked
+    let o = bin().arg("fit").arg(&csv).output().unwrap();
+    assert!(String::from_utf8(o.stderr).unwrap().contains("--tree"));
 }

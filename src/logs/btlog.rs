@@ -153,7 +153,7 @@ pub fn read(bytes: &[u8], file: &str) -> Result<Log, LogError> {
 
     let rest = bytes.len() - pos;
     let records = rest / RECORD;
-    if rest % RECORD != 0 {
+    if !rest.is_multiple_of(RECORD) {
         let off = pos + records * RECORD;
         return Err(LogError::new(
             file,
