@@ -420,11 +420,11 @@ fn python() -> Option<PathBuf> {
 }
 
 /// Real BT.CPP logs: the fitted ps and rates are within |z| < 4 of the
-/// parameters make_log.py drew from. The tick loop adds less than one tick
-/// (tens of µs, measured ~1–3% of the 2–8 ms mean durations) to every
-/// measured duration, so rates come out a few percent low; with 1,500 runs
-/// the rates' standard errors are 4–12%, so the quantisation stays inside
-/// the tolerance.
+/// parameters make_log.py drew from. The tick loop sees a completion up to
+/// one tick late (the script measures it and the test prints it: 67 µs on
+/// average on the 2-core CI machine class), so measured durations of 2–8 ms
+/// means are 1–3% long and rates as much low; with 1,500 runs the rates' standard errors are 3–9%, so the
+/// quantisation is well inside the tolerance.
 #[test]
 fn real_btcpp_logs() {
     let Some(py) = python() else { return };
@@ -438,6 +438,11 @@ fn real_btcpp_logs() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let truth: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    eprintln!(
+        "tick quantisation: completions seen {:.1} µs late on average, {:.1} µs at most",
+        truth["late_mean_s"].as_f64().unwrap() * 1e6,
+        truth["late_max_s"].as_f64().unwrap() * 1e6
+    );
     let parsed = btrel::logs::read_file(&log).unwrap();
     let f = fit_logs(&[parsed], By::Id).unwrap();
     let z = |what: &str, est: f64, se: f64, exact: f64| {
@@ -447,6 +452,7 @@ fn real_btcpp_logs() {
     };
     for leaf in &f.leaves {
         let t = &truth[&leaf.key];
+        assert!(t.is_object(), "{} is not a leaf of make_log.py", leaf.key);
         z(
             &format!("{} ps", leaf.key),
             leaf.ps.value,
@@ -565,4 +571,23 @@ fn tree_option_checks_the_file() {
     // a CSV alone: a note that nothing was checked
     let o = bin().arg("fit").arg(&csv).output().unwrap();
     assert!(String::from_utf8(o.stderr).unwrap().contains("--tree"));
+}
+
+/// Every prefix of a log and every single-byte change of its records and
+/// header end in a log or a located error, never a panic.
+#[test]
+fn corrupted_logs_never_panic() {
+    let good = btlog(XML, &sample());
+    for n in 0..good.len() {
+        if let Err(e) = read_bytes(&good[..n], "x.btlog", "btlog") {
+            assert!(e.at.is_some() || e.message.contains("XML"), "{e}");
+        }
+    }
+    for i in 0..good.len() {
+        for v in [0u8, 1, 2, 3, 4, 0x7f, 0xff] {
+            let mut b = good.clone();
+            b[i] = v;
+            let _ = read_bytes(&b, "x.btlog", "btlog");
+        }
+    }
 }

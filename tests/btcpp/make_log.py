@@ -5,7 +5,8 @@ writes a real FileLogger2 `.btlog`, for tests/fit.rs.
 Each custom action draws its outcome first (Success with probability ps),
 then its duration (Exp(mu) for a success, Exp(nu) for a failure), as in the
 SBT model; each condition returns Success with probability ps. The truth is
-printed as JSON on stdout so the test compares the fit with it.
+printed as JSON on stdout so the test compares the fit with it, with the
+mean and largest delay between a drawn end and the tick that returned it.
 
 usage: make_log.py OUT.btlog RUNS SEED
 """
@@ -56,6 +57,8 @@ def main():
     rng = random.Random(seed)
     factory = bt.BehaviorTreeFactory()
     state = {}
+    # how much later than drawn the tree saw each completion (tick quantisation)
+    late = []
 
     def make(ps, mu, nu):
         def on_start(node):
@@ -66,8 +69,10 @@ def main():
 
         def on_running(node):
             deadline, ok = state[node.uid()]
-            if time.monotonic() < deadline:
+            now = time.monotonic()
+            if now < deadline:
                 return bt.NodeStatus.RUNNING
+            late.append(now - deadline)
             return bt.NodeStatus.SUCCESS if ok else bt.NodeStatus.FAILURE
 
         def on_halted(node):
@@ -97,6 +102,8 @@ def main():
     del logger
     truth = {k: {"ps": v[0], "mu": v[1], "nu": v[2]} for k, v in ACTIONS.items()}
     truth.update({k: {"ps": v} for k, v in CONDITIONS.items()})
+    truth["late_mean_s"] = sum(late) / max(len(late), 1)
+    truth["late_max_s"] = max(late, default=0.0)
     json.dump(truth, sys.stdout)
 
 
