@@ -59,6 +59,39 @@ Examples:
   btrel completions zsh > ~/.zfunc/_btrel        # with fpath+=~/.zfunc before compinit
   btrel completions fish > ~/.config/fish/completions/btrel.fish";
 
+const FIT_EXAMPLES: &str = "\
+Examples:
+  btrel fit run.btlog -o params.yaml && btrel report tree.xml --params params.yaml
+  btrel fit day1.btlog day2.btlog --by name -o params.yaml
+  btrel fit episodes.csv --tree tree.xml -o tree.params.yaml
+
+LOG is a BehaviorTree.CPP v4 FileLogger2 file (.btlog) or a CSV with the columns
+run,node,start,end,status (times in s; status success|failure|halted).
+Halted episodes are right-censored; SQLite logs are not supported yet.";
+
+#[derive(clap::Args)]
+struct FitArgs {
+    /// The logs: .btlog (BT.CPP FileLogger2) or CSV files; episodes of all are pooled.
+    #[arg(required = true, value_name = "LOG")]
+    logs: Vec<PathBuf>,
+    /// The XML tree the params file is for (default: the tree embedded in the first .btlog);
+    /// the fitted file is checked against it.
+    #[arg(long, value_name = "TREE.xml")]
+    tree: Option<PathBuf>,
+    /// Key the entries by registration ID (all nodes of one ID pooled) or by node name.
+    #[arg(long, value_enum, default_value = "id")]
+    by: FitBy,
+    /// Write the params file here (atomically) instead of standard output (- is standard output).
+    #[arg(short, long, value_name = "PARAMS.yaml")]
+    output: Option<PathBuf>,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum FitBy {
+    Id,
+    Name,
+}
+
 const MAN_EXAMPLES: &str = "\
 Examples:
   btrel man | man -l -
@@ -122,6 +155,9 @@ enum Command {
     /// Plot Success/Failure/Running over time as SVG or PNG (Figs. 9.18–9.22).
     #[command(after_help = PLOT_EXAMPLES)]
     Plot(PlotArgs),
+    /// Estimate the leaves' parameters from execution logs (.btlog, CSV) into a params file.
+    #[command(after_help = FIT_EXAMPLES)]
+    Fit(FitArgs),
     /// Validate a tree file without analysing it.
     #[command(after_help = CHECK_EXAMPLES)]
     Check {
@@ -659,6 +695,7 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Report(args) => report(args),
         Command::Check { tree } => check(&tree),
+        Command::Fit(args) => fit(args),
         Command::Curve(args) => curve(args),
         Command::Compare(args) => compare(args),
         Command::Simulate(args) => simulate(args),
@@ -802,6 +839,93 @@ fn man(command: Option<&str>, output: Option<&Path>) -> Result<(), Failure> {
         .render(&mut text)
         .map_err(|e| Failure::analysis(format!("cannot render the manual page: {e}")))?;
     emit(output, |out| out.write_all(&text))
+}
+
+fn fit(args: FitArgs) -> Result<(), Failure> {
+    let (format, params, include) = INPUT.get().cloned().unwrap_or((None, None, Vec::new()));
+    if params.is_some() {
+        return Err(Failure::input(
+            "fit writes a params file, it reads none: remove --params (write with -o FILE)",
+        ));
+    }
+    if format.is_some() {
+        return Err(Failure::input(
+            "--input-format does nothing for fit (LOG formats go by extension, TREE is XML): remove it",
+        ));
+    }
+    if !include.is_empty() && args.tree.is_none() {
+        return Err(Failure::input(
+            "--include goes with --tree (the tree embedded in a .btlog is complete): remove --include or add --tree",
+        ));
+    }
+    let mut logs = Vec::new();
+    for path in &args.logs {
+        logs.push(btrel::logs::read_file(path).map_err(Failure::input)?);
+    }
+    let by = match args.by {
+        FitBy::Id => btrel::fit::By::Id,
+        FitBy::Name => btrel::fit::By::Name,
+    };
+    let fitted = btrel::fit::fit_logs(&logs, by)
+        .map_err(|e| Failure::input(format!("{e}; key by ID instead with --by id")))?;
+    for l in &fitted.leaves {
+        for w in &l.warnings {
+            eprintln!("warning: {}: {w}", l.key);
+        }
+    }
+    for (key, c) in &fitted.unfitted {
+        eprintln!(
+            "warning: {key}: no completed episode ({} halted): no entry written; add one by hand",
+            c.halted
+        );
+    }
+    if fitted.leaves.is_empty() {
+        return Err(Failure::analysis(
+            "the logs hold no completed episode of any leaf: nothing to fit",
+        ));
+    }
+    let text = btrel::fit::render(&fitted, by);
+    // check the file against the tree it is for
+    let params_name = args
+        .output
+        .as_ref()
+        .filter(|p| *p != Path::new("-"))
+        .map_or("<fitted params>".to_string(), |p| p.display().to_string());
+    let check = match &args.tree {
+        Some(tree) => {
+            let dir =
+                std::env::temp_dir().join(format!(".btrel-fit-{}.params.yaml", std::process::id()));
+            let r = std::fs::write(&dir, &text)
+                .map_err(|e| Failure::analysis(format!("cannot write a temporary file: {e}")))
+                .map(|()| {
+                    btrel::tree::xml::parse_xml_files(tree, &dir, &include).map_err(|mut e| {
+                        e.message = e.message.replace(&dir.display().to_string(), &params_name);
+                        e
+                    })
+                });
+            let _ = std::fs::remove_file(&dir);
+            Some((tree.display().to_string(), r?))
+        }
+        None => logs.iter().find_map(|l| {
+            l.xml.as_ref().map(|xml| {
+                (
+                    format!("the tree in {}", l.file),
+                    btrel::tree::xml::parse_xml_str(xml, &l.file, &text, &params_name),
+                )
+            })
+        }),
+    };
+    match check {
+        Some((what, Err(e))) => eprintln!(
+            "warning: the fitted parameters do not make {what} analysable yet: {}",
+            e.message
+        ),
+        Some(_) => {}
+        None => eprintln!(
+            "note: CSV logs carry no tree: give --tree TREE.xml to check the params file against it"
+        ),
+    }
+    emit(args.output.as_deref(), |out| out.write_all(text.as_bytes()))
 }
 
 fn check(path: &Path) -> Result<(), Failure> {

@@ -569,11 +569,115 @@ fn xml_char(c: char) -> bool {
         || c >= '\u{10000}'
 }
 
+/// One element of an XML document as [`scan_elements`] returns it.
+#[derive(Debug, Clone)]
+pub struct XmlElement {
+    /// The element's name (tag).
+    pub name: String,
+    /// Its attributes, in document order.
+    pub attrs: Vec<(String, String)>,
+    /// 1-based line and column of its start tag.
+    pub line: usize,
+    pub column: usize,
+    /// Indices of its child elements.
+    pub children: Vec<usize>,
+}
+
+impl XmlElement {
+    /// The value of attribute `name`.
+    pub fn attr(&self, name: &str) -> Option<&str> {
+        self.attrs
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_str())
+    }
+}
+
+/// Reads an XML document with btrel's strict XML reader and returns its
+/// elements in document order (element 0 is the root). `file` names the
+/// source in error messages.
+pub fn scan_elements(src: &str, file: &str) -> Result<Vec<XmlElement>, TreeError> {
+    if src.len() > MAX_BYTES {
+        return Err(too_large(file, src.len()));
+    }
+    let elems = Reader {
+        src,
+        file,
+        doc: 0,
+        pos: 0,
+        line: 1,
+        col: 1,
+    }
+    .parse()?;
+    Ok(elems
+        .into_iter()
+        .map(|e| XmlElement {
+            name: e.name,
+            attrs: e.attrs.into_iter().map(|a| (a.name, a.value)).collect(),
+            line: e.loc.0,
+            column: e.loc.1,
+            children: e.children,
+        })
+        .collect())
+}
+
 // ---------------------------------------------------------------------------
 // Params file
 // ---------------------------------------------------------------------------
 
+/// A params file entry: an action's keys, plus an optional `fit:` mapping
+/// (written by `btrel fit`: counts, standard errors, intervals) that the
+/// analysis ignores.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ParamsEntry {
+    #[serde(default)]
+    ps: Option<At<f64>>,
+    #[serde(default)]
+    pf: Option<At<f64>>,
+    #[serde(default)]
+    mu: Option<At<f64>>,
+    #[serde(default)]
+    nu: Option<At<f64>>,
+    #[serde(default)]
+    tau_s: Option<At<f64>>,
+    #[serde(default)]
+    tau_f: Option<At<f64>>,
+    #[serde(default)]
+    #[allow(dead_code)]
+    fit: Option<serde::de::IgnoredAny>,
+}
+
 fn parse_params(src: &str, file: &str) -> Result<BTreeMap<String, At<ActionParams>>, TreeError> {
+    let entries: BTreeMap<String, At<ParamsEntry>> = parse_params_entries(src, file)?;
+    Ok(entries
+        .into_iter()
+        .map(|(k, e)| {
+            let p = e.value;
+            let params = ActionParams {
+                ps: p.ps,
+                pf: p.pf,
+                mu: p.mu,
+                nu: p.nu,
+                tau_s: p.tau_s,
+                tau_f: p.tau_f,
+            };
+            (
+                k,
+                At {
+                    value: params,
+                    line: e.line,
+                    column: e.column,
+                },
+            )
+        })
+        .collect())
+}
+
+fn parse_params_entries(
+    src: &str,
+    file: &str,
+) -> Result<BTreeMap<String, At<ParamsEntry>>, TreeError> {
     let only_comments = src
         .lines()
         .all(|l| l.trim().is_empty() || l.trim_start().starts_with('#'));
@@ -604,7 +708,8 @@ fn parse_params(src: &str, file: &str) -> Result<BTreeMap<String, At<ActionParam
         };
         TreeError::at(file, src, at, format!("invalid params file: {text}")).with_help(
             "the params file maps a node's name or ID to its parameters, e.g. \
-             `grasp: {ps: 0.5, mu: 0.1, nu: 0.2}`; accepted keys: ps, pf, mu, nu, tau_s, tau_f",
+             `grasp: {ps: 0.5, mu: 0.1, nu: 0.2}`; accepted keys: ps, pf, mu, nu, tau_s, tau_f \
+             (and `fit`, the statistics `btrel fit` writes, which the analysis ignores)",
         )
     })
 }

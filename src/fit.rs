@@ -1,0 +1,624 @@
+//! Estimating leaf parameters from logged episodes (`btrel fit`).
+//!
+//! # The model and its likelihood
+//!
+//! Under the SBT model an action first draws its outcome (Success with
+//! probability p), then its duration: Exp(μ) after a Success draw, Exp(ν)
+//! after a Failure draw. A log shows, per episode, either a completed
+//! Success after t (likelihood `p μ e^{−μt}`), a completed Failure after t
+//! (`(1−p) ν e^{−νt}`), or a halt after c — right-censored, the outcome
+//! drawn but not seen: `p e^{−μc} + (1−p) e^{−νc}`. With n_s successes of
+//! total time T_s, n_f failures of total time T_f and halts c_1..c_m:
+//!
+//! ```text
+//! log L = n_s log p + n_f log(1−p) + n_s log μ − μ T_s + n_f log ν − ν T_f
+//!         + Σ_j log(p e^{−μ c_j} + (1−p) e^{−ν c_j})
+//! ```
+//!
+//! Without halts the maximum is closed: p = n_s/(n_s+n_f), μ = n_s/T_s,
+//! ν = n_f/T_f. With halts it is found by EM: the E-step gives each halt the
+//! posterior probability that it was a Success draw,
+//! `w_j = p e^{−μc_j} / (p e^{−μc_j} + (1−p) e^{−νc_j})`, the M-step sets
+//! p = (n_s + Σw)/(n_s+n_f+m), μ = n_s/(T_s + Σ w_j c_j),
+//! ν = n_f/(T_f + Σ (1−w_j) c_j) — "events over the exposure of the episodes
+//! that could still end that way". EM increases L at every step; it stops
+//! when the parameters change by less than 1e-12 relative. When no episode
+//! failed, the maximum is on the boundary p = 1 and μ = n_s/(T_s + Σ c_j)
+//! (closed); likewise p = 0 when none succeeded.
+//!
+//! Standard errors are the square roots of the diagonal of the inverse
+//! observed information (the negative Hessian of log L at the maximum,
+//! computed analytically). 95% intervals: p ± 1.96·se clipped to [0, 1]
+//! (at p = 1 or 0 with n episodes, the exact Clopper–Pearson bound
+//! 0.025^{1/n}); rates on the log scale, `rate·exp(±1.96·se/rate)`.
+
+use crate::logs::{Declared, End, Episode};
+
+/// z of a two-sided 95% interval.
+pub const Z95: f64 = 1.959963984540054;
+/// Figures resting on fewer episodes than this get a warning.
+pub const FEW: usize = 30;
+/// Deterministic timing: at least this many completed episodes of an
+/// outcome, all within [`DET_SPREAD`] of their mean (or 2 µs).
+pub const DET_MIN: usize = 3;
+/// Relative spread (max − min over the mean) below which durations are one
+/// fixed time.
+pub const DET_SPREAD: f64 = 0.01;
+
+/// Counts of one leaf's episodes.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Counts {
+    pub successes: usize,
+    pub failures: usize,
+    pub halted: usize,
+    pub instants: usize,
+    /// Total seconds of the completed successes / failures.
+    pub success_time: f64,
+    pub failure_time: f64,
+    /// Halt (censoring) times.
+    pub censored: Vec<f64>,
+    pub success_durations: Vec<f64>,
+    pub failure_durations: Vec<f64>,
+}
+
+impl Counts {
+    pub fn from_episodes<'a>(eps: impl IntoIterator<Item = &'a Episode>) -> Counts {
+        let mut c = Counts::default();
+        for e in eps {
+            if e.instant {
+                c.instants += 1;
+            }
+            match e.end {
+                End::Success => {
+                    c.successes += 1;
+                    c.success_time += e.duration;
+                    c.success_durations.push(e.duration);
+                }
+                End::Failure => {
+                    c.failures += 1;
+                    c.failure_time += e.duration;
+                    c.failure_durations.push(e.duration);
+                }
+                End::Halted => {
+                    c.halted += 1;
+                    c.censored.push(e.duration);
+                }
+            }
+        }
+        c
+    }
+    pub fn episodes(&self) -> usize {
+        self.successes + self.failures + self.halted
+    }
+}
+
+/// An estimate with its standard error (None where it is undefined) and
+/// 95% interval.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Estimate {
+    pub value: f64,
+    pub se: Option<f64>,
+    pub ci95: (f64, f64),
+}
+
+/// The maximum-likelihood estimate of (p, μ, ν); a rate is None when its
+/// outcome never completed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mle {
+    pub ps: Estimate,
+    pub mu: Option<Estimate>,
+    pub nu: Option<Estimate>,
+    pub em_iterations: usize,
+}
+
+/// Maximum likelihood for exponential timing with censoring (module docs).
+/// None when no episode completed (or a completed outcome has no exposure).
+pub fn mle_exponential(c: &Counts) -> Option<Mle> {
+    let (ns, nf) = (c.successes as f64, c.failures as f64);
+    let cens_total: f64 = c.censored.iter().sum();
+    if c.successes == 0 && c.failures == 0 {
+        return None;
+    }
+    let rate_est = |rate: f64, n: f64| {
+        let se = rate / n.sqrt();
+        Estimate {
+            value: rate,
+            se: Some(se),
+            ci95: log_ci(rate, se),
+        }
+    };
+    if c.failures == 0 || c.successes == 0 {
+        let (n, t) = if c.failures == 0 {
+            (ns, c.success_time + cens_total)
+        } else {
+            (nf, c.failure_time + cens_total)
+        };
+        if t <= 0.0 {
+            return None;
+        }
+        let rate = n / t;
+        // boundary: the information for p is not defined; exact bound
+        let bound = 0.025f64.powf(1.0 / (ns + nf).max(1.0));
+        let ps = if c.failures == 0 {
+            Estimate {
+                value: 1.0,
+                se: None,
+                ci95: (bound, 1.0),
+            }
+        } else {
+            Estimate {
+                value: 0.0,
+                se: None,
+                ci95: (0.0, 1.0 - bound),
+            }
+        };
+        let r = Some(rate_est(rate, n));
+        return Some(if c.failures == 0 {
+            Mle {
+                ps,
+                mu: r,
+                nu: None,
+                em_iterations: 0,
+            }
+        } else {
+            Mle {
+                ps,
+                mu: None,
+                nu: r,
+                em_iterations: 0,
+            }
+        });
+    }
+    let m = c.censored.len() as f64;
+    let mut p = ns / (ns + nf);
+    let mut mu = ns / (c.success_time + p * cens_total);
+    let mut nu = nf / (c.failure_time + (1.0 - p) * cens_total);
+    if !(mu.is_finite() && nu.is_finite()) {
+        return None;
+    }
+    let mut iterations = 0;
+    if !c.censored.is_empty() {
+        for it in 1..=200_000 {
+            iterations = it;
+            let (mut sw, mut swc, mut s1wc) = (0.0, 0.0, 0.0);
+            for &cj in &c.censored {
+                let w = posterior_success(p, mu, nu, cj);
+                sw += w;
+                swc += w * cj;
+                s1wc += (1.0 - w) * cj;
+            }
+            let p2 = (ns + sw) / (ns + nf + m);
+            let mu2 = ns / (c.success_time + swc);
+            let nu2 = nf / (c.failure_time + s1wc);
+            let change = ((p2 - p) / p)
+                .abs()
+                .max(((mu2 - mu) / mu).abs())
+                .max(((nu2 - nu) / nu).abs());
+            p = p2;
+            mu = mu2;
+            nu = nu2;
+            if change < 1e-12 {
+                break;
+            }
+        }
+    }
+    // observed information (negative Hessian) in (p, mu, nu)
+    let mut h = [[0.0f64; 3]; 3];
+    h[0][0] = ns / (p * p) + nf / ((1.0 - p) * (1.0 - p));
+    h[1][1] = ns / (mu * mu);
+    h[2][2] = nf / (nu * nu);
+    for &cj in &c.censored {
+        let a = (-mu * cj).exp();
+        let b = (-nu * cj).exp();
+        let g = p * a + (1.0 - p) * b;
+        if g <= 0.0 {
+            continue;
+        }
+        let gp = (a - b) / g;
+        let gm = -p * cj * a / g;
+        let gn = -(1.0 - p) * cj * b / g;
+        // second derivatives of log g
+        let hpp = -gp * gp;
+        let hpm = -cj * a / g - gp * gm;
+        let hpn = cj * b / g - gp * gn;
+        let hmm = p * cj * cj * a / g - gm * gm;
+        let hnn = (1.0 - p) * cj * cj * b / g - gn * gn;
+        let hmn = -gm * gn;
+        h[0][0] -= hpp;
+        h[0][1] -= hpm;
+        h[0][2] -= hpn;
+        h[1][1] -= hmm;
+        h[2][2] -= hnn;
+        h[1][2] -= hmn;
+    }
+    h[1][0] = h[0][1];
+    h[2][0] = h[0][2];
+    h[2][1] = h[1][2];
+    let cov = invert3(&h);
+    let se = |i: usize| {
+        cov.and_then(|c| {
+            let v = c[i][i];
+            (v.is_finite() && v > 0.0).then(|| v.sqrt())
+        })
+    };
+    let ps_se = se(0);
+    let ps = Estimate {
+        value: p,
+        se: ps_se,
+        ci95: ps_se.map_or((0.0, 1.0), |s| {
+            ((p - Z95 * s).max(0.0), (p + Z95 * s).min(1.0))
+        }),
+    };
+    let rate = |r: f64, s: Option<f64>| Estimate {
+        value: r,
+        se: s,
+        ci95: s.map_or((0.0, f64::INFINITY), |s| log_ci(r, s)),
+    };
+    Some(Mle {
+        ps,
+        mu: Some(rate(mu, se(1))),
+        nu: Some(rate(nu, se(2))),
+        em_iterations: iterations,
+    })
+}
+
+/// P(Success draw | still running at c).
+pub fn posterior_success(p: f64, mu: f64, nu: f64, c: f64) -> f64 {
+    // p e^{-mu c} / (p e^{-mu c} + (1-p) e^{-nu c}), computed without underflow
+    let d = (mu - nu) * c;
+    if d >= 0.0 {
+        let a = p * (-d).exp();
+        a / (a + (1.0 - p))
+    } else {
+        let b = (1.0 - p) * d.exp();
+        p / (p + b)
+    }
+}
+
+fn log_ci(rate: f64, se: f64) -> (f64, f64) {
+    let f = (Z95 * se / rate).exp();
+    (rate / f, rate * f)
+}
+
+fn invert3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
+    let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+    if !(det.is_finite() && det.abs() > 0.0) {
+        return None;
+    }
+    let mut r = [[0.0; 3]; 3];
+    for (i, row) in r.iter_mut().enumerate() {
+        for (j, v) in row.iter_mut().enumerate() {
+            let (a1, a2) = ((j + 1) % 3, (j + 2) % 3);
+            let (b1, b2) = ((i + 1) % 3, (i + 2) % 3);
+            *v = (m[a1][b1] * m[a2][b2] - m[a1][b2] * m[a2][b1]) / det;
+        }
+    }
+    Some(r)
+}
+
+/// How a leaf's times were fitted.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Timing {
+    /// No RUNNING state: a condition (ps only).
+    Condition,
+    /// Every completed episode took (nearly) the same time per outcome.
+    Deterministic {
+        tau_s: Option<f64>,
+        tau_f: Option<f64>,
+    },
+    Exponential {
+        mu: Option<Estimate>,
+        nu: Option<Estimate>,
+        em_iterations: usize,
+    },
+}
+
+/// One leaf's fitted parameters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LeafFit {
+    pub key: String,
+    pub counts: Counts,
+    pub ps: Estimate,
+    pub timing: Timing,
+    /// Warnings about this leaf (few episodes, instants mixed with timed ones).
+    pub warnings: Vec<String>,
+}
+
+fn near_constant(d: &[f64]) -> Option<f64> {
+    if d.len() < DET_MIN {
+        return None;
+    }
+    let mean = d.iter().sum::<f64>() / d.len() as f64;
+    let (lo, hi) = d
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+            (a.min(x), b.max(x))
+        });
+    (hi - lo <= (DET_SPREAD * mean).max(2e-6)).then_some(mean)
+}
+
+fn count_ps(c: &Counts) -> Estimate {
+    let n = (c.successes + c.failures) as f64;
+    let p = c.successes as f64 / n;
+    if c.successes == 0 || c.failures == 0 {
+        let bound = 0.025f64.powf(1.0 / n);
+        return Estimate {
+            value: p,
+            se: None,
+            ci95: if p == 1.0 {
+                (bound, 1.0)
+            } else {
+                (0.0, 1.0 - bound)
+            },
+        };
+    }
+    let se = (p * (1.0 - p) / n).sqrt();
+    Estimate {
+        value: p,
+        se: Some(se),
+        ci95: ((p - Z95 * se).max(0.0), (p + Z95 * se).min(1.0)),
+    }
+}
+
+/// Fits one leaf; None when no episode completed (only halts, or none).
+pub fn fit_leaf(key: &str, declared: Declared, counts: Counts) -> Option<LeafFit> {
+    if counts.successes + counts.failures == 0 {
+        return None;
+    }
+    let mut warnings = Vec::new();
+    let completed = counts.successes + counts.failures;
+    let all_instant = counts.instants == completed && counts.halted == 0;
+    let (ps, timing) = if all_instant && declared != Declared::Action {
+        (count_ps(&counts), Timing::Condition)
+    } else if all_instant {
+        (
+            count_ps(&counts),
+            Timing::Deterministic {
+                tau_s: (counts.successes > 0).then_some(0.0),
+                tau_f: (counts.failures > 0).then_some(0.0),
+            },
+        )
+    } else {
+        let ds = near_constant(&counts.success_durations);
+        let df = near_constant(&counts.failure_durations);
+        let det = match (counts.successes, counts.failures) {
+            (_, 0) => ds.map(|s| (Some(s), None)),
+            (0, _) => df.map(|f| (None, Some(f))),
+            _ => ds.zip(df).map(|(s, f)| (Some(s), Some(f))),
+        };
+        if let Some((tau_s, tau_f)) = det {
+            (count_ps(&counts), Timing::Deterministic { tau_s, tau_f })
+        } else {
+            let m = mle_exponential(&counts)?;
+            if counts.instants > 0 {
+                warnings.push(format!(
+                    "{} of its {} completed episodes returned instantly (no RUNNING state); \
+                     the exponential model has no instants, so its rates are too high",
+                    counts.instants, completed
+                ));
+            }
+            (
+                m.ps,
+                Timing::Exponential {
+                    mu: m.mu,
+                    nu: m.nu,
+                    em_iterations: m.em_iterations,
+                },
+            )
+        }
+    };
+    if counts.episodes() < FEW {
+        warnings.push(format!(
+            "ps rests on {} episode{} (fewer than {FEW}): its interval is rough",
+            counts.episodes(),
+            if counts.episodes() == 1 { "" } else { "s" }
+        ));
+    }
+    if let Timing::Exponential { mu, nu, .. } = &timing {
+        if mu.is_some() && counts.successes < FEW {
+            warnings.push(format!(
+                "mu rests on {} completed success{} (fewer than {FEW})",
+                counts.successes,
+                if counts.successes == 1 { "" } else { "es" }
+            ));
+        }
+        if nu.is_some() && counts.failures < FEW {
+            warnings.push(format!(
+                "nu rests on {} completed failure{} (fewer than {FEW})",
+                counts.failures,
+                if counts.failures == 1 { "" } else { "s" }
+            ));
+        }
+    }
+    Some(LeafFit {
+        key: key.to_string(),
+        counts,
+        ps,
+        timing,
+        warnings,
+    })
+}
+
+fn num(x: f64) -> String {
+    if x.is_finite() {
+        let s = format!("{x}");
+        if s.contains(['.', 'e']) {
+            s
+        } else {
+            format!("{s}.0")
+        }
+    } else {
+        ".inf".into()
+    }
+}
+
+fn est_fields(out: &mut String, name: &str, e: &Estimate) {
+    if let Some(se) = e.se {
+        out.push_str(&format!(", {name}_se: {}", num(se)));
+    }
+    out.push_str(&format!(
+        ", {name}_ci95: [{}, {}]",
+        num(e.ci95.0),
+        num(e.ci95.1)
+    ));
+}
+
+/// One params-file line for a leaf: the parameters, then a `fit:` mapping
+/// with counts, standard errors and intervals (ignored by the analysis).
+pub fn params_line(f: &LeafFit) -> String {
+    let key = serde_json::to_string(&f.key).unwrap_or_else(|_| format!("{:?}", f.key));
+    let mut s = format!("{key}: {{ps: {}", num(f.ps.value));
+    let c = &f.counts;
+    let mut stats = format!(
+        "episodes: {}, successes: {}, failures: {}, halted: {}, instants: {}",
+        c.episodes(),
+        c.successes,
+        c.failures,
+        c.halted,
+        c.instants
+    );
+    match &f.timing {
+        Timing::Condition => {}
+        Timing::Deterministic { tau_s, tau_f } => {
+            if let Some(t) = tau_s {
+                s.push_str(&format!(", tau_s: {}", num(*t)));
+            }
+            if let Some(t) = tau_f {
+                s.push_str(&format!(", tau_f: {}", num(*t)));
+            }
+            stats.push_str(", timing: deterministic");
+        }
+        Timing::Exponential { mu, nu, .. } => {
+            if let Some(m) = mu {
+                s.push_str(&format!(", mu: {}", num(m.value)));
+            }
+            if let Some(n) = nu {
+                s.push_str(&format!(", nu: {}", num(n.value)));
+            }
+            stats.push_str(&format!(
+                ", timing: exponential, exposure_s: {}",
+                num(c.success_time + c.failure_time + c.censored.iter().sum::<f64>())
+            ));
+        }
+    }
+    est_fields(&mut stats, "ps", &f.ps);
+    if let Timing::Exponential { mu, nu, .. } = &f.timing {
+        if let Some(m) = mu {
+            est_fields(&mut stats, "mu", m);
+        }
+        if let Some(n) = nu {
+            est_fields(&mut stats, "nu", n);
+        }
+    }
+    s.push_str(&format!(", fit: {{{stats}}}}}"));
+    s
+}
+
+/// How leaves are keyed (and pooled) in the params file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum By {
+    /// By registration ID: all nodes of one ID share one entry.
+    Id,
+    /// By the node's `name` attribute (the ID where it has none).
+    Name,
+}
+
+/// The fit of several logs.
+#[derive(Clone, Debug)]
+pub struct Fitted {
+    /// Fitted leaves, in order of first appearance.
+    pub leaves: Vec<LeafFit>,
+    /// Keys whose leaves have no completed episode (not written).
+    pub unfitted: Vec<(String, Counts)>,
+    /// Per file: (file, records, leaf episodes).
+    pub files: Vec<(String, usize, usize)>,
+}
+
+/// Pools the logs' leaves by key and fits each. Errors when one name is
+/// used by leaves of different IDs (`By::Name`).
+pub fn fit_logs(logs: &[crate::logs::Log], by: By) -> Result<Fitted, String> {
+    let mut order: Vec<String> = Vec::new();
+    let mut pooled: std::collections::HashMap<String, (Declared, String, Vec<Episode>)> =
+        std::collections::HashMap::new();
+    let mut files = Vec::new();
+    for log in logs {
+        let mut n = 0;
+        for leaf in &log.leaves {
+            n += leaf.episodes.len();
+            let key = match by {
+                By::Id => leaf.id.clone(),
+                By::Name => leaf.name.clone().unwrap_or_else(|| leaf.id.clone()),
+            };
+            let entry = pooled.entry(key.clone()).or_insert_with(|| {
+                order.push(key.clone());
+                (leaf.declared, leaf.id.clone(), Vec::new())
+            });
+            if entry.1 != leaf.id {
+                return Err(format!(
+                    "{}: the name `{key}` is used by nodes of two IDs, `{}` and `{}`: \
+                     their parameters cannot be pooled under one key",
+                    log.file, entry.1, leaf.id
+                ));
+            }
+            if entry.0 == Declared::Unknown {
+                entry.0 = leaf.declared;
+            }
+            entry.2.extend_from_slice(&leaf.episodes);
+        }
+        files.push((log.file.clone(), log.records, n));
+    }
+    let mut leaves = Vec::new();
+    let mut unfitted = Vec::new();
+    for key in order {
+        let Some((declared, _, eps)) = pooled.remove(&key) else {
+            continue;
+        };
+        let counts = Counts::from_episodes(&eps);
+        match fit_leaf(&key, declared, counts.clone()) {
+            Some(f) => leaves.push(f),
+            None => unfitted.push((key, counts)),
+        }
+    }
+    Ok(Fitted {
+        leaves,
+        unfitted,
+        files,
+    })
+}
+
+/// The params file text: a comment header naming the logs and their
+/// episode counts, then one line per fitted leaf.
+pub fn render(f: &Fitted, by: By) -> String {
+    let mut s = String::new();
+    s.push_str(&format!(
+        "# btrel fit: leaf parameters estimated from {} log file{}, keyed by {}\n",
+        f.files.len(),
+        if f.files.len() == 1 { "" } else { "s" },
+        match by {
+            By::Id => "ID",
+            By::Name => "name",
+        }
+    ));
+    for (file, records, eps) in &f.files {
+        s.push_str(&format!(
+            "#   {file}: {records} records, {eps} leaf episodes\n"
+        ));
+    }
+    s.push_str(
+        "# timing: exponential rates by maximum likelihood with halted episodes censored;\n\
+         # `fit:` holds counts, standard errors and 95% intervals (ignored by the analysis)\n",
+    );
+    for (key, c) in &f.unfitted {
+        s.push_str(&format!(
+            "# not fitted: {key} ({} episodes, none completed)\n",
+            c.episodes()
+        ));
+    }
+    for l in &f.leaves {
+        s.push_str(&params_line(l));
+        s.push('\n');
+    }
+    s
+}
