@@ -701,6 +701,11 @@ pub fn main() -> ExitCode {
         Command::Simulate(args) => simulate(args),
         Command::Export(args) => export(args),
         Command::Plot(args) => plot(args),
+        Command::Completions { .. } | Command::Man { .. } if tree_options_given() => {
+            Err(Failure::input(
+                "--input-format, --params and --include go with a command that reads a tree: remove them",
+            ))
+        }
         Command::Completions { shell } => completions(shell),
         Command::Man { command, output } => man(command.as_deref(), output.as_deref()),
     };
@@ -839,6 +844,14 @@ fn man(command: Option<&str>, output: Option<&Path>) -> Result<(), Failure> {
         .render(&mut text)
         .map_err(|e| Failure::analysis(format!("cannot render the manual page: {e}")))?;
     emit(output, |out| out.write_all(&text))
+}
+
+/// Whether any of the tree-input options (`--input-format`, `--params`,
+/// `--include`) was given.
+fn tree_options_given() -> bool {
+    INPUT
+        .get()
+        .is_some_and(|(f, p, i)| f.is_some() || p.is_some() || !i.is_empty())
 }
 
 fn fit(args: FitArgs) -> Result<(), Failure> {

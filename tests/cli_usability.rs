@@ -984,3 +984,14 @@ fn every_help_example_runs() {
     }
     assert!(ran >= 25, "only {ran} examples found");
 }
+
+#[test]
+fn tree_options_are_refused_where_no_tree_is_read() {
+    for args in [
+        &["completions", "bash", "--params", "x.yaml"][..],
+        &["man", "--input-format", "xml"][..],
+        &["completions", "zsh", "--include", "trees"][..],
+    ] {
+        refused(args, &["--params", "--include"]);
+    }
+}
