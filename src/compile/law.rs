@@ -232,6 +232,31 @@ fn sample_weighted(
     points: &[f64],
     weights: &[&[f64]],
 ) -> Option<Vec<Vec<f64>>> {
+    // phases that only exit (an action, a mixture of exponentials): closed
+    // form, π_i(t) = p_i e^{−q_i t}
+    if chain.transitions.iter().all(Vec::is_empty) {
+        return Some(
+            points
+                .iter()
+                .map(|&t| {
+                    let mut row = vec![chain.initial_success, chain.initial_failure];
+                    row.resize(2 + weights.len(), 0.0);
+                    for &(i, p) in &chain.initial {
+                        let q = chain.total_rate(i);
+                        let (alive, gone) = ((-q * t).exp(), -(-q * t).exp_m1());
+                        if q > 0.0 {
+                            row[0] += p * chain.exit_success[i] / q * gone;
+                            row[1] += p * chain.exit_failure[i] / q * gone;
+                        }
+                        for (k, w) in weights.iter().enumerate() {
+                            row[2 + k] += p * alive * w[i];
+                        }
+                    }
+                    row
+                })
+                .collect(),
+        );
+    }
     if let Some(rows) = transient_weighted(chain, points, SAMPLE_TOLERANCE, weights) {
         return Some(rows);
     }
