@@ -22,18 +22,7 @@ pub fn write_atomic(
             return w.flush();
         }
     }
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let name = path
-        .file_name()
-        .ok_or_else(|| io::Error::new(io::ErrorKind::InvalidInput, "not a file name"))?;
-    let tmp = dir.join(format!(
-        ".{}.{}.tmp",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
+    let tmp = temp_path(path)?;
     let result = (|| {
         let file = fs::File::create(&tmp)?;
         let mut w = BufWriter::new(file);
@@ -46,6 +35,23 @@ pub fn write_atomic(
         let _ = fs::remove_file(&tmp);
     }
     result
+}
+
+/// The temporary beside `path` that is renamed over it: `.NAME.PID.tmp` in
+/// the same directory (a rename never crosses a device).
+fn temp_path(path: &Path) -> io::Result<std::path::PathBuf> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let name = path
+        .file_name()
+        .ok_or_else(|| io::Error::new(io::ErrorKind::InvalidInput, "not a file name"))?;
+    Ok(dir.join(format!(
+        ".{}.{}.tmp",
+        name.to_string_lossy(),
+        std::process::id()
+    )))
 }
 
 /// A function writing a file's bytes.
@@ -70,18 +76,7 @@ pub fn write_atomic_all<'a>(files: Vec<FileWriter<'a>>) -> Result<(), (&'a Path,
     };
     for (path, write) in files {
         let result = (|| {
-            let dir = match path.parent() {
-                Some(p) if !p.as_os_str().is_empty() => p,
-                _ => Path::new("."),
-            };
-            let name = path
-                .file_name()
-                .ok_or_else(|| io::Error::new(io::ErrorKind::InvalidInput, "not a file name"))?;
-            let tmp = dir.join(format!(
-                ".{}.{}.tmp",
-                name.to_string_lossy(),
-                std::process::id()
-            ));
+            let tmp = temp_path(path)?;
             temps.push((tmp.clone(), path));
             let file = fs::File::create(&tmp)?;
             let mut w = BufWriter::new(file);

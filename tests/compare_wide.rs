@@ -4,22 +4,11 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use assert_cmd::Command;
 use btrel::compare::{compare_with_progress, CompareOptions, Search};
 use btrel::tree::parse_str;
 
-fn btrel(args: &[&str]) -> (i32, String, String) {
-    let out = Command::cargo_bin("btrel")
-        .unwrap()
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8(out.stdout).unwrap(),
-        String::from_utf8(out.stderr).unwrap(),
-    )
-}
+mod common;
+use common::run_btrel as btrel;
 
 fn assert_narrow(text: &str) {
     for line in text.lines() {

@@ -2,23 +2,12 @@
 //! default horizons from the tree's figures, deadline markers, Monte Carlo
 //! markers per node, `--timing both` labels, wrapped titles.
 
-use assert_cmd::Command;
 use btrel::curve::{curve, CurveOptions, Timing};
 use btrel::plot::{default_horizon, render_svg, PlotSpec, Series, SeriesKind, Style};
 use btrel::tree::{parse_str, Tree};
 
-fn btrel(args: &[&str]) -> (i32, String, String) {
-    let out = Command::cargo_bin("btrel")
-        .unwrap()
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8(out.stdout).unwrap(),
-        String::from_utf8(out.stderr).unwrap(),
-    )
-}
+mod common;
+use common::run_btrel as btrel;
 
 /// Parallel (M = N = 2) of a fixed-time and a random action.
 const MIXED: &str = "tree:

@@ -146,3 +146,18 @@ pub fn assert_root_matches_simulation(tree: &Tree, runs: u64) {
         assert_within_z("MTTF", e, m);
     }
 }
+
+/// Runs the built binary with `args` (from the crate root): exit code,
+/// standard output, standard error.
+pub fn run_btrel(args: &[&str]) -> (i32, String, String) {
+    let out = assert_cmd::Command::cargo_bin("btrel")
+        .expect("the binary is built")
+        .args(args)
+        .output()
+        .expect("the binary runs");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8(out.stdout).expect("UTF-8 output"),
+        String::from_utf8(out.stderr).expect("UTF-8 errors"),
+    )
+}
