@@ -1025,3 +1025,70 @@ fn include_elements_and_folders_are_read_from_disk() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--include nope.xml does not exist"));
 }
+
+#[test]
+fn blackboard_counts_and_durations_read_the_params_file() {
+    let body = r#"<Sequence>
+        <Repeat num_cycles="{n}"><Step/></Repeat>
+        <Sleep msec="{pause}"/>
+        <RetryUntilSuccessful num_attempts="{tries}"><Grab/></RetryUntilSuccessful>
+      </Sequence>"#;
+    let params = "Step: {ps: 0.9, mu: 2, nu: 1}\nGrab: {ps: 0.5, mu: 1, nu: 4}\n\
+                  \"{n}\": {value: 3}\n\"{pause}\": {value: 1500}\n\"{tries}\": {value: 2}\n";
+    let t = ok(&wrap(body), params);
+    let f = btrel::analyze(&t, &Default::default())
+        .expect("analysed")
+        .nodes[0];
+    // Repeat 3 × Step, a 1.5 s Sleep, Retry 2 × Grab:
+    // P(S) = 0.9³ · (1 − 0.5²); every successful run takes 3 Step successes
+    // (3 × 1/2 s), the 1.5 s pause, and Grab's success after at most one
+    // failure: E = 0.5/0.75 · 1 + 0.25/0.75 · (1/4 + 1)
+    let ps = 0.9f64.powi(3) * 0.75;
+    let grab = (0.5 * 1.0 + 0.25 * (0.25 + 1.0)) / 0.75;
+    assert!(close(f.ps, ps), "{} vs {ps}", f.ps);
+    assert!(close(f.mtts.unwrap(), 1.5 + 1.5 + grab), "{:?}", f.mtts);
+
+    // without the value: a located refusal saying how to give it
+    let e = err(
+        &wrap(body),
+        "Step: {ps: 0.9, mu: 2, nu: 1}\nGrab: {ps: 0.5, mu: 1, nu: 4}\n",
+    );
+    assert!(is_unsupported(&e), "{e}");
+    assert!(e.to_string().contains(r#""{n}": {value: N}"#), "{e}");
+
+    // mistakes in the params file are located there
+    let with = |extra: &str| {
+        format!("Step: {{ps: 0.9, mu: 2, nu: 1}}\nGrab: {{ps: 0.5, mu: 1, nu: 4}}\n\"{{n}}\": {{value: 3}}\n\"{{pause}}\": {{value: 1500}}\n\"{{tries}}\": {{value: 2}}\n{extra}")
+    };
+    for (extra, says) in [
+        (
+            "\"{other}\": {value: 1}\n",
+            "`{other}` matches no blackboard reference",
+        ),
+        (
+            "\"{x}\": {ps: 0.5}\n",
+            "blackboard entry `{x}` needs a `value`",
+        ),
+        (
+            "\"{x}\": {value: 1, ps: 0.5}\n",
+            "blackboard entry `{x}` takes only `value`",
+        ),
+        (
+            "Other: {ps: 0.5, value: 2}\n",
+            "`value` in the entry of `Other`",
+        ),
+    ] {
+        let e = err(&wrap(body), &with(extra));
+        assert!(e.to_string().contains(says), "{extra}: {e}");
+        assert!(e.to_string().contains("t.params.yaml:6:"), "{extra}: {e}");
+    }
+    let e = err(
+        &wrap(body),
+        &with("").replace("\"{n}\": {value: 3}", "\"{n}\": {value: 2.5}"),
+    );
+    assert!(
+        e.to_string()
+            .contains("reads 2.5 from the params file, not a whole number"),
+        "{e}"
+    );
+}

@@ -76,7 +76,8 @@
 //! Known node types without a stochastic meaning yet (scripting conditions,
 //! Switch, IfThenElse, Timeout, Delay, KeepRunningUntilFailure, loops, Nav2's
 //! PipelineSequence, RateController, RoundRobin, ...), custom control nodes
-//! and decorators, counts from the blackboard or −1 (forever), and
+//! and decorators, counts from the blackboard (unless the params file gives
+//! the reference a value: `"{name}": {value: N}`) or −1 (forever), and
 //! pre-conditions (`_skipIf`, `_failureIf`, `_successIf`, `_while`, unless
 //! constant no-ops such as `_skipIf="false"`) are all listed in one error
 //! (see [`is_unsupported`]); unknown nodes with children and SubTrees defined
@@ -646,32 +647,98 @@ struct ParamsEntry {
     #[serde(default)]
     #[allow(dead_code)]
     fit: Option<serde::de::IgnoredAny>,
+    /// The value of a blackboard entry (keys written `"{name}"`).
+    #[serde(default)]
+    value: Option<At<f64>>,
 }
 
-fn parse_params(src: &str, file: &str) -> Result<BTreeMap<String, At<ActionParams>>, TreeError> {
+/// The params file: leaf entries by name or ID, and blackboard values by
+/// their reference as written in the XML (`{num_samples}`).
+struct ParamsTable {
+    leaves: BTreeMap<String, At<ActionParams>>,
+    blackboard: BTreeMap<String, At<f64>>,
+}
+
+/// Whether a params key names a blackboard entry (`{name}`).
+fn is_blackboard_key(key: &str) -> bool {
+    key.len() > 2 && key.starts_with('{') && key.ends_with('}')
+}
+
+fn parse_params(src: &str, file: &str) -> Result<ParamsTable, TreeError> {
     let entries: BTreeMap<String, At<ParamsEntry>> = parse_params_entries(src, file)?;
-    Ok(entries
-        .into_iter()
-        .map(|(k, e)| {
-            let p = e.value;
-            let params = ActionParams {
-                ps: p.ps,
-                pf: p.pf,
-                mu: p.mu,
-                nu: p.nu,
-                tau_s: p.tau_s,
-                tau_f: p.tau_f,
+    let mut table = ParamsTable {
+        leaves: BTreeMap::new(),
+        blackboard: BTreeMap::new(),
+    };
+    for (k, e) in entries {
+        let p = e.value;
+        let at = |line: u32, column: u32| (line as usize, column as usize);
+        if is_blackboard_key(&k) {
+            let leaf_key = [&p.ps, &p.pf, &p.mu, &p.nu, &p.tau_s, &p.tau_f]
+                .into_iter()
+                .flatten()
+                .next();
+            let Some(v) = p.value else {
+                return Err(TreeError::at(
+                    file,
+                    src,
+                    at(e.line, e.column),
+                    format!("blackboard entry `{k}` needs a `value`"),
+                )
+                .with_help(format!(
+                    "a key written `{{name}}` gives the value a port `{{name}}` reads, e.g. \
+                     `\"{k}\": {{value: 3}}`"
+                )));
             };
-            (
-                k,
-                At {
-                    value: params,
-                    line: e.line,
-                    column: e.column,
-                },
+            if leaf_key.is_some() || p.fit.is_some() {
+                let (line, column) = leaf_key.map_or((e.line, e.column), |x| (x.line, x.column));
+                return Err(TreeError::at(
+                    file,
+                    src,
+                    at(line, column),
+                    format!("blackboard entry `{k}` takes only `value`"),
+                )
+                .with_help("leaf parameters (ps, mu, ...) belong under the leaf's name or ID"));
+            }
+            // errors about the entry point at its key
+            let v = At {
+                value: v.value,
+                line: e.line,
+                column: e.column,
+            };
+            table.blackboard.insert(k, v);
+            continue;
+        }
+        if let Some(v) = p.value {
+            return Err(TreeError::at(
+                file,
+                src,
+                at(v.line, v.column),
+                format!("`value` in the entry of `{k}`, which is not a blackboard reference"),
             )
-        })
-        .collect())
+            .with_help(format!(
+                "`value` gives a blackboard entry, keyed as the XML writes it: `\"{{{k}}}\": \
+                 {{value: ...}}`; a leaf takes ps, pf, mu, nu, tau_s, tau_f"
+            )));
+        }
+        let params = ActionParams {
+            ps: p.ps,
+            pf: p.pf,
+            mu: p.mu,
+            nu: p.nu,
+            tau_s: p.tau_s,
+            tau_f: p.tau_f,
+        };
+        table.leaves.insert(
+            k,
+            At {
+                value: params,
+                line: e.line,
+                column: e.column,
+            },
+        );
+    }
+    Ok(table)
 }
 
 fn parse_params_entries(
@@ -872,12 +939,12 @@ fn has_timing(p: &ActionParams) -> bool {
         .any(Option::is_some)
 }
 
-type Params = BTreeMap<String, At<ActionParams>>;
-
 struct Builder<'a> {
     sources: &'a [Source],
     elems: &'a [Elem],
-    table: &'a Params,
+    table: &'a ParamsTable,
+    /// Blackboard entries of the params file read by some port.
+    blackboard_used: std::cell::RefCell<HashSet<String>>,
     /// BehaviorTree elements by ID; a definition in the main file comes
     /// first.
     trees: HashMap<&'a str, Vec<usize>>,
@@ -990,13 +1057,15 @@ impl<'a> Builder<'a> {
     /// number ≥ 0), in seconds; `None` (a problem recorded) for a blackboard
     /// reference.
     fn milliseconds(&mut self, e: &Elem, key: &str) -> Result<Option<f64>, TreeError> {
-        if let Some(a) = e.attr(key).filter(|a| a.value.trim().starts_with('{')) {
+        if let Some(a) = e.attr(key).filter(|a| self.unresolved(&a.value)) {
             self.problem(
                 e.doc,
                 a.loc,
                 format!(
-                    "<{}> with {key} = \"{}\", a blackboard reference: the duration is only known at run time",
+                    "<{}> with {key} = \"{}\", a blackboard reference: the duration is only known at run time \
+                     (give it in the params file, in milliseconds: `\"{}\": {{value: N}}`)",
                     e.name,
+                    a.value.trim(),
                     a.value.trim()
                 ),
                 true,
@@ -1014,16 +1083,42 @@ impl<'a> Builder<'a> {
         }
     }
 
-    /// A whole-number attribute; `None` if absent.
+    /// Whether `value` is a blackboard reference (`{name}`) without a value
+    /// in the params file.
+    fn unresolved(&self, value: &str) -> bool {
+        let v = value.trim();
+        v.starts_with('{') && !self.table.blackboard.contains_key(v)
+    }
+
+    /// A whole-number attribute; `None` if absent. A blackboard reference
+    /// (`{name}`) reads the params file's `"{name}": {value: N}`.
     fn int_attr(&self, e: &Elem, key: &str) -> Result<Option<(i64, Loc)>, TreeError> {
         let Some(a) = e.attr(key) else {
             return Ok(None);
         };
         let v = a.value.trim();
+        if let Some(given) = self.table.blackboard.get(v) {
+            self.blackboard_used.borrow_mut().insert(v.to_string());
+            let n = given.value;
+            if n.fract() != 0.0 || !n.is_finite() || n.abs() > 1e15 {
+                return Err(self
+                    .err(
+                        a.loc,
+                        format!(
+                            "{key} = \"{v}\" reads {n} from the params file, not a whole number"
+                        ),
+                    )
+                    .with_help(format!("give `\"{v}\": {{value: N}}` a whole number N")));
+            }
+            return Ok(Some((n as i64, a.loc)));
+        }
         if v.starts_with('{') {
             return Err(self
                 .err(a.loc, format!("{key} = \"{v}\" is a blackboard reference"))
-                .with_help(format!("btrel needs a literal whole number for {key}")));
+                .with_help(format!(
+                    "btrel needs a literal whole number for {key}, or the reference's value in the \
+                     params file: `\"{v}\": {{value: N}}`"
+                )));
         }
         let ok = !v.is_empty()
             && v.strip_prefix('-')
@@ -1800,7 +1895,7 @@ impl<'a> Builder<'a> {
             let has_entry = [Some(full.as_str()), name_attr.as_deref(), Some(id)]
                 .into_iter()
                 .flatten()
-                .any(|k| self.table.contains_key(k));
+                .any(|k| self.table.leaves.contains_key(k));
             if has_entry {
                 return self.leaf(e, id, LeafKind::Inferred, parent, depth, &path, prefix);
             }
@@ -1868,13 +1963,15 @@ impl<'a> Builder<'a> {
     }
 
     fn count(&mut self, e: &Elem, key: &str) -> Result<Option<usize>, TreeError> {
-        if let Some(a) = e.attr(key).filter(|a| a.value.trim().starts_with('{')) {
+        if let Some(a) = e.attr(key).filter(|a| self.unresolved(&a.value)) {
             self.problem(
                 e.doc,
                 a.loc,
                 format!(
-                    "<{}> with {key} = \"{}\", a blackboard reference: the count is only known at run time",
+                    "<{}> with {key} = \"{}\", a blackboard reference: the count is only known at run time \
+                     (give it in the params file: `\"{}\": {{value: N}}`)",
                     e.name,
+                    a.value.trim(),
                     a.value.trim()
                 ),
                 true,
@@ -2238,6 +2335,7 @@ fn build(files: Files, params: &str, params_file: &str) -> Result<Tree, TreeErro
         sources: &sources,
         elems: &elems,
         table: &table,
+        blackboard_used: Default::default(),
         trees: HashMap::new(),
         model: HashMap::new(),
         nodes: Vec::new(),
@@ -2470,7 +2568,7 @@ fn build(files: Files, params: &str, params_file: &str) -> Result<Tree, TreeErro
                 keys.push(k);
             }
         }
-        let found = keys.iter().find_map(|k| table.get_key_value(*k));
+        let found = keys.iter().find_map(|k| table.leaves.get_key_value(*k));
         let is_action = match (leaf.kind, found) {
             (LeafKind::Action, _) => true,
             (LeafKind::Condition, _) => false,
@@ -2571,7 +2669,24 @@ fn build(files: Files, params: &str, params_file: &str) -> Result<Tree, TreeErro
                  `grasp: {{ps: 0.5, mu: 0.1, nu: 0.2}}` (actions) or `ready: {{ps: 0.9}}` (conditions)"
             )));
     }
+    let blackboard_used = b.blackboard_used.take();
     if let Some((key, def)) = table
+        .blackboard
+        .iter()
+        .filter(|(k, _)| !blackboard_used.contains(k.as_str()))
+        .min_by_key(|(_, d)| sloc(d))
+    {
+        return Err(perr(
+            sloc(def),
+            format!("params key `{key}` matches no blackboard reference that btrel reads"),
+            "blackboard values (keys written `{name}`) are read where a count or a duration \
+             (num_cycles, num_attempts, number_of_retries, msec, delay_msec, ...) is written \
+             as that reference; remove the entry or check its spelling"
+                .into(),
+        ));
+    }
+    if let Some((key, def)) = table
+        .leaves
         .iter()
         .filter(|(k, _)| !used_keys.contains(k.as_str()))
         .min_by_key(|(_, d)| sloc(d))
