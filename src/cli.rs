@@ -24,6 +24,8 @@ Examples:
   btrel curve trees/search-and-grasp.yaml --t-end 1000 --points 101 -o curve.csv
   btrel compare trees/search-and-grasp.yaml --node search --deadline 100
   btrel simulate trees/search-and-grasp.yaml --runs 1e6
+  btrel sensitivity trees/search-and-grasp.yaml --deadline 100
+  btrel fit run.btlog -o params.yaml && btrel report tree.xml --params params.yaml --ci
   btrel plot trees/search-and-grasp.yaml -o sg.svg --mc 1e5
   btrel check trees/search-and-grasp.yaml
   btrel completions bash > ~/.local/share/bash-completion/completions/btrel
@@ -64,6 +66,7 @@ Examples:
 const FIT_EXAMPLES: &str = "\
 Examples:
   btrel fit run.btlog -o params.yaml && btrel report tree.xml --params params.yaml
+  btrel report tree.xml --params params.yaml --ci     # intervals from the fit's statistics
   btrel fit day1.btlog day2.btlog --by name -o params.yaml
   btrel fit episodes.csv --tree tree.xml -o tree.params.yaml
 

@@ -41,7 +41,7 @@ use crate::tree::{Duration, NodeId, NodeKind, Tree};
 /// Draws when none are asked for.
 pub const DEFAULT_DRAWS: usize = 1000;
 /// Seed when none is given.
-pub const DEFAULT_SEED: u64 = 0x5EED_C1;
+pub const DEFAULT_SEED: u64 = 0x005E_EDC1;
 /// Most draws × figures kept in memory at once.
 pub const MAX_VALUES: usize = 50_000_000;
 

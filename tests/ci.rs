@@ -107,6 +107,7 @@ fn intervals_cover_the_truth_at_their_level() {
         halted > 200,
         "the halts path was exercised ({halted} halts)"
     );
+    eprintln!("coverage of nominal {level} over {reps} logs (ps, MTTS, MTTF): {covered:?}");
     let sd = (level * (1.0 - level) / reps as f64).sqrt();
     for (k, what) in ["ps", "MTTS", "MTTF"].iter().enumerate() {
         let c = covered[k] as f64 / reps as f64;
