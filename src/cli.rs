@@ -41,8 +41,8 @@ Examples:
   btrel report trees/two-arm-parallel.yaml --format csv -o figures.csv
   btrel report trees/search-and-grasp.yaml --mc 1e6 --seed 7     # Table 9.1-style check
   btrel report trees/search-and-grasp.xml --params trees/search-and-grasp.params.yaml
-  btrel report tree.xml --params fitted.params.yaml --ci          # 95% intervals (btrel fit)
-  btrel report tree.xml --params fitted.params.yaml --ci 0.9 --ci-draws 4000 --format json
+  btrel report trees/search-and-grasp.xml --params docs/fit/search-and-grasp.fitted.params.yaml --ci
+  btrel report trees/search-and-grasp.xml --params docs/fit/search-and-grasp.fitted.params.yaml --ci 90 --format json
   cat trees/search-and-grasp.yaml | btrel report -
 
 TREE is YAML or BehaviorTree.CPP v4 XML (.xml, or --input-format xml; parameters from
@@ -287,7 +287,7 @@ Examples:
   btrel curve trees/search-and-grasp.yaml --node search --t-end 500 --dt 5 -o search.csv
   btrel curve trees/search-and-grasp.yaml --timing deterministic --t-end 1000 --points 1001
   btrel curve trees/search-and-grasp.xml --params trees/search-and-grasp.params.yaml --times 100
-  btrel curve tree.xml --params fitted.params.yaml --times 60,120 --ci
+  btrel curve trees/search-and-grasp.xml --params docs/fit/search-and-grasp.fitted.params.yaml --times 60,120 --ci
 
 Output: CSV with header node,t,success,failure,running; one row per node per time,
 in the order of the requested times; numbers at full precision. --ci adds success_lo,
