@@ -24,6 +24,8 @@ Examples:
   btrel curve trees/search-and-grasp.yaml --t-end 1000 --points 101 -o curve.csv
   btrel compare trees/search-and-grasp.yaml --node search --deadline 100
   btrel simulate trees/search-and-grasp.yaml --runs 1e6
+  btrel sensitivity trees/search-and-grasp.yaml --deadline 100
+  btrel fit run.btlog -o params.yaml && btrel report tree.xml --params params.yaml --ci
   btrel plot trees/search-and-grasp.yaml -o sg.svg --mc 1e5
   btrel check trees/search-and-grasp.yaml
   btrel completions bash > ~/.local/share/bash-completion/completions/btrel
@@ -39,6 +41,8 @@ Examples:
   btrel report trees/two-arm-parallel.yaml --format csv -o figures.csv
   btrel report trees/search-and-grasp.yaml --mc 1e6 --seed 7     # Table 9.1-style check
   btrel report trees/search-and-grasp.xml --params trees/search-and-grasp.params.yaml
+  btrel report trees/search-and-grasp.xml --params docs/fit/search-and-grasp.fitted.params.yaml --ci
+  btrel report trees/search-and-grasp.xml --params docs/fit/search-and-grasp.fitted.params.yaml --ci 90 --format json
   cat trees/search-and-grasp.yaml | btrel report -
 
 TREE is YAML or BehaviorTree.CPP v4 XML (.xml, or --input-format xml; parameters from
@@ -62,6 +66,7 @@ Examples:
 const FIT_EXAMPLES: &str = "\
 Examples:
   btrel fit run.btlog -o params.yaml && btrel report tree.xml --params params.yaml
+  btrel report tree.xml --params params.yaml --ci     # intervals from the fit's statistics
   btrel fit day1.btlog day2.btlog --by name -o params.yaml
   btrel fit episodes.csv --tree tree.xml -o tree.params.yaml
 
@@ -84,6 +89,53 @@ struct FitArgs {
     /// Write the params file here (atomically) instead of standard output (- is standard output).
     #[arg(short, long, value_name = "PARAMS.yaml")]
     output: Option<PathBuf>,
+}
+
+const SENSITIVITY_EXAMPLES: &str = "\
+Examples:
+  btrel sensitivity trees/search-and-grasp.yaml
+  btrel sensitivity trees/search-and-grasp.yaml --of success-by --deadline 100
+  btrel sensitivity trees/search-and-grasp.yaml --of mttf --format json
+
+For every leaf parameter (ps, mu, nu, tau_s, tau_f) the derivative of the root's figure and
+its elasticity d ln O / d ln θ, ranked by |elasticity|; the table ends with sentences for the
+top entries (ps changed by 0.1, other parameters by 10%, the new figure computed again).
+Derivatives: Richardson-extrapolated central differences through the engine (one-sided at
+ps = 0 or 1 and at a time of 0), with an error estimate per row. Changing an action's ps
+changes pf = 1 - ps with it. Default objective: success-by with --deadline, else ps.";
+
+#[derive(clap::Args)]
+struct SensitivityArgs {
+    /// The tree: YAML, or BehaviorTree.CPP v4 XML (.xml; actions' parameters from --params); - reads standard input.
+    tree: PathBuf,
+    /// The root's figure: ps, mtts, mttf, mean-time (ps·MTTS + pf·MTTF) or success-by
+    /// (P(Success by --deadline)).
+    #[arg(long, value_enum)]
+    of: Option<OfArg>,
+    /// Deadline T (s) of success-by.
+    #[arg(long, value_name = "T", allow_hyphen_values = true)]
+    deadline: Option<String>,
+    /// Output format.
+    #[arg(long, value_enum, default_value_t = FormatArg::Table)]
+    format: FormatArg,
+    /// Write to this file (atomically) instead of standard output (- is standard output).
+    #[arg(short, long, value_name = "FILE")]
+    output: Option<PathBuf>,
+    /// exact (default) or book.
+    #[arg(long, value_enum, default_value_t = MethodArg::Exact)]
+    method: MethodArg,
+    /// Largest chain (number of states) an exact analysis may build.
+    #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_STATES)]
+    max_states: usize,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum OfArg {
+    Ps,
+    Mtts,
+    Mttf,
+    MeanTime,
+    SuccessBy,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -155,6 +207,9 @@ enum Command {
     /// Plot Success/Failure/Running over time as SVG or PNG (Figs. 9.18–9.22).
     #[command(after_help = PLOT_EXAMPLES)]
     Plot(PlotArgs),
+    /// How much the root's figure depends on each leaf parameter: derivatives and elasticities.
+    #[command(after_help = SENSITIVITY_EXAMPLES)]
+    Sensitivity(SensitivityArgs),
     /// Estimate the leaves' parameters from execution logs (.btlog, CSV) into a params file.
     #[command(after_help = FIT_EXAMPLES)]
     Fit(FitArgs),
@@ -203,6 +258,26 @@ struct ReportArgs {
     mc: Option<String>,
     #[command(flatten)]
     sim: McArgs,
+    #[command(flatten)]
+    ci: CiArgs,
+}
+
+/// `--ci [LEVEL]` of `report` and `curve`, with its draws and seed.
+#[derive(clap::Args)]
+struct CiArgs {
+    /// Also give LEVEL confidence intervals (default 0.95; 90 means 0.90) of every figure from the
+    /// fitted parameters' sampling uncertainty (the `fit:` statistics `btrel fit` writes in the
+    /// params file): a parametric bootstrap through the engine (ps ~ Beta, rates ~ Gamma,
+    /// percentile intervals). Leaves without `fit:` statistics stay fixed (the output lists them).
+    #[arg(long, value_name = "LEVEL", num_args = 0..=1, default_missing_value = "0.95")]
+    ci: Option<String>,
+    /// Bootstrap draws, with --ci (default 1000).
+    #[arg(long, value_name = "N", requires = "ci")]
+    ci_draws: Option<String>,
+    /// Seed of the bootstrap draws, with --ci (decimal or 0x hex; default 0x5EEDC1); the intervals
+    /// do not depend on the number of threads.
+    #[arg(long, value_name = "S", allow_hyphen_values = true, requires = "ci")]
+    ci_seed: Option<String>,
 }
 
 const CURVE_EXAMPLES: &str = "\
@@ -212,9 +287,12 @@ Examples:
   btrel curve trees/search-and-grasp.yaml --node search --t-end 500 --dt 5 -o search.csv
   btrel curve trees/search-and-grasp.yaml --timing deterministic --t-end 1000 --points 1001
   btrel curve trees/search-and-grasp.xml --params trees/search-and-grasp.params.yaml --times 100
+  btrel curve trees/search-and-grasp.xml --params docs/fit/search-and-grasp.fitted.params.yaml --times 60,120 --ci
 
 Output: CSV with header node,t,success,failure,running; one row per node per time,
-in the order of the requested times; numbers at full precision.";
+in the order of the requested times; numbers at full precision. --ci adds success_lo,
+success_hi, failure_lo, failure_hi, running_lo, running_hi (parametric bootstrap of the
+parameters fitted by btrel fit; leaves without fit: statistics are fixed, noted on stderr).";
 
 #[derive(clap::Args)]
 struct CurveArgs {
@@ -236,6 +314,8 @@ struct CurveArgs {
     mc: Option<String>,
     #[command(flatten)]
     sim: McArgs,
+    #[command(flatten)]
+    ci: CiArgs,
     /// Write to this file (atomically) instead of standard output (- is standard output).
     #[arg(short, long, value_name = "FILE")]
     output: Option<PathBuf>,
@@ -696,6 +776,7 @@ pub fn main() -> ExitCode {
         Command::Report(args) => report(args),
         Command::Check { tree } => check(&tree),
         Command::Fit(args) => fit(args),
+        Command::Sensitivity(args) => sensitivity(args),
         Command::Curve(args) => curve(args),
         Command::Compare(args) => compare(args),
         Command::Simulate(args) => simulate(args),
@@ -736,6 +817,18 @@ fn read_stdin() -> Result<Vec<u8>, Failure> {
 }
 
 fn load(path: &Path) -> Result<Tree, Failure> {
+    load_keyed(path).map(|(tree, _)| tree)
+}
+
+/// An XML tree's params file: each node's key in it, and the file's text and name.
+struct ParamsSource {
+    keys: Vec<Option<String>>,
+    text: String,
+    name: String,
+}
+
+/// Reads a tree; for an XML tree also where its parameters came from.
+fn load_keyed(path: &Path) -> Result<(Tree, Option<ParamsSource>), Failure> {
     let (format, params, include) = INPUT.get().cloned().unwrap_or((None, None, Vec::new()));
     let stdin = path == Path::new("-");
     let xml = match format {
@@ -756,9 +849,11 @@ fn load(path: &Path) -> Result<Tree, Failure> {
             ));
         }
         if stdin {
-            return btrel::tree::parse_bytes(read_stdin()?, STDIN_NAME).map_err(Failure::input);
+            return btrel::tree::parse_bytes(read_stdin()?, STDIN_NAME)
+                .map(|t| (t, None))
+                .map_err(Failure::input);
         }
-        return parse_file(path).map_err(Failure::input);
+        return parse_file(path).map(|t| (t, None)).map_err(Failure::input);
     }
     if stdin {
         let Some(params) = params else {
@@ -774,8 +869,17 @@ fn load(path: &Path) -> Result<Tree, Failure> {
             btrel::tree::parse::text_from_bytes(params_text, &name).map_err(Failure::input)?;
         let xml_text = btrel::tree::parse::text_from_bytes(read_stdin()?, STDIN_NAME)
             .map_err(Failure::input)?;
-        return btrel::tree::xml::parse_xml_str(&xml_text, STDIN_NAME, &params_text, &name)
-            .map_err(Failure::input);
+        let keyed =
+            btrel::tree::xml::parse_xml_str_keyed(&xml_text, STDIN_NAME, &params_text, &name)
+                .map_err(Failure::input)?;
+        return Ok((
+            keyed.tree,
+            Some(ParamsSource {
+                keys: keyed.keys,
+                text: params_text,
+                name,
+            }),
+        ));
     }
     let params = params.unwrap_or_else(|| path.with_extension("params.yaml"));
     if !params.exists() {
@@ -794,7 +898,7 @@ fn load(path: &Path) -> Result<Tree, Failure> {
             )));
         }
     }
-    btrel::tree::xml::parse_xml_files(path, &params, &include).map_err(|mut e| {
+    let keyed = btrel::tree::xml::parse_xml_files_keyed(path, &params, &include).map_err(|mut e| {
         if e.message.contains("for this SubTree") {
             let h = e.help.take().unwrap_or_default();
             e.help = Some(format!(
@@ -807,7 +911,100 @@ fn load(path: &Path) -> Result<Tree, Failure> {
         } else {
             Failure::input(e)
         }
-    })
+    })?;
+    let name = params.display().to_string();
+    let text = std::fs::read(&params)
+        .map_err(|e| Failure::input(format!("{name}: cannot read the file: {e}")))?;
+    let text = btrel::tree::parse::text_from_bytes(text, &name).map_err(Failure::input)?;
+    Ok((
+        keyed.tree,
+        Some(ParamsSource {
+            keys: keyed.keys,
+            text,
+            name,
+        }),
+    ))
+}
+
+/// `--ci` parsed: level, draws, seed.
+struct CiSettings {
+    level: f64,
+    draws: usize,
+    seed: u64,
+}
+
+/// The settings of `--ci`, `None` without it.
+fn ci_settings(args: &CiArgs) -> Result<Option<CiSettings>, Failure> {
+    let Some(level) = args.ci.as_deref() else {
+        return Ok(None);
+    };
+    let bad = || {
+        Failure::input(format!(
+            "--ci: '{level}' is not a confidence level (a number in (0, 1) such as 0.95, or a \
+             percentage from 50 to 99.9 such as 90; the tree comes before --ci)"
+        ))
+    };
+    let mut x: f64 = level
+        .trim()
+        .trim_end_matches('%')
+        .parse()
+        .map_err(|_| bad())?;
+    if (50.0..100.0).contains(&x) {
+        x /= 100.0;
+    }
+    if !(x > 0.0 && x < 1.0) {
+        return Err(bad());
+    }
+    let draws = match args.ci_draws.as_deref() {
+        None => btrel::uncertainty::DEFAULT_DRAWS as u64,
+        Some(n) => parse_count("--ci-draws", n)?,
+    };
+    if !(2..=1_000_000).contains(&draws) {
+        return Err(Failure::input("--ci-draws must be between 2 and 1000000"));
+    }
+    let seed = match args.ci_seed.as_deref() {
+        None => btrel::uncertainty::DEFAULT_SEED,
+        Some(s) => parse_seed("--ci-seed", s)?,
+    };
+    Ok(Some(CiSettings {
+        level: x,
+        draws: draws as usize,
+        seed,
+    }))
+}
+
+/// The sampler of `--ci`: the params file's `fit:` statistics by node.
+/// Refuses a tree in which nothing would vary.
+fn ci_sampler(
+    tree: &Tree,
+    source: Option<&ParamsSource>,
+    ci: &CiSettings,
+    values_per_draw: usize,
+) -> Result<btrel::uncertainty::Sampler, Failure> {
+    let Some(src) = source else {
+        return Err(Failure::input(
+            "--ci needs fitted parameters: an XML tree with a params file written by `btrel fit` \
+             (its `fit:` statistics give the parameters' uncertainty); a YAML tree has none",
+        ));
+    };
+    let stats = btrel::uncertainty::read_fit_stats(&src.text, &src.name).map_err(Failure::input)?;
+    let sampler = btrel::uncertainty::Sampler::new(tree, &src.keys, &stats);
+    if sampler.varied() == 0 {
+        return Err(Failure::input(format!(
+            "--ci: no parameter of this tree has `fit:` statistics in {} (write the file with \
+             `btrel fit LOG... -o {}`), so there is no uncertainty to propagate",
+            src.name, src.name
+        )));
+    }
+    if ci.draws.saturating_mul(values_per_draw) > btrel::uncertainty::MAX_VALUES {
+        return Err(Failure::analysis(format!(
+            "--ci: {} draws of {values_per_draw} figures exceed the limit of {} values; lower \
+             --ci-draws",
+            ci.draws,
+            btrel::uncertainty::MAX_VALUES
+        )));
+    }
+    Ok(sampler)
 }
 
 fn completions(shell: clap_complete::Shell) -> Result<(), Failure> {
@@ -941,6 +1138,50 @@ fn fit(args: FitArgs) -> Result<(), Failure> {
     emit(args.output.as_deref(), |out| out.write_all(text.as_bytes()))
 }
 
+fn sensitivity(args: SensitivityArgs) -> Result<(), Failure> {
+    use btrel::sensitivity::{Objective, SensitivityError};
+    let deadline = optional_time("--deadline", &args.deadline)?;
+    let objective = match (args.of, deadline) {
+        (Some(OfArg::SuccessBy) | None, Some(t)) => Objective::SuccessBy(t),
+        (Some(OfArg::SuccessBy), None) => {
+            return Err(Failure::input("--of success-by needs --deadline T"))
+        }
+        (Some(_), Some(_)) => {
+            return Err(Failure::input(
+                "--deadline goes with --of success-by: remove it, or use --of success-by",
+            ))
+        }
+        (None | Some(OfArg::Ps), None) => Objective::Ps,
+        (Some(OfArg::Mtts), None) => Objective::Mtts,
+        (Some(OfArg::Mttf), None) => Objective::Mttf,
+        (Some(OfArg::MeanTime), None) => Objective::MeanTime,
+    };
+    let tree = load(&args.tree)?;
+    let options = Options {
+        method: method(args.method),
+        max_states: args.max_states,
+    };
+    let fail = |e: SensitivityError| match e {
+        SensitivityError::Analysis(e) => analysis_failure(Cmd::Report, options.method)(e),
+        SensitivityError::Undefined(m) => {
+            Failure::analysis(format!("{m}: choose another objective with --of"))
+        }
+    };
+    let s = btrel::sensitivity::sensitivity(&tree, objective, &options).map_err(fail)?;
+    let mut sentences = Vec::new();
+    if matches!(args.format, FormatArg::Table) {
+        for row in s.rows.iter().filter(|r| r.derivative != 0.0).take(3) {
+            sentences.push(btrel::sensitivity::sentence(&tree, &s, row, &options).map_err(fail)?);
+        }
+    }
+    use btrel::report::sensitivity as out_s;
+    emit(args.output.as_deref(), |out| match args.format {
+        FormatArg::Table => out_s::write_table(&tree, &s, &sentences, out),
+        FormatArg::Json => out_s::write_json(&tree, &s, out),
+        FormatArg::Csv => out_s::write_csv(&tree, &s, out),
+    })
+}
+
 fn check(path: &Path) -> Result<(), Failure> {
     let tree = load(path)?;
     emit(None, |out| {
@@ -969,7 +1210,13 @@ fn display_path(path: &Path) -> String {
 }
 
 fn report(args: ReportArgs) -> Result<(), Failure> {
-    let tree = load(&args.tree)?;
+    let ci = ci_settings(&args.ci)?;
+    if ci.is_some() && args.mc.is_some() {
+        return Err(Failure::input(
+            "--ci and --mc make two different tables: run the report once with each",
+        ));
+    }
+    let (tree, source) = load_keyed(&args.tree)?;
     let options = Options {
         method: method(args.method),
         max_states: args.max_states,
@@ -994,6 +1241,38 @@ fn report(args: ReportArgs) -> Result<(), Failure> {
         return Err(Failure::input(
             "--mc works with --format table or json; `btrel simulate --format csv` gives the simulated figures as CSV",
         ));
+    }
+    if let Some(ci) = &ci {
+        use btrel::report::intervals;
+        let sampler = ci_sampler(&tree, source.as_ref(), ci, 4 * tree.nodes.len())?;
+        let flat = sampler
+            .intervals(ci.level, ci.draws, ci.seed, |t| {
+                analyze(t, &options).map(|a| {
+                    a.nodes
+                        .iter()
+                        .flat_map(|f| [Some(f.ps), Some(f.pf), f.mtts, f.mttf])
+                        .collect()
+                })
+            })
+            .map_err(analysis_failure(Cmd::Report, options.method))?;
+        let intervals = intervals::Intervals {
+            level: ci.level,
+            draws: ci.draws,
+            seed: ci.seed,
+            nodes: flat.chunks(4).map(|c| [c[0], c[1], c[2], c[3]]).collect(),
+            fixed: sampler.fixed.clone(),
+            held: sampler.held.clone(),
+        };
+        if format == Format::Csv {
+            for note in intervals.notes() {
+                eprintln!("note: {note}");
+            }
+        }
+        return emit(args.output.as_deref(), |out| match format {
+            Format::Table => intervals::write_table(&report, &intervals, out),
+            Format::Json => intervals::write_json(&report, &intervals, out),
+            Format::Csv => intervals::write_csv(&report, &intervals, out),
+        });
     }
     let exporter = format.exporter();
     emit(args.output.as_deref(), |out| match (&simulated, format) {
@@ -1129,6 +1408,20 @@ fn parse_count(what: &str, s: &str) -> Result<u64, Failure> {
     }
 }
 
+/// A seed: decimal or 0x hex, `_` allowed.
+fn parse_seed(what: &str, s: &str) -> Result<u64, Failure> {
+    let t = s.trim();
+    let parsed = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
+        Some(hex) => u64::from_str_radix(&hex.replace('_', ""), 16),
+        None => t.replace('_', "").parse::<u64>(),
+    };
+    parsed.map_err(|_| {
+        Failure::input(format!(
+            "{what}: '{s}' is not a seed (a whole number from 0 to 2^64-1, decimal or 0x hex)"
+        ))
+    })
+}
+
 fn sim_options(
     args: &SimArgs,
     runs: u64,
@@ -1137,18 +1430,7 @@ fn sim_options(
 ) -> Result<btrel::sim::SimOptions, Failure> {
     let seed = match args.seed.as_deref() {
         None => btrel::sim::DEFAULT_SEED,
-        Some(s) => {
-            let t = s.trim();
-            let parsed = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
-                Some(hex) => u64::from_str_radix(&hex.replace('_', ""), 16),
-                None => t.replace('_', "").parse::<u64>(),
-            };
-            parsed.map_err(|_| {
-                Failure::input(format!(
-                    "--seed: '{s}' is not a seed (a whole number from 0 to 2^64-1, decimal or 0x hex)"
-                ))
-            })?
-        }
+        Some(s) => parse_seed("--seed", s)?,
     };
     Ok(btrel::sim::SimOptions {
         runs,
@@ -1230,7 +1512,8 @@ fn curve(args: CurveArgs) -> Result<(), Failure> {
         ));
     }
     let times = requested_times(&args)?;
-    let tree = load(&args.tree)?;
+    let ci = ci_settings(&args.ci)?;
+    let (tree, source) = load_keyed(&args.tree)?;
     let nodes = if args.nodes.is_empty() {
         vec![Tree::ROOT]
     } else {
@@ -1259,8 +1542,49 @@ fn curve(args: CurveArgs) -> Result<(), Failure> {
         };
         curves.push((id, points, simulated));
     }
+    let bands = match &ci {
+        None => None,
+        Some(ci) => {
+            let sampler = ci_sampler(&tree, source.as_ref(), ci, 3 * times.len() * nodes.len())?;
+            let flat = sampler
+                .intervals(ci.level, ci.draws, ci.seed, |t| {
+                    let mut v = Vec::with_capacity(3 * times.len() * nodes.len());
+                    for &id in &nodes {
+                        for p in btrel::curve::curve(t, id, &times, &options)? {
+                            v.extend([Some(p.success), Some(p.failure), Some(p.running)]);
+                        }
+                    }
+                    Ok(v)
+                })
+                .map_err(analysis_failure(Cmd::Curve, options.method))?;
+            eprintln!(
+                "note: {} intervals from {} draws (seed {}): {}",
+                btrel::report::intervals::percent(ci.level),
+                ci.draws,
+                ci.seed,
+                btrel::uncertainty::METHOD
+            );
+            if !sampler.fixed.is_empty() {
+                eprintln!(
+                    "note: fixed (no `fit:` statistics in the params file): {}",
+                    sampler.fixed.join(", ")
+                );
+            }
+            for h in &sampler.held {
+                eprintln!("note: {h}");
+            }
+            Some(flat)
+        }
+    };
     emit(args.output.as_deref(), |out| {
+        let mut row = 0;
         write!(out, "node,t,success,failure,running")?;
+        if bands.is_some() {
+            write!(
+                out,
+                ",success_lo,success_hi,failure_lo,failure_hi,running_lo,running_hi"
+            )?;
+        }
         if sim.is_some() {
             write!(out, ",mc_success,mc_failure,mc_running")?;
         }
@@ -1276,6 +1600,15 @@ fn curve(args: CurveArgs) -> Result<(), Failure> {
                     full(p.failure),
                     full(p.running)
                 )?;
+                if let Some(b) = &bands {
+                    for i in &b[3 * row..3 * row + 3] {
+                        match i {
+                            Some((lo, hi)) => write!(out, ",{},{}", full(*lo), full(*hi))?,
+                            None => write!(out, ",,")?,
+                        }
+                    }
+                }
+                row += 1;
                 if let Some(s) = simulated {
                     let m = &s[k];
                     write!(

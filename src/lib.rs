@@ -18,6 +18,10 @@
 //!    or CSV), [`curve`] (π(t)), [`compare`] (Fallback orderings), [`plot`];
 //! 5. [`export`]: DOT, PRISM, Storm.
 //!
+//! [`logs`] and [`fit`] estimate leaf parameters from robots' logs;
+//! [`uncertainty`] turns their sampling uncertainty into intervals of the
+//! figures.
+//!
 //! [`sim`] (Monte Carlo) stands beside them and shares only the parsed tree.
 //! Dependencies run one way: `compile` uses `solve` and `tree`; the queries
 //! use `compile`; nothing below uses what is above it.
@@ -44,9 +48,11 @@ pub mod logs;
 pub mod output;
 pub mod plot;
 pub mod report;
+pub mod sensitivity;
 pub mod sim;
 pub mod solve;
 pub mod tree;
+pub mod uncertainty;
 
 pub use compile::{analyze, Analysis, AnalysisError, Figures, Method, Options};
 pub use tree::{parse_file, parse_str, Tree};

@@ -355,7 +355,14 @@ fn dash_tree_is_standard_input() {
     assert!(err.starts_with("error: <stdin>:2:25: "), "{err}");
 }
 
-const MAX_STATES_COMMANDS: &[&str] = &["report", "curve", "compare", "plot", "export"];
+const MAX_STATES_COMMANDS: &[&str] = &[
+    "report",
+    "curve",
+    "compare",
+    "plot",
+    "export",
+    "sensitivity",
+];
 
 #[test]
 fn every_analysing_command_takes_max_states() {
@@ -694,7 +701,14 @@ fn bad_indentation() {
 }
 
 const COMMANDS: &[&str] = &[
-    "report", "curve", "compare", "simulate", "plot", "export", "check",
+    "report",
+    "curve",
+    "compare",
+    "simulate",
+    "plot",
+    "export",
+    "check",
+    "sensitivity",
 ];
 
 #[test]

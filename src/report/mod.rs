@@ -5,9 +5,11 @@
 //! terminal, [`json::JsonExporter`] and [`csv::CsvExporter`] for programs.
 
 pub mod csv;
+pub mod intervals;
 pub mod json;
 pub mod number;
 pub mod ranking;
+pub mod sensitivity;
 pub mod simulation;
 pub mod table;
 

@@ -2272,11 +2272,49 @@ pub fn parse_xml_files(
     })
 }
 
+/// Like [`parse_xml_str`], also giving each node's params-file key.
+pub fn parse_xml_str_keyed(
+    xml: &str,
+    file: &str,
+    params: &str,
+    params_file: &str,
+) -> Result<Keyed, TreeError> {
+    for (src, name) in [(xml, file), (params, params_file)] {
+        if src.len() > MAX_BYTES {
+            return Err(too_large(name, src.len()));
+        }
+    }
+    on_parser_thread(file, || {
+        let mut files = Files::new();
+        files.add(file.to_string(), xml.to_string(), None)?;
+        build_keyed(files, params, params_file)
+    })
+}
+
+/// Like [`parse_xml_files`], also giving each node's params-file key.
+pub fn parse_xml_files_keyed(
+    xml: &Path,
+    params: &Path,
+    includes: &[std::path::PathBuf],
+) -> Result<Keyed, TreeError> {
+    let xml_name = xml.display().to_string();
+    let params_name = params.display().to_string();
+    let params_src = read_text(params, &params_name)?;
+    on_parser_thread(&xml_name, || {
+        let mut files = Files::new();
+        files.add_file(xml)?;
+        for inc in includes {
+            files.add_include(inc)?;
+        }
+        build_keyed(files, &params_src, &params_name)
+    })
+}
+
 /// Runs `f` on a thread with a dedicated stack: the builder recurses once
 /// per tree level and SubTree (both bounded).
-fn on_parser_thread<F>(file: &str, f: F) -> Result<Tree, TreeError>
+fn on_parser_thread<T: Send, F>(file: &str, f: F) -> Result<T, TreeError>
 where
-    F: FnOnce() -> Result<Tree, TreeError> + Send,
+    F: FnOnce() -> Result<T, TreeError> + Send,
 {
     std::thread::scope(|s| {
         std::thread::Builder::new()
@@ -2324,6 +2362,20 @@ fn problem_lines(sources: &[Source], ps: &[&Problem]) -> String {
 }
 
 fn build(files: Files, params: &str, params_file: &str) -> Result<Tree, TreeError> {
+    build_keyed(files, params, params_file).map(|k| k.tree)
+}
+
+/// A tree read from XML with, for every node, the params-file key its
+/// parameters came from (`None` for control nodes and leaves without an
+/// entry, e.g. a Script).
+#[derive(Debug, Clone)]
+pub struct Keyed {
+    pub tree: Tree,
+    /// Indexed like `tree.nodes`.
+    pub keys: Vec<Option<String>>,
+}
+
+fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, TreeError> {
     let Files {
         sources,
         elems,
@@ -2557,6 +2609,7 @@ fn build(files: Files, params: &str, params_file: &str) -> Result<Tree, TreeErro
         TreeError::at(params_file, params, at, msg).with_help(help)
     };
     let mut used_keys: HashSet<&str> = HashSet::new();
+    let mut param_keys: Vec<(usize, String)> = Vec::new();
     let mut missing: Vec<(usize, Loc, String)> = Vec::new();
     let leaves = std::mem::take(&mut b.leaves);
     for leaf in &leaves {
@@ -2607,6 +2660,7 @@ fn build(files: Files, params: &str, params_file: &str) -> Result<Tree, TreeErro
             continue;
         };
         used_keys.insert(key.as_str());
+        param_keys.push((leaf.node, key.clone()));
         let p = &def.value;
         let new_kind = if is_action {
             match validate_action(p, &perr)? {
@@ -2770,9 +2824,16 @@ fn build(files: Files, params: &str, params_file: &str) -> Result<Tree, TreeErro
                  changes nothing while they keep their value)",
             ));
     }
-    Ok(Tree {
-        title: main_id.map(str::to_string),
-        nodes: b.nodes,
+    let mut keys = vec![None; b.nodes.len()];
+    for (node, key) in param_keys {
+        keys[node] = Some(key);
+    }
+    Ok(Keyed {
+        tree: Tree {
+            title: main_id.map(str::to_string),
+            nodes: b.nodes,
+        },
+        keys,
     })
 }
 

@@ -1,0 +1,399 @@
+//! How much the root's figure depends on each leaf parameter
+//! (`btrel sensitivity`).
+//!
+//! For every leaf parameter θ (a condition's `ps`; an action's `ps`, `mu`,
+//! `nu`, `tau_s`, `tau_f`) the derivative ∂O/∂θ of the root's objective O
+//! (ps, MTTS, MTTF, mean time E[T] = ps·MTTS + pf·MTTF, or P(Success by a
+//! deadline)) and its elasticity ∂ln O/∂ln θ = θ/O · ∂O/∂θ (the % change of
+//! O per % change of θ). Changing an action's `ps` changes `pf = 1 − ps` with
+//! it; changing `tau_s` of a hybrid action (Def. 9.9) moves the cap of its
+//! exponential failure time with it (likewise `tau_f`).
+//!
+//! # Derivatives: Richardson-extrapolated differences through the engine
+//!
+//! Each derivative is a central difference D(h) = (O(θ+h) − O(θ−h))/2h of
+//! the engine's figures, extrapolated to h → 0 from h and h/2: R = (4D(h/2)
+//! − D(h))/3 (error O(h⁴)), with h = 10⁻³·θ (10⁻³ for θ = 0). The error
+//! estimate is |R − D(h/2)|, which bounds the error of the less accurate
+//! D(h/2). Where θ − h leaves the parameter's domain (ps near 0 or 1, a
+//! time near 0) the differences are one-sided, D(h) = (O(θ+h) − O(θ))/h,
+//! extrapolated as R = 2D(h/2) − D(h) (error O(h²)), and the row says so.
+//! The engine's figures are exact up to rounding (and the truncation
+//! tolerance of π(t)), so the error is dominated by the extrapolation.
+
+use crate::compile::{analyze, AnalysisError, Options};
+use crate::curve::{curve, CurveOptions};
+use crate::tree::{Duration, NodeId, NodeKind, Tree};
+
+/// What the derivatives are of: a figure of the root.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Objective {
+    Ps,
+    Mtts,
+    Mttf,
+    /// E[T] = ps·MTTS + pf·MTTF.
+    MeanTime,
+    /// P(root returned Success by the deadline).
+    SuccessBy(f64),
+}
+
+impl Objective {
+    /// The name on the command line.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Objective::Ps => "ps",
+            Objective::Mtts => "mtts",
+            Objective::Mttf => "mttf",
+            Objective::MeanTime => "mean-time",
+            Objective::SuccessBy(_) => "success-by",
+        }
+    }
+
+    /// The objective in words, for sentences.
+    pub fn describe(&self) -> String {
+        match self {
+            Objective::Ps => "the root's P(Success)".into(),
+            Objective::Mtts => "the root's MTTS".into(),
+            Objective::Mttf => "the root's MTTF".into(),
+            Objective::MeanTime => "the root's mean time E[T]".into(),
+            Objective::SuccessBy(t) => {
+                format!("P(success by {} s)", crate::report::number::full(*t))
+            }
+        }
+    }
+}
+
+/// A leaf parameter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Param {
+    Ps,
+    Mu,
+    Nu,
+    TauS,
+    TauF,
+}
+
+impl Param {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Param::Ps => "ps",
+            Param::Mu => "mu",
+            Param::Nu => "nu",
+            Param::TauS => "tau_s",
+            Param::TauF => "tau_f",
+        }
+    }
+}
+
+/// How a derivative was computed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Scheme {
+    /// Richardson-extrapolated central differences, error O(h⁴).
+    Central,
+    /// Richardson-extrapolated one-sided differences (at a domain
+    /// boundary), error O(h²).
+    Forward,
+}
+
+impl Scheme {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Scheme::Central => "richardson-central",
+            Scheme::Forward => "richardson-forward",
+        }
+    }
+}
+
+/// One parameter's sensitivity.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Row {
+    pub leaf: NodeId,
+    pub param: Param,
+    pub value: f64,
+    pub derivative: f64,
+    /// θ/O · ∂O/∂θ; `None` when O = 0 or undefined.
+    pub elasticity: Option<f64>,
+    pub scheme: Scheme,
+    /// Estimated absolute error of the derivative.
+    pub error: f64,
+}
+
+/// The result: the objective's value and the rows, ranked by |elasticity|
+/// (rows without one last, by |derivative|).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sensitivity {
+    pub objective: Objective,
+    pub value: f64,
+    pub rows: Vec<Row>,
+    /// Parameters without a derivative, and why.
+    pub skipped: Vec<String>,
+}
+
+/// Errors: the analysis failed, or the objective is undefined at the
+/// given parameters.
+#[derive(Debug)]
+pub enum SensitivityError {
+    Analysis(AnalysisError),
+    Undefined(String),
+}
+
+impl From<AnalysisError> for SensitivityError {
+    fn from(e: AnalysisError) -> Self {
+        SensitivityError::Analysis(e)
+    }
+}
+
+/// The root's objective for a tree.
+pub fn objective_value(
+    tree: &Tree,
+    objective: Objective,
+    options: &Options,
+) -> Result<f64, SensitivityError> {
+    if let Objective::SuccessBy(t) = objective {
+        let co = CurveOptions {
+            method: options.method,
+            max_states: options.max_states,
+            ..CurveOptions::default()
+        };
+        return Ok(curve(tree, Tree::ROOT, &[t], &co)?[0].success);
+    }
+    let f = analyze(tree, options)?.nodes[Tree::ROOT];
+    let undefined =
+        |what: &str| SensitivityError::Undefined(format!("the root's {what} is undefined"));
+    Ok(match objective {
+        Objective::Ps => f.ps,
+        Objective::Mtts => f
+            .mtts
+            .ok_or_else(|| undefined("MTTS (it never succeeds)"))?,
+        Objective::Mttf => f.mttf.ok_or_else(|| undefined("MTTF (it never fails)"))?,
+        Objective::MeanTime => f.mean_time(),
+        Objective::SuccessBy(_) => unreachable!("handled above"),
+    })
+}
+
+/// The parameters of a leaf and their values (a parameter that has no
+/// meaning for it, e.g. `mu` of an action that never succeeds, is absent).
+pub fn params_of(kind: &NodeKind) -> Vec<(Param, f64)> {
+    match kind {
+        NodeKind::Condition { ps } => vec![(Param::Ps, *ps)],
+        NodeKind::Action(a) => {
+            let mut v = vec![(Param::Ps, a.ps)];
+            for (d, rate, tau) in [
+                (a.success, Param::Mu, Param::TauS),
+                (a.failure, Param::Nu, Param::TauF),
+            ] {
+                match d {
+                    Some(Duration::Exponential { rate: r })
+                    | Some(Duration::TruncatedExponential { rate: r, .. }) => v.push((rate, r)),
+                    Some(Duration::Fixed { time }) => v.push((tau, time)),
+                    None => {}
+                }
+            }
+            v
+        }
+        _ => Vec::new(),
+    }
+}
+
+/// `tree` with leaf `id`'s parameter set to `x` (see the module docs for
+/// what moves with it).
+pub fn with_param(tree: &Tree, id: NodeId, param: Param, x: f64) -> Tree {
+    let mut t = tree.clone();
+    match &mut t.nodes[id].kind {
+        NodeKind::Condition { ps } => *ps = x,
+        NodeKind::Action(a) => match param {
+            Param::Ps => {
+                a.ps = x;
+                a.pf = 1.0 - x;
+            }
+            Param::Mu | Param::Nu => {
+                let d = if param == Param::Mu {
+                    &mut a.success
+                } else {
+                    &mut a.failure
+                };
+                if let Some(
+                    Duration::Exponential { rate } | Duration::TruncatedExponential { rate, .. },
+                ) = d
+                {
+                    *rate = x;
+                }
+            }
+            Param::TauS | Param::TauF => {
+                let (own, other) = if param == Param::TauS {
+                    (&mut a.success, &mut a.failure)
+                } else {
+                    (&mut a.failure, &mut a.success)
+                };
+                if let Some(Duration::Fixed { time }) = own {
+                    *time = x;
+                }
+                if let Some(Duration::TruncatedExponential { cap, .. }) = other {
+                    *cap = x;
+                }
+            }
+        },
+        _ => {}
+    }
+    t
+}
+
+/// Whether `x` is a valid value of the parameter for this leaf.
+fn in_domain(kind: &NodeKind, param: Param, x: f64) -> bool {
+    match param {
+        Param::Ps => {
+            let ok = (0.0..=1.0).contains(&x);
+            match kind {
+                // an action needs a time for every outcome it can have
+                NodeKind::Action(a) => {
+                    ok && (x == 0.0 || a.success.is_some()) && (x == 1.0 || a.failure.is_some())
+                }
+                _ => ok,
+            }
+        }
+        Param::Mu | Param::Nu => x > 0.0 && x.is_finite(),
+        Param::TauS | Param::TauF => x >= 0.0 && x.is_finite(),
+    }
+}
+
+/// The derivative of `f` at `x` by Richardson extrapolation (module docs):
+/// (derivative, error estimate, scheme).
+pub fn richardson(
+    f: &mut dyn FnMut(f64) -> Result<f64, SensitivityError>,
+    x: f64,
+    fx: f64,
+    h: f64,
+    central: bool,
+) -> Result<(f64, f64, Scheme), SensitivityError> {
+    if central {
+        let d1 = (f(x + h)? - f(x - h)?) / (2.0 * h);
+        let d2 = (f(x + h / 2.0)? - f(x - h / 2.0)?) / h;
+        let r = (4.0 * d2 - d1) / 3.0;
+        Ok((r, (r - d2).abs(), Scheme::Central))
+    } else {
+        let d1 = (f(x + h)? - fx) / h;
+        let d2 = (f(x + h / 2.0)? - fx) / (h / 2.0);
+        let r = 2.0 * d2 - d1;
+        Ok((r, (r - d2).abs(), Scheme::Forward))
+    }
+}
+
+/// Sensitivities of the root's `objective` to every leaf parameter.
+pub fn sensitivity(
+    tree: &Tree,
+    objective: Objective,
+    options: &Options,
+) -> Result<Sensitivity, SensitivityError> {
+    let value = objective_value(tree, objective, options)?;
+    let mut rows = Vec::new();
+    let mut skipped = Vec::new();
+    for (id, node) in tree.nodes.iter().enumerate() {
+        if !node.kind.children().is_empty() {
+            continue;
+        }
+        for (param, x) in params_of(&node.kind) {
+            let h0 = if x == 0.0 { 1e-3 } else { 1e-3 * x.abs() };
+            let h = if param == Param::Ps { h0.min(1e-3) } else { h0 };
+            let up = in_domain(&node.kind, param, x + h);
+            let down = in_domain(&node.kind, param, x - h);
+            let mut f =
+                |v: f64| objective_value(&with_param(tree, id, param, v), objective, options);
+            let (derivative, error, scheme) = match (up, down) {
+                (true, true) => richardson(&mut f, x, value, h, true)?,
+                (true, false) => richardson(&mut f, x, value, h, false)?,
+                (false, true) => richardson(&mut f, x, value, -h, false)?,
+                (false, false) => {
+                    skipped.push(format!(
+                        "{} {}: cannot be changed ({} = {x}, and the action has no time for the other outcome)",
+                        node.name,
+                        param.name(),
+                        param.name()
+                    ));
+                    continue;
+                }
+            };
+            let elasticity = (value != 0.0 && value.is_finite()).then(|| derivative * x / value);
+            rows.push(Row {
+                leaf: id,
+                param,
+                value: x,
+                derivative,
+                elasticity,
+                scheme,
+                error,
+            });
+        }
+    }
+    rows.sort_by(|a, b| {
+        let key = |r: &Row| {
+            (
+                r.elasticity.is_none(),
+                -r.elasticity.map_or(r.derivative.abs(), f64::abs),
+            )
+        };
+        let (ka, kb) = (key(a), key(b));
+        ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
+    });
+    Ok(Sensitivity {
+        objective,
+        value,
+        rows,
+        skipped,
+    })
+}
+
+/// The change a sentence describes for a row: ps by ±0.1 (within [0, 1]),
+/// other parameters by +10%.
+pub fn step_for(row: &Row) -> f64 {
+    match row.param {
+        Param::Ps if row.value <= 0.9 => (row.value + 0.1).min(1.0),
+        Param::Ps => row.value - 0.1,
+        _ if row.value == 0.0 => 0.1,
+        _ => row.value * 1.1,
+    }
+}
+
+/// "raising X's ps from 0.5 to 0.6 raises P(success by 100 s) from 0.198 to
+/// 0.243": the new value by running the engine again.
+pub fn sentence(
+    tree: &Tree,
+    s: &Sensitivity,
+    row: &Row,
+    options: &Options,
+) -> Result<String, SensitivityError> {
+    use crate::report::number::significant;
+    let to = step_for(row);
+    let mut changed = with_param(tree, row.leaf, row.param, to);
+    if !in_domain(&tree.nodes[row.leaf].kind, row.param, to) {
+        changed = tree.clone();
+    }
+    let new = objective_value(&changed, s.objective, options)?;
+    let verb = |up: bool| if up { "raises" } else { "lowers" };
+    let effect = if new == s.value {
+        format!(
+            "leaves {} at {}",
+            s.objective.describe(),
+            significant(new, 3)
+        )
+    } else {
+        format!(
+            "{} {} from {} to {}",
+            verb(new > s.value),
+            s.objective.describe(),
+            significant(s.value, 3),
+            significant(new, 3)
+        )
+    };
+    Ok(format!(
+        "{} {}'s {} from {} to {} {effect}",
+        if to > row.value {
+            "raising"
+        } else {
+            "lowering"
+        },
+        tree.nodes[row.leaf].name,
+        row.param.name(),
+        significant(row.value, 3),
+        significant(to, 3),
+    ))
+}

@@ -1,0 +1,383 @@
+//! Confidence intervals of a tree's figures from the sampling uncertainty of
+//! its fitted leaf parameters (`report --ci`, `curve --ci`).
+//!
+//! # Method: a parametric bootstrap through the exact engine
+//!
+//! `btrel fit` writes, under each params entry's `fit:` key, the episode
+//! counts and the standard errors of the estimates. From them every fitted
+//! parameter gets a sampling distribution:
+//!
+//! * `ps` ~ Beta(s + ½, f + ½), with s successes and f failures among the
+//!   completed episodes (the Jeffreys posterior: well calibrated, and proper
+//!   at the boundary ps = 0 or 1). With halted (censored) episodes the
+//!   counts are the effective ones, n = p(1 − p)/se², s = p·n, f = (1 − p)·n.
+//! * a rate (`mu`, `nu`) with n events over an exposure T ~ Gamma(shape n,
+//!   rate T), T = n / rate: for exponential times 2·rate·T ~ χ²(2n) exactly,
+//!   so its percentile interval is the exact pivotal one. With halts n is
+//!   the effective (rate / se)².
+//!
+//! Each draw sets every fitted leaf's parameters (one draw per params key:
+//! leaves sharing a key share it), runs the engine on the whole tree, and
+//! the interval of each figure is the percentile interval of its draws. The
+//! parameters are drawn independently (the correlation that censoring
+//! induces between a leaf's ps and its rates is not kept). Fixed times
+//! (`tau_s`, `tau_f`) and leaves without `fit:` statistics stay fixed, and so
+//! does the ps of an action whose other outcome never happened (it has no
+//! time for it); [`Sampler::fixed`] and [`Sampler::held`] list them.
+//!
+//! Draw `i` uses its own random stream (seeded from the seed and `i`), so
+//! the intervals do not depend on the number of threads.
+
+use std::collections::BTreeMap;
+
+use rand::SeedableRng;
+use rand_distr::{Beta, Distribution, Gamma};
+use rand_xoshiro::Xoshiro256PlusPlus;
+use rayon::prelude::*;
+use serde::Deserialize;
+
+use crate::tree::{Duration, NodeId, NodeKind, Tree};
+
+/// Draws when none are asked for.
+pub const DEFAULT_DRAWS: usize = 1000;
+/// Seed when none is given.
+pub const DEFAULT_SEED: u64 = 0x005E_EDC1;
+/// Most draws × figures kept in memory at once (8 bytes each).
+pub const MAX_VALUES: usize = 25_000_000;
+
+/// One line of the method, for output headers.
+pub const METHOD: &str =
+    "parametric bootstrap: ps ~ Beta(s+1/2, f+1/2), rates ~ Gamma(events, exposure), \
+figures recomputed per draw, percentile intervals";
+
+/// The `fit:` statistics of one params entry, as `btrel fit` writes them
+/// (other keys are ignored).
+#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
+pub struct FitStats {
+    #[serde(default)]
+    pub successes: Option<u64>,
+    #[serde(default)]
+    pub failures: Option<u64>,
+    #[serde(default)]
+    pub halted: Option<u64>,
+    #[serde(default)]
+    pub ps_se: Option<f64>,
+    #[serde(default)]
+    pub mu_se: Option<f64>,
+    #[serde(default)]
+    pub nu_se: Option<f64>,
+}
+
+#[derive(Deserialize)]
+struct Entry {
+    #[serde(default)]
+    fit: Option<FitStats>,
+}
+
+/// Reads the `fit:` statistics of a params file, by key. Entries without
+/// `fit:` are left out.
+pub fn read_fit_stats(text: &str, file: &str) -> Result<BTreeMap<String, FitStats>, String> {
+    if text
+        .lines()
+        .all(|l| l.trim().is_empty() || l.trim_start().starts_with('#'))
+    {
+        return Ok(BTreeMap::new());
+    }
+    let entries: BTreeMap<String, Entry> = serde_saphyr::from_str(text).map_err(|e| {
+        let at = e
+            .location()
+            .map_or(String::new(), |l| format!("{}:{}: ", l.line(), l.column()));
+        format!(
+            "{file}:{at}cannot read the `fit:` statistics: {}",
+            e.without_snippet()
+        )
+    })?;
+    Ok(entries
+        .into_iter()
+        .filter_map(|(k, e)| e.fit.map(|f| (k, f)))
+        .collect())
+}
+
+/// The sampling distributions of one params key's parameters.
+#[derive(Clone, Debug)]
+struct Group {
+    nodes: Vec<NodeId>,
+    ps: Option<Beta<f64>>,
+    mu: Option<Gamma<f64>>,
+    nu: Option<Gamma<f64>>,
+}
+
+/// Draws trees whose fitted parameters vary by their sampling
+/// distributions (module docs).
+#[derive(Clone, Debug)]
+pub struct Sampler {
+    base: Tree,
+    groups: Vec<Group>,
+    /// Leaves without `fit:` statistics (their names).
+    pub fixed: Vec<String>,
+    /// Parameters of fitted leaves that stay fixed, and why.
+    pub held: Vec<String>,
+}
+
+/// Beta(s + ½, f + ½) for ps = p, from the counts (or, with halts, from
+/// the standard error).
+fn ps_law(p: f64, st: &FitStats) -> Option<Beta<f64>> {
+    let halted = st.halted.unwrap_or(0) > 0;
+    let (s, f) = match (st.successes, st.failures, st.ps_se) {
+        (_, _, Some(se))
+            if (halted || st.successes.is_none()) && se > 0.0 && p > 0.0 && p < 1.0 =>
+        {
+            let n = p * (1.0 - p) / (se * se);
+            (p * n, (1.0 - p) * n)
+        }
+        (Some(s), Some(f), _) if s + f > 0 => (s as f64, f as f64),
+        _ => return None,
+    };
+    Beta::new(s + 0.5, f + 0.5).ok()
+}
+
+/// Gamma(n, n / rate) for a rate, n = (rate / se)² (the events, without
+/// halts), or the count when there is no standard error.
+fn rate_law(rate: f64, se: Option<f64>, events: Option<u64>) -> Option<Gamma<f64>> {
+    let n = match (se, events) {
+        (Some(se), _) if se > 0.0 && se.is_finite() => (rate / se).powi(2),
+        (None, Some(k)) if k > 0 => k as f64,
+        _ => return None,
+    };
+    if !(n.is_finite() && n > 0.0 && rate > 0.0) {
+        return None;
+    }
+    Gamma::new(n, rate / n).ok()
+}
+
+fn rate_of(d: Option<Duration>) -> Option<f64> {
+    match d? {
+        Duration::Exponential { rate } | Duration::TruncatedExponential { rate, .. } => Some(rate),
+        Duration::Fixed { .. } => None,
+    }
+}
+
+fn set_rate(d: &mut Option<Duration>, r: f64) {
+    if let Some(Duration::Exponential { rate } | Duration::TruncatedExponential { rate, .. }) = d {
+        *rate = r;
+    }
+}
+
+impl Sampler {
+    /// `keys[id]` is the params key of node `id` (as
+    /// [`crate::tree::xml::Keyed`] gives them); `stats` the file's `fit:`
+    /// statistics by key.
+    pub fn new(
+        tree: &Tree,
+        keys: &[Option<String>],
+        stats: &BTreeMap<String, FitStats>,
+    ) -> Sampler {
+        let mut groups: Vec<Group> = Vec::new();
+        let mut by_key: BTreeMap<&str, usize> = BTreeMap::new();
+        let (mut fixed, mut held) = (Vec::new(), Vec::new());
+        for (id, node) in tree.nodes.iter().enumerate() {
+            if !node.kind.children().is_empty() {
+                continue;
+            }
+            let key = keys.get(id).and_then(|k| k.as_deref());
+            let Some((key, st)) = key.and_then(|k| stats.get_key_value(k)) else {
+                fixed.push(node.name.clone());
+                continue;
+            };
+            if let Some(&g) = by_key.get(key.as_str()) {
+                groups[g].nodes.push(id);
+                continue;
+            }
+            let mut g = Group {
+                nodes: vec![id],
+                ps: None,
+                mu: None,
+                nu: None,
+            };
+            match &node.kind {
+                NodeKind::Condition { ps } => g.ps = ps_law(*ps, st),
+                NodeKind::Action(a) => {
+                    let missing = match (a.success, a.failure) {
+                        (Some(_), Some(_)) => None,
+                        (None, _) => Some("success"),
+                        (_, None) => Some("failure"),
+                    };
+                    match missing {
+                        None => g.ps = ps_law(a.ps, st),
+                        Some(what) => held.push(format!(
+                            "{}: ps held at {} (no {what} was observed, so it has no time)",
+                            node.name, a.ps
+                        )),
+                    }
+                    if let Some(r) = rate_of(a.success) {
+                        g.mu = rate_law(r, st.mu_se, st.successes.filter(|_| st.halted == Some(0)));
+                        if g.mu.is_none() {
+                            held.push(format!("{}: mu held (no standard error)", node.name));
+                        }
+                    }
+                    if let Some(r) = rate_of(a.failure) {
+                        g.nu = rate_law(r, st.nu_se, st.failures.filter(|_| st.halted == Some(0)));
+                        if g.nu.is_none() {
+                            held.push(format!("{}: nu held (no standard error)", node.name));
+                        }
+                    }
+                    if matches!(a.success, Some(Duration::Fixed { .. }))
+                        || matches!(a.failure, Some(Duration::Fixed { .. }))
+                    {
+                        held.push(format!("{}: fixed times held", node.name));
+                    }
+                }
+                _ => {}
+            }
+            by_key.insert(key.as_str(), groups.len());
+            groups.push(g);
+        }
+        Sampler {
+            base: tree.clone(),
+            groups,
+            fixed,
+            held,
+        }
+    }
+
+    /// Number of parameters that vary.
+    pub fn varied(&self) -> usize {
+        self.groups
+            .iter()
+            .map(|g| {
+                usize::from(g.ps.is_some())
+                    + usize::from(g.mu.is_some())
+                    + usize::from(g.nu.is_some())
+            })
+            .sum()
+    }
+
+    /// One tree with freshly drawn parameters.
+    pub fn draw(&self, rng: &mut Xoshiro256PlusPlus) -> Tree {
+        let mut tree = self.base.clone();
+        for g in &self.groups {
+            let ps = g.ps.map(|d| d.sample(rng).clamp(0.0, 1.0));
+            let positive = |x: f64| {
+                if x > 0.0 && x.is_finite() {
+                    x
+                } else {
+                    f64::MIN_POSITIVE
+                }
+            };
+            let mu = g.mu.map(|d| positive(d.sample(rng)));
+            let nu = g.nu.map(|d| positive(d.sample(rng)));
+            for &id in &g.nodes {
+                match &mut tree.nodes[id].kind {
+                    NodeKind::Condition { ps: p } => {
+                        if let Some(x) = ps {
+                            *p = x;
+                        }
+                    }
+                    NodeKind::Action(a) => {
+                        if let Some(x) = ps {
+                            a.ps = x;
+                            a.pf = 1.0 - x;
+                        }
+                        if let Some(r) = mu {
+                            set_rate(&mut a.success, r);
+                        }
+                        if let Some(r) = nu {
+                            set_rate(&mut a.failure, r);
+                        }
+                    }
+                    _ => {}
+                }
+            }
+        }
+        tree
+    }
+
+    /// The `level` percentile intervals of the figures `figures(tree)`
+    /// (`None` where undefined) over `draws` drawn trees, seeded by `seed`.
+    /// An interval is `None` when the figure was undefined in every draw.
+    pub fn intervals<E, F>(
+        &self,
+        level: f64,
+        draws: usize,
+        seed: u64,
+        figures: F,
+    ) -> Result<Vec<Option<(f64, f64)>>, E>
+    where
+        E: Send,
+        F: Fn(&Tree) -> Result<Vec<Option<f64>>, E> + Sync,
+    {
+        let draws = if self.varied() == 0 { 1 } else { draws.max(1) };
+        // undefined figures are kept as NaN (8 bytes a value, not 16)
+        let rows: Vec<Vec<f64>> = (0..draws)
+            .into_par_iter()
+            .map(|i| {
+                let mut rng = Xoshiro256PlusPlus::seed_from_u64(
+                    seed ^ (i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+                );
+                figures(&self.draw(&mut rng))
+                    .map(|v| v.into_iter().map(|x| x.unwrap_or(f64::NAN)).collect())
+            })
+            .collect::<Result<_, E>>()?;
+        let m = rows.first().map_or(0, Vec::len);
+        let mut column = Vec::with_capacity(draws);
+        Ok((0..m)
+            .map(|j| {
+                column.clear();
+                column.extend(rows.iter().filter_map(|r| r.get(j).copied()));
+                column.retain(|x| !x.is_nan());
+                column.sort_by(f64::total_cmp);
+                let alpha = (1.0 - level) / 2.0;
+                (!column.is_empty())
+                    .then(|| (quantile(&column, alpha), quantile(&column, 1.0 - alpha)))
+            })
+            .collect())
+    }
+}
+
+/// The `q` quantile of sorted values (linear interpolation between order
+/// statistics, Hyndman–Fan type 7).
+pub fn quantile(sorted: &[f64], q: f64) -> f64 {
+    let h = (sorted.len() - 1) as f64 * q.clamp(0.0, 1.0);
+    let (lo, frac) = (h.floor() as usize, h - h.floor());
+    match sorted.get(lo + 1) {
+        Some(&next) if frac > 0.0 => sorted[lo] + frac * (next - sorted[lo]),
+        _ => sorted[lo],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantiles() {
+        let v = [1.0, 2.0, 3.0, 4.0, 5.0];
+        assert_eq!(quantile(&v, 0.0), 1.0);
+        assert_eq!(quantile(&v, 0.5), 3.0);
+        assert_eq!(quantile(&v, 0.125), 1.5);
+        assert_eq!(quantile(&v, 1.0), 5.0);
+        assert_eq!(quantile(&[7.0], 0.3), 7.0);
+    }
+
+    #[test]
+    fn laws_have_the_stated_moments() {
+        // Beta(s + 1/2, f + 1/2): mean (s + 1/2) / (n + 1)
+        let st = FitStats {
+            successes: Some(30),
+            failures: Some(10),
+            halted: Some(0),
+            ..Default::default()
+        };
+        let b = ps_law(0.75, &st).unwrap();
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(1);
+        let n = 200_000;
+        let mean: f64 = (0..n).map(|_| b.sample(&mut rng)).sum::<f64>() / n as f64;
+        // sd of Beta(30.5, 10.5) = sqrt(ab/((a+b)^2 (a+b+1))) ~ 0.0668
+        let sd = (30.5f64 * 10.5 / (41.0f64.powi(2) * 42.0)).sqrt();
+        assert!(((mean - 30.5 / 41.0) / (sd / (n as f64).sqrt())).abs() < 5.0);
+        // Gamma(n, n / rate): mean rate, sd rate / sqrt(n)
+        let g = rate_law(2.0, Some(0.5), None).unwrap(); // n = 16
+        let mean: f64 = (0..n).map(|_| g.sample(&mut rng)).sum::<f64>() / n as f64;
+        assert!(((mean - 2.0) / (0.5 / (n as f64).sqrt())).abs() < 5.0);
+    }
+}

@@ -1,0 +1,408 @@
+//! `report --ci` / `curve --ci`: intervals of the figures from the fitted
+//! parameters' sampling uncertainty. Checked against independent truth:
+//! the coverage of the intervals over many simulated logs of known
+//! parameters (closed-form figures), and the Beta / Gamma quantiles of
+//! single leaves computed here by numerical integration.
+
+mod common;
+
+use std::path::Path;
+
+use btrel::fit::{fit_leaf, params_line, Counts};
+use btrel::logs::{Declared, End, Episode};
+use btrel::uncertainty::{read_fit_stats, Sampler};
+use rand::{RngExt, SeedableRng};
+use rand_distr::{Distribution, Exp};
+use rand_xoshiro::Xoshiro256PlusPlus;
+use serde_json::Value;
+
+fn bin() -> assert_cmd::Command {
+    assert_cmd::Command::cargo_bin("btrel").expect("the binary is built")
+}
+
+const FALLBACK: &str = r#"<root BTCPP_format="4" main_tree_to_execute="T">
+  <BehaviorTree ID="T">
+    <Fallback name="root">
+      <A name="a"/>
+      <B name="b"/>
+    </Fallback>
+  </BehaviorTree>
+  <TreeNodesModel><Action ID="A"/><Action ID="B"/></TreeNodesModel>
+</root>"#;
+
+/// `n` episodes of an action (ps, mu, nu), each halted at an Exp(halt)
+/// time when that comes first (no halts when `halt` is 0).
+fn episodes(
+    rng: &mut Xoshiro256PlusPlus,
+    n: usize,
+    (p, mu, nu): (f64, f64, f64),
+    halt: f64,
+) -> Vec<Episode> {
+    (0..n)
+        .map(|_| {
+            let ok = rng.random::<f64>() < p;
+            let d = Exp::new(if ok { mu } else { nu }).unwrap().sample(rng);
+            let c = if halt > 0.0 {
+                Exp::new(halt).unwrap().sample(rng)
+            } else {
+                f64::INFINITY
+            };
+            let (duration, end) = match (d < c, ok) {
+                (false, _) => (c, End::Halted),
+                (true, true) => (d, End::Success),
+                (true, false) => (d, End::Failure),
+            };
+            Episode {
+                duration,
+                end,
+                instant: false,
+            }
+        })
+        .collect()
+}
+
+/// Coverage: logs simulated from known parameters, fitted, intervals of the
+/// root's ps, MTTS and MTTF; the closed forms of a two-action Fallback
+/// (eqs. 9.74–9.75) are the truth. Each level's coverage must be within
+/// 3.5 binomial standard errors of nominal, at 90% (both sides can fail).
+#[test]
+fn intervals_cover_the_truth_at_their_level() {
+    let (a, b) = ((0.6, 1.0, 2.0), (0.7, 0.5, 1.0));
+    let ps = a.0 + (1.0 - a.0) * b.0;
+    let mtts = (a.0 / a.1 + (1.0 - a.0) * b.0 * (1.0 / a.2 + 1.0 / b.1)) / ps;
+    let mttf = 1.0 / a.2 + 1.0 / b.2;
+    let truth = [ps, mtts, mttf];
+    let reps = 300;
+    let level = 0.9;
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(2026);
+    let mut covered = [0usize; 3];
+    let mut halted = 0;
+    for rep in 0..reps {
+        let ea = episodes(&mut rng, 40, a, 0.0);
+        // B is halted now and then (censored durations, the EM path)
+        let eb = episodes(&mut rng, 40, b, 0.15);
+        halted += eb.iter().filter(|e| e.end == End::Halted).count();
+        let fa = fit_leaf("A", Declared::Action, Counts::from_episodes(&ea)).unwrap();
+        let fb = fit_leaf("B", Declared::Action, Counts::from_episodes(&eb)).unwrap();
+        let params = format!("{}\n{}\n", params_line(&fa), params_line(&fb));
+        let keyed =
+            btrel::tree::xml::parse_xml_str_keyed(FALLBACK, "t.xml", &params, "p.yaml").unwrap();
+        let stats = read_fit_stats(&params, "p.yaml").unwrap();
+        let sampler = Sampler::new(&keyed.tree, &keyed.keys, &stats);
+        assert_eq!(sampler.varied(), 6);
+        let ci = sampler
+            .intervals(level, 400, rep as u64, |t| {
+                btrel::analyze(t, &Default::default()).map(|an| {
+                    let f = an.nodes[0];
+                    vec![Some(f.ps), f.mtts, f.mttf]
+                })
+            })
+            .unwrap();
+        for k in 0..3 {
+            let (lo, hi) = ci[k].unwrap();
+            covered[k] += usize::from(lo <= truth[k] && truth[k] <= hi);
+        }
+    }
+    assert!(
+        halted > 200,
+        "the halts path was exercised ({halted} halts)"
+    );
+    eprintln!("coverage of nominal {level} over {reps} logs (ps, MTTS, MTTF): {covered:?}");
+    let sd = (level * (1.0 - level) / reps as f64).sqrt();
+    for (k, what) in ["ps", "MTTS", "MTTF"].iter().enumerate() {
+        let c = covered[k] as f64 / reps as f64;
+        assert!(
+            ((c - level) / sd).abs() < 3.5,
+            "{what}: coverage {c} of nominal {level} over {reps} logs"
+        );
+    }
+}
+
+/// The quantile `q` of a density on a grid (trapezoids), and the density there.
+fn grid_quantile(lo: f64, hi: f64, log_density: impl Fn(f64) -> f64, q: f64) -> (f64, f64) {
+    let n = 400_000;
+    let h = (hi - lo) / n as f64;
+    let xs: Vec<f64> = (0..=n).map(|i| lo + h * i as f64).collect();
+    let lmax = xs[1..n]
+        .iter()
+        .map(|&x| log_density(x))
+        .fold(f64::MIN, f64::max);
+    let f: Vec<f64> = xs
+        .iter()
+        .enumerate()
+        .map(|(i, &x)| {
+            if i == 0 || i == n {
+                0.0
+            } else {
+                (log_density(x) - lmax).exp()
+            }
+        })
+        .collect();
+    let mut cum = vec![0.0; n + 1];
+    for i in 1..=n {
+        cum[i] = cum[i - 1] + 0.5 * h * (f[i - 1] + f[i]);
+    }
+    let total = cum[n];
+    let i = cum.iter().position(|&c| c >= q * total).unwrap();
+    let frac = (q * total - cum[i - 1]) / (cum[i] - cum[i - 1]);
+    (xs[i - 1] + frac * h, f[i] / total)
+}
+
+fn json_ci(v: &Value, node: &str, fig: &str) -> (f64, f64) {
+    let n = v["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|n| n["name"] == node)
+        .unwrap();
+    let p = &n["ci"][fig];
+    (p[0].as_f64().unwrap(), p[1].as_f64().unwrap())
+}
+
+const TREE: &str = "trees/search-and-grasp.xml";
+const FITTED: &str = "docs/fit/search-and-grasp.fitted.params.yaml";
+
+/// A condition's ps interval is the Beta(s + ½, f + ½) quantiles; an
+/// action's MTTS interval is 1 / the Gamma(n, n/mu) quantiles (both
+/// integrated numerically here), within 5 standard errors of a percentile
+/// of 20,000 draws.
+#[test]
+fn single_leaf_intervals_are_the_beta_and_gamma_quantiles() {
+    let out = bin()
+        .args([
+            "report",
+            TREE,
+            "--params",
+            FITTED,
+            "--ci",
+            "--ci-draws",
+            "20000",
+            "--format",
+            "json",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let draws = 20_000.0;
+    let check = |what: &str, got: f64, (x, density): (f64, f64), q: f64| {
+        let se = (q * (1.0 - q) / draws).sqrt() / density;
+        assert!(
+            ((got - x) / se).abs() < 5.0,
+            "{what}: {got} vs quantile {x} (se {se})"
+        );
+    };
+    // object position retrieved: 14 successes, 66 failures in the file
+    let (lo, hi) = json_ci(&v, "object position retrieved", "ps");
+    let beta = |x: f64| 13.5 * x.ln() + 65.5 * (1.0 - x).ln();
+    check("ps lo", lo, grid_quantile(0.0, 1.0, beta, 0.025), 0.025);
+    check("ps hi", hi, grid_quantile(0.0, 1.0, beta, 0.975), 0.975);
+    // search floor: mu = 0.015064067478988134 with 30 successes
+    let (mu, n) = (0.015064067478988134, 30.0);
+    let gamma = |x: f64| (n - 1.0) * x.ln() - n / mu * x;
+    let (lo, hi) = json_ci(&v, "search floor", "mtts");
+    // MTTS = 1/mu: its lower bound is 1 / mu's upper quantile
+    let (q_hi, d_hi) = grid_quantile(0.0, 4.0 * mu, gamma, 0.975);
+    let (q_lo, d_lo) = grid_quantile(0.0, 4.0 * mu, gamma, 0.025);
+    // density of 1/mu at 1/q is d * q^2
+    check("mtts lo", lo, (1.0 / q_hi, d_hi * q_hi * q_hi), 0.975);
+    check("mtts hi", hi, (1.0 / q_lo, d_lo * q_lo * q_lo), 0.025);
+    // pf's interval mirrors ps's: every node returns
+    let (plo, phi) = json_ci(&v, "search and grasp", "ps");
+    let (flo, fhi) = json_ci(&v, "search and grasp", "pf");
+    assert!((plo + fhi - 1.0).abs() < 1e-12 && (phi + flo - 1.0).abs() < 1e-12);
+    assert_eq!(v["ci"]["level"], 0.95);
+    assert_eq!(v["ci"]["draws"], 20000);
+}
+
+fn report_ci(extra: &[&str]) -> (String, String) {
+    let out = bin()
+        .args(["report", TREE, "--params", FITTED, "--ci"])
+        .args(extra)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (
+        String::from_utf8(out.stdout).unwrap(),
+        String::from_utf8(out.stderr).unwrap(),
+    )
+}
+
+#[test]
+fn reproducible_and_independent_of_threads() {
+    let one = bin()
+        .env("RAYON_NUM_THREADS", "1")
+        .args([
+            "report", TREE, "--params", FITTED, "--ci", "90", "--format", "csv",
+        ])
+        .output()
+        .unwrap();
+    let two = bin()
+        .env("RAYON_NUM_THREADS", "2")
+        .args([
+            "report", TREE, "--params", FITTED, "--ci", "0.9", "--format", "csv",
+        ])
+        .output()
+        .unwrap();
+    assert!(one.status.success());
+    assert_eq!(one.stdout, two.stdout);
+    let (other, _) = report_ci(&["90", "--format", "csv", "--ci-seed", "7"]);
+    assert_ne!(String::from_utf8(one.stdout.clone()).unwrap(), other);
+    let text = String::from_utf8(one.stdout).unwrap();
+    assert!(text.starts_with(
+        "name,path,kind,depth,ps,ps_lo,ps_hi,pf,pf_lo,pf_hi,mtts,mtts_lo,mtts_hi,mttf,mttf_lo,mttf_hi\n"
+    ));
+    // every interval holds its point estimate here (80 episodes a leaf)
+    for line in text.lines().skip(1) {
+        let cells: Vec<&str> = line.split(',').collect();
+        for k in [4, 7, 10, 13] {
+            let [x, lo, hi] =
+                [cells[k], cells[k + 1], cells[k + 2]].map(|c| c.parse::<f64>().unwrap());
+            assert!(lo <= x + 1e-12 && x <= hi + 1e-12, "{line}");
+        }
+    }
+}
+
+#[test]
+fn leaves_without_statistics_are_fixed_and_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let params = dir.path().join("p.yaml");
+    let text = std::fs::read_to_string(FITTED).unwrap();
+    // strip two entries' statistics: hand-written parameters
+    let text: String = text
+        .lines()
+        .map(|l| {
+            if l.starts_with("\"SearchFloor\"") {
+                "SearchFloor: {ps: 0.375, mu: 0.015, nu: 0.0089}".to_string()
+            } else if l.starts_with("\"object grasped\"") {
+                "object grasped: {ps: 0.05}".to_string()
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    std::fs::write(&params, text).unwrap();
+    let p = params.to_str().unwrap();
+    let out = bin()
+        .args(["report", TREE, "--params", p, "--ci", "--format", "json"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        v["ci"]["fixed"],
+        serde_json::json!(["search floor", "object grasped"])
+    );
+    // a fixed leaf's interval is its value
+    assert_eq!(json_ci(&v, "search floor", "ps"), (0.375, 0.375));
+    assert_eq!(json_ci(&v, "object grasped", "ps"), (0.05, 0.05));
+    let out = bin()
+        .args(["report", TREE, "--params", p, "--ci"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        text.contains(
+            "fixed (no `fit:` statistics in the params file): search floor, object grasped"
+        ),
+        "{text}"
+    );
+}
+
+#[test]
+fn curve_bands() {
+    let out = bin()
+        .args([
+            "curve",
+            TREE,
+            "--params",
+            FITTED,
+            "--times",
+            "0,100,1000",
+            "--ci",
+            "--ci-draws",
+            "300",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "node,t,success,failure,running,success_lo,success_hi,failure_lo,failure_hi,running_lo,running_hi"
+    );
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').skip(1).map(|c| c.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 3);
+    // at t = 0 only the two conditions' instant success (or the first's
+    // instant failure and no search yet) can have happened
+    assert!(rows[0][1] > 0.0 && rows[0][1] < 0.05 && rows[0][2] == 0.0);
+    for r in &rows {
+        for k in 0..3 {
+            assert!(
+                r[4 + 2 * k] <= r[1 + k] && r[1 + k] <= r[5 + 2 * k],
+                "{r:?}"
+            );
+            assert!(r[5 + 2 * k] >= r[4 + 2 * k]);
+        }
+    }
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(stderr.contains("95% intervals from 300 draws"), "{stderr}");
+}
+
+#[test]
+fn refusals() {
+    let err = |args: &[&str]| {
+        let out = bin().args(args).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        assert!(out.stdout.is_empty());
+        String::from_utf8(out.stderr).unwrap()
+    };
+    let e = err(&["report", "trees/search-and-grasp.yaml", "--ci"]);
+    assert!(e.contains("--ci needs fitted parameters"), "{e}");
+    let e = err(&[
+        "report",
+        TREE,
+        "--params",
+        "trees/search-and-grasp.params.yaml",
+        "--ci",
+    ]);
+    assert!(
+        e.contains("no parameter of this tree has `fit:` statistics"),
+        "{e}"
+    );
+    for bad in ["0", "1.5", "100", "x"] {
+        let e = err(&["report", TREE, "--params", FITTED, "--ci", bad]);
+        assert!(e.contains("is not a confidence level"), "{e}");
+    }
+    let e = err(&["report", TREE, "--params", FITTED, "--ci-draws", "10"]);
+    assert!(e.contains("--ci"), "{e}");
+    let e = err(&[
+        "report",
+        TREE,
+        "--params",
+        FITTED,
+        "--ci",
+        "--ci-draws",
+        "1",
+    ]);
+    assert!(e.contains("--ci-draws must be between"), "{e}");
+    let e = err(&["report", TREE, "--params", FITTED, "--ci", "--mc", "100"]);
+    assert!(e.contains("--ci and --mc"), "{e}");
+    assert!(Path::new(FITTED).exists());
+}
