@@ -11,7 +11,10 @@
 //!   book's thresholds and the M = 1, F = 1 tie over two conditions, where
 //!   the child order decides), Inverter, ForceSuccess, ForceFailure,
 //!   RetryUntilSuccessful, Repeat, AlwaysSuccess, AlwaysFailure, Script,
-//!   SetBlackboard and SubTree. Accepted: |z| < 5 with the binomial standard
+//!   SetBlackboard, SubTree, IfThenElse (with a Sequence as its condition
+//!   child, with and without else), WhileDoElse (over a condition) and
+//!   SequenceWithMemory under RetryUntilSuccessful (resumed at the failed
+//!   child: a flow). Accepted: |z| < 5 with the binomial standard
 //!   error sqrt(p(1 − p)/n) at btrel's p (an exact 0 or 1 must be met exactly).
 //! * Mean times (MTTS, MTTF) of Sequence, Fallback and Parallel trees of
 //!   timed actions, one params time unit = 10 ms of wall clock. BT.CPP's
@@ -167,6 +170,39 @@ fn cases() -> Vec<Case> {
             params: json!({"C1": c(0.3), "A1": a(0.2), "C2": c(0.6), "A2": a(0.5),
                 "C3": c(0.5), "A3": a(0.6), "A4": a(0.9), "C4": c(0.9)}),
             runs: 1000,
+            scale: fast,
+            steps: None,
+            btcpp_ps: None,
+        },
+        // IfThenElse with a general condition subtree (a Sequence holding an
+        // action), with and without an else branch; WhileDoElse over a
+        // condition (re-ticked while its branch runs, keeping its value)
+        Case {
+            name: "if then else",
+            xml: main_tree(
+                r#"<Fallback>
+                     <IfThenElse><Sequence><C1/><A1/></Sequence><A2/><A3/></IfThenElse>
+                     <IfThenElse><C2/><A4/></IfThenElse>
+                     <WhileDoElse><C3/><A5/><A6/></WhileDoElse>
+                   </Fallback>"#,
+            ),
+            params: json!({"C1": c(0.6), "A1": a(0.5), "A2": a(0.3), "A3": a(0.4),
+                "C2": c(0.7), "A4": a(0.2), "C3": c(0.4), "A5": a(0.5), "A6": a(0.3)}),
+            runs: 1500,
+            scale: fast,
+            steps: None,
+            btcpp_ps: None,
+        },
+        // a failed child of SequenceWithMemory is resumed on the next attempt
+        Case {
+            name: "retry over sequence with memory",
+            xml: main_tree(
+                r#"<RetryUntilSuccessful num_attempts="3">
+                     <SequenceWithMemory><A1/><C1/><A2/></SequenceWithMemory>
+                   </RetryUntilSuccessful>"#,
+            ),
+            params: json!({"A1": a(0.5), "C1": c(0.6), "A2": a(0.4)}),
+            runs: 1500,
             scale: fast,
             steps: None,
             btcpp_ps: None,

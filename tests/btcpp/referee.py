@@ -64,8 +64,10 @@ BUILTIN = {
     "Inverter", "ForceSuccess", "ForceFailure", "RetryUntilSuccessful",
     "RetryUntilSuccesful", "Repeat", "AlwaysSuccess", "AlwaysFailure",
     "Script", "SetBlackboard", "UnsetBlackboard", "Control", "Decorator",
+    "IfThenElse", "WhileDoElse",
 }
-REACTIVE = {"ReactiveSequence", "ReactiveFallback"}
+# nodes that tick their (condition) children again while a later child runs
+REACTIVE = {"ReactiveSequence", "ReactiveFallback", "WhileDoElse"}
 
 
 def fail(msg):
