@@ -75,6 +75,11 @@ struct Case {
     /// not: the BT.CPP frequency is asserted to be this value exactly and
     /// btrel must refuse the tree (node semantics).
     btcpp_ps: Option<f64>,
+    /// Create the BT.CPP tree afresh for every run: btrel models one
+    /// execution of a fresh tree, and a node that keeps state across
+    /// executions (SequenceWithMemory after its Retry failed) would carry it
+    /// into the next run of a reused tree.
+    fresh_tree: bool,
 }
 
 fn main_tree(body: &str) -> String {
@@ -104,6 +109,7 @@ fn cases() -> Vec<Case> {
             scale: fast,
             steps: None,
             btcpp_ps: None,
+            fresh_tree: false,
         },
         Case {
             name: "reactive nested, under Retry",
@@ -118,6 +124,7 @@ fn cases() -> Vec<Case> {
             scale: fast,
             steps: None,
             btcpp_ps: None,
+            fresh_tree: false,
         },
         Case {
             name: "parallel 2 of 3",
@@ -129,6 +136,7 @@ fn cases() -> Vec<Case> {
             scale: fast,
             steps: None,
             btcpp_ps: None,
+            fresh_tree: false,
         },
         Case {
             name: "parallel tie, first child 0.3",
@@ -140,6 +148,7 @@ fn cases() -> Vec<Case> {
             scale: fast,
             steps: None,
             btcpp_ps: None,
+            fresh_tree: false,
         },
         Case {
             name: "parallel tie, first child 0.9",
@@ -151,6 +160,7 @@ fn cases() -> Vec<Case> {
             scale: fast,
             steps: None,
             btcpp_ps: None,
+            fresh_tree: false,
         },
         Case {
             name: "decorators and zero-time leaves",
@@ -173,6 +183,7 @@ fn cases() -> Vec<Case> {
             scale: fast,
             steps: None,
             btcpp_ps: None,
+            fresh_tree: false,
         },
         // IfThenElse with a general condition subtree (a Sequence holding an
         // action), with and without an else branch; WhileDoElse over a
@@ -192,6 +203,7 @@ fn cases() -> Vec<Case> {
             scale: fast,
             steps: None,
             btcpp_ps: None,
+            fresh_tree: false,
         },
         // a failed child of SequenceWithMemory is resumed on the next attempt
         Case {
@@ -206,6 +218,7 @@ fn cases() -> Vec<Case> {
             scale: fast,
             steps: None,
             btcpp_ps: None,
+            fresh_tree: true,
         },
         Case {
             name: "subtree used twice",
@@ -219,6 +232,7 @@ fn cases() -> Vec<Case> {
             scale: fast,
             steps: None,
             btcpp_ps: None,
+            fresh_tree: false,
         },
         // The difference this referee found: BT.CPP's ReactiveSequence halts
         // (resets) its earlier children when a later one returns RUNNING and
@@ -233,6 +247,7 @@ fn cases() -> Vec<Case> {
             scale: 0.002,
             steps: None,
             btcpp_ps: Some(0.0),
+            fresh_tree: false,
         },
         // Mean times: 10 ms per unit, exponential and fixed durations.
         Case {
@@ -244,6 +259,7 @@ fn cases() -> Vec<Case> {
             scale: 0.01,
             steps: Some(2.0),
             btcpp_ps: None,
+            fresh_tree: false,
         },
         Case {
             name: "fallback, times",
@@ -254,6 +270,7 @@ fn cases() -> Vec<Case> {
             scale: 0.01,
             steps: Some(2.0),
             btcpp_ps: None,
+            fresh_tree: false,
         },
         Case {
             name: "parallel 1 of 2, times",
@@ -266,6 +283,7 @@ fn cases() -> Vec<Case> {
             scale: 0.01,
             steps: Some(1.0),
             btcpp_ps: None,
+            fresh_tree: false,
         },
     ]
 }
@@ -301,7 +319,7 @@ fn referee(python: &Path, cases: &[Case]) -> Vec<Value> {
         .enumerate()
         .map(|(i, c)| {
             json!({"name": c.name, "xml": c.xml, "params": c.params, "runs": c.runs,
-                "seed": 1000 + i, "scale": c.scale, "sleep_ms": 1})
+                "seed": 1000 + i, "scale": c.scale, "sleep_ms": 1, "fresh_tree": c.fresh_tree})
         })
         .collect();
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("btcpp_referee");
