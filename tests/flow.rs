@@ -340,3 +340,24 @@ fn btcpp_retry_over_sequence_with_memory_resumes_at_the_failed_child() {
     .unwrap_err();
     assert!(btrel::tree::xml::is_unsupported(&e), "{e}");
 }
+
+#[test]
+fn exports_draw_or_refuse_a_flow() {
+    let t = tree(ITE);
+    let a = btrel::analyze(&t, &Default::default()).unwrap();
+    let dot = btrel::export::dot_tree(&t, Some(&a));
+    assert!(dot.contains("flow, 3 states"), "{dot}");
+    let figs: Vec<_> = t.nodes[0]
+        .kind
+        .children()
+        .iter()
+        .map(|&c| a.nodes[c])
+        .collect();
+    let e = btrel::export::dot_mrg(&t, 0, &figs).unwrap_err();
+    assert!(e.contains("is a flow"), "{e}");
+    // the glued phase chain: one copy of each 2-phase action per state
+    let prism = btrel::export::prism_ctmc(&t, 0, 1000).unwrap();
+    assert!(prism.contains("ctmc"), "{prism}");
+    let chain = btrel::compile::phase::phase_chain(&t, 0, 1000).unwrap();
+    assert_eq!(chain.len(), 6);
+}
