@@ -36,6 +36,8 @@ node is one of
   {"parallel": {"m": 2, "f": 1, "children": [node...]}}
   {"inverter": node} | {"force_success": node} | {"force_failure": node}
   {"retry": [n, node]} | {"repeat": [n, node]}
+  {"flow": {"children": [node...], "states": [[child, next_s, next_f], ...]}}
+     next = a later state's index | "S" | "F"
 Numbers are decimal strings, read exactly. Output (stdout, JSON): per tree,
 the nodes in pre-order, each {"ps", "pf", "mtts", "mttf", "success":
 [S(t)...], "failure": [F(t)...]} as decimal strings (null where undefined).
@@ -359,6 +361,24 @@ def law(node, out):
     elif kind == "parallel":
         laws = [law(c, out) for c in arg["children"]]
         res = parallel(laws, arg["m"], arg["f"])
+    elif kind == "flow":
+        # an acyclic graph of states, each running one child afresh: the law of
+        # the rest of the run from state i, computed from the last state back
+        laws = [law(c, out) for c in arg["children"]]
+        rest = [None] * len(arg["states"])
+        for i in reversed(range(len(arg["states"]))):
+            child, on_s, on_f = arg["states"][i]
+            succ, fail = Measure(), Measure()
+            for part, nxt in zip(laws[child], (on_s, on_f)):
+                if nxt == "S":
+                    succ = succ + part
+                elif nxt == "F":
+                    fail = fail + part
+                else:
+                    succ = succ + part.conv(rest[nxt][0])
+                    fail = fail + part.conv(rest[nxt][1])
+            rest[i] = (succ, fail)
+        res = rest[0]
     elif kind == "inverter":
         s, f = law(arg, out)
         res = (f, s)

@@ -26,7 +26,7 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
 
-use btrel::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
+use btrel::tree::{Decorator, Duration, FlowNext, NodeId, NodeKind, Tree};
 use common::{random_mixed_tree, tree};
 use serde_json::{json, Value};
 
@@ -87,6 +87,19 @@ fn to_json(t: &Tree, id: NodeId) -> Option<Value> {
         } => json!({"parallel": {
             "m": success_threshold, "f": failure_threshold, "children": kids(children)?
         }}),
+        NodeKind::Flow(f) => {
+            let next = |n: FlowNext| match n {
+                FlowNext::State(i) => json!(i),
+                FlowNext::Success => json!("S"),
+                FlowNext::Failure => json!("F"),
+            };
+            let states: Vec<Value> = f
+                .states
+                .iter()
+                .map(|s| json!([s.child, next(s.on_success), next(s.on_failure)]))
+                .collect();
+            json!({"flow": {"children": kids(&f.children)?, "states": states}})
+        }
         NodeKind::Decorator { decorator, child } => {
             let c = to_json(t, *child)?;
             match decorator {
@@ -120,6 +133,18 @@ const CASES: &[&str] = &[
     "tree: {sequence: {children: [{action: {ps: 0.8, mu: 2, nu: 1}}, \
        {parallel: {success_threshold: 1, failure_threshold: 1, children: [\
          {action: {ps: 0, tau_f: 1.2}}, {action: {ps: 0.6, tau_s: 0.9, nu: 1.7}}]}}]}}",
+    // flows: IfThenElse over a mixed condition subtree, and a Retry of a
+    // SequenceWithMemory (states (attempt, child)) with a hybrid and a Parallel
+    "tree: {if_then_else: {children: [\
+       {sequence: {children: [{condition: {ps: 0.7}}, {action: {ps: 0.6, mu: 1.1, tau_f: 0.5}}]}}, \
+       {action: {ps: 0.8, tau_s: 0.3, nu: 2}}, \
+       {parallel: {success_threshold: 1, children: [{action: {ps: 0.5, tau_s: 0.4, tau_f: 0.9}}, \
+         {action: {ps: 0.4, mu: 2.2, nu: 0.7}}]}}]}}",
+    "tree: {flow: {children: [{action: {ps: 0.5, tau_s: 1, nu: 1.3}}, \
+       {parallel: {success_threshold: 2, children: [{action: {ps: 0.7, mu: 1.9, nu: 1.9}}, \
+         {action: {ps: 0.9, tau_s: 0.6, tau_f: 1.1}}]}}], \
+       states: [{run: 0, success: 1, failure: 2}, {run: 1, success: success, failure: 3}, \
+         {run: 0, success: 3, failure: failure}, {run: 1, success: success, failure: failure}]}}",
     // equal rates (repeated poles) and Retry over a mixed Fallback
     "tree: {retry: {attempts: 3, child: {fallback: {children: [\
        {action: {ps: 0.3, mu: 1.5, nu: 1.5}}, {action: {ps: 0.5, mu: 1.5, tau_f: 0.4}}]}}}}",
