@@ -945,13 +945,13 @@ fn usage_errors_exit_2() {
 
 #[test]
 fn analysis_errors_exit_1() {
-    // exact analysis of a mixed-timing Parallel with an independent failure
-    // threshold is not supported (with the book's thresholds it is: see
-    // tests/mixed_timing.rs)
+    // a Parallel needs its children's laws: a Sequence holding a mixed-timing
+    // Parallel has none yet (the inner race itself is exact: tests/race.rs)
     let f = fixture(
         "det-parallel.yaml",
         b"tree:\n  parallel:\n    success_threshold: 1\n    failure_threshold: 1\n    children:\n      \
-          - action: {name: timer, ps: 0.5, tau_s: 1, tau_f: 2}\n      \
+          - sequence: {children: [{parallel: {success_threshold: 1, failure_threshold: 1, children: [\
+          {action: {name: timer, ps: 0.5, tau_s: 1, tau_f: 2}}, {action: {ps: 0.5, mu: 1, nu: 1}}]}}]}\n      \
           - action: {ps: 0.5, mu: 1, nu: 1}\n",
     );
     let out = btrel().arg("report").arg(&f.path).output().unwrap();
@@ -970,12 +970,11 @@ fn analysis_errors_exit_1() {
         .success();
     btrel().arg("check").arg(&f.path).assert().success();
 
-    // a state budget too small for a Parallel whose independent failure
-    // threshold needs its product chain
+    // a state budget too small for a race's child (a Sequence's chain)
     let f = fixture(
         "independent.yaml",
         b"tree: {parallel: {success_threshold: 2, failure_threshold: 1, children: \
-          [{action: {ps: 0.9, mu: 1, nu: 2}}, {action: {ps: 0.8, mu: 2, nu: 1}}, {action: {ps: 0.7, mu: 1, nu: 1}}]}}\n",
+          [{sequence: {children: [{action: {ps: 0.9, mu: 1, nu: 2}}, {action: {ps: 0.9, mu: 3, nu: 2}}]}}, {action: {ps: 0.8, mu: 2, nu: 1}}, {action: {ps: 0.7, mu: 1, nu: 1}}]}}\n",
     );
     let out = btrel()
         .args(["report", "--max-states", "2"])

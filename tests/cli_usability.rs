@@ -376,7 +376,7 @@ fn every_analysing_command_takes_max_states() {
     let f = fixture(
         "independent.yaml",
         "tree: {parallel: {name: team, success_threshold: 2, failure_threshold: 1, children: \
-         [{action: {ps: 0.9, mu: 1, nu: 2}}, {action: {ps: 0.8, mu: 2, nu: 1}}, {action: {ps: 0.7, mu: 1, nu: 1}}]}}\n",
+         [{sequence: {children: [{action: {ps: 0.9, mu: 1, nu: 2}}, {action: {ps: 0.9, mu: 3, nu: 2}}]}}, {action: {ps: 0.8, mu: 2, nu: 1}}, {action: {ps: 0.7, mu: 1, nu: 1}}]}}\n",
     );
     let p = f.path.to_str().unwrap();
     for args in [
@@ -448,7 +448,7 @@ fn analysis_hints_name_only_options_of_the_command() {
     let f = fixture(
         "independent.yaml",
         "tree: {parallel: {success_threshold: 2, failure_threshold: 1, children: \
-         [{action: {ps: 0.9, mu: 1, nu: 2}}, {action: {ps: 0.8, mu: 2, nu: 1}}, {action: {ps: 0.7, mu: 1, nu: 1}}]}}\n",
+         [{sequence: {children: [{action: {ps: 0.9, mu: 1, nu: 2}}, {action: {ps: 0.9, mu: 3, nu: 2}}]}}, {action: {ps: 0.8, mu: 2, nu: 1}}, {action: {ps: 0.7, mu: 1, nu: 1}}]}}\n",
     );
     let p = f.path.to_str().unwrap();
     for cmd in ["report", "curve", "plot", "export"] {

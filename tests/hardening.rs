@@ -579,7 +579,7 @@ fn run(args: &[&str]) -> Run {
 /// A Parallel whose failure threshold (1) is below N − M + 1: whichever
 /// threshold is met first wins, so it needs its product chain (16 states).
 const INDEPENDENT_PARALLEL: &str = "tree: {parallel: {success_threshold: 2, failure_threshold: 1, \
-    children: [{action: {ps: 0.9, mu: 1, nu: 2}}, {action: {ps: 0.8, mu: 2, nu: 1}}, {action: {ps: 0.7, mu: 1, nu: 1}}]}}\n";
+    children: [{sequence: {children: [{action: {ps: 0.9, mu: 1, nu: 2}}, {action: {ps: 0.9, mu: 3, nu: 2}}]}}, {action: {ps: 0.8, mu: 2, nu: 1}}, {action: {ps: 0.7, mu: 1, nu: 1}}]}}\n";
 
 fn temp_tree(yaml: &str) -> (tempfile::TempDir, String) {
     let dir = tempfile::tempdir().unwrap();

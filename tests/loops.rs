@@ -1,7 +1,8 @@
 //! Loops without a bound (BehaviorTree.CPP `KeepRunningUntilFailure`,
 //! `Repeat num_cycles="-1"`, `RetryUntilSuccessful num_attempts="-1"`):
 //! figures in closed form, the loop's own curve from its cyclic chain, both
-//! checked against hand derivations and simulation.
+//! checked against hand derivations and simulation (loops inside Parallels:
+//! tests/race.rs).
 
 mod common;
 use common::*;
@@ -73,23 +74,6 @@ fn a_loop_that_cannot_end_is_refused_everywhere() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("'spin' never returns"), "{e}");
-}
-
-#[test]
-fn a_distribution_around_a_loop_is_refused_with_the_loop_named() {
-    // a Parallel needs its children's distributions: the loop's is cyclic
-    let t = tree(
-        "tree: {parallel: {success_threshold: 1, failure_threshold: 1, children: [\
-         {until_failure: {name: patrol, child: {action: {ps: 0.5, mu: 1.0, nu: 1.0}}}}, \
-         {action: {ps: 0.5, mu: 1.0, nu: 1.0}}]}}",
-    );
-    let e = btrel::analyze(&t, &Default::default())
-        .unwrap_err()
-        .to_string();
-    assert!(
-        e.contains("'patrol'") && e.contains("without a bound"),
-        "{e}"
-    );
 }
 
 #[test]

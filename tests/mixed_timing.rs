@@ -177,35 +177,23 @@ fn is_mixed_parallel(t: &btrel::Tree, id: usize) -> Option<bool> {
 }
 
 /// The rule the engine follows (README): a node's curve is exact unless a
-/// mixed-timing Parallel below it has an independent failure threshold or
-/// sits under a Sequence, Fallback or decorator (within the node's subtree);
-/// its report unless a mixed Parallel's children lack curves or it has an
-/// independent threshold.
+/// mixed-timing Parallel (any thresholds) sits under a Sequence, Fallback or
+/// decorator within the node's subtree; its report unless a mixed Parallel
+/// in it has a child whose curve is refused.
 fn curve_expected(t: &btrel::Tree, id: usize) -> bool {
-    use btrel::tree::NodeKind;
     match is_mixed_parallel(t, id) {
-        Some(false) => false,
-        Some(true) => t.nodes[id]
+        Some(_) => t.nodes[id]
             .kind
             .children()
             .iter()
             .all(|&c| curve_expected(t, c)),
-        None => {
-            t.subtree(id).all(|d| is_mixed_parallel(t, d).is_none())
-                || matches!(t.nodes[id].kind, NodeKind::Parallel { .. })
-                    && t.nodes[id]
-                        .kind
-                        .children()
-                        .iter()
-                        .all(|&c| curve_expected(t, c))
-        }
+        None => t.subtree(id).all(|d| is_mixed_parallel(t, d).is_none()),
     }
 }
 
 fn report_expected(t: &btrel::Tree, id: usize) -> bool {
     t.subtree(id).all(|d| match is_mixed_parallel(t, d) {
-        Some(false) => false,
-        Some(true) => t.nodes[d]
+        Some(_) => t.nodes[d]
             .kind
             .children()
             .iter()

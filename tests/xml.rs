@@ -268,10 +268,10 @@ fn refusals_have_locations() {
     let cases: &[(&str, (usize, usize), &str)] = &[
         ("<ScriptCondition code=\"x==1\"/>", (3, 1), "<ScriptCondition>: its outcome is computed from blackboard values"),
         ("<Sequence>\n <Switch2 variable=\"{v}\"><AlwaysSuccess/></Switch2></Sequence>", (4, 2), "<Switch2>"),
-        ("<Timeout msec=\"10\"><AlwaysSuccess/></Timeout>", (3, 1), "<Timeout>"),
+        ("<RunOnce><AlwaysSuccess/></RunOnce>", (3, 1), "<RunOnce>"),
         ("<Delay delay_msec=\"{d}\"><AlwaysSuccess/></Delay>", (3, 8), "blackboard"),
         ("<Sleep msec=\"{t}\"/>", (3, 8), "blackboard"),
-        ("<Timeout msec=\"10\"><AlwaysSuccess/></Timeout>", (3, 1), "<Timeout>"),
+        ("<Timeout msec=\"{t}\"><AlwaysSuccess/></Timeout>", (3, 10), "blackboard"),
         ("<Sequence _skipIf=\"x\"><AlwaysSuccess/></Sequence>", (3, 11), "`_skipIf`"),
         ("<Action ID=\"A\" _while=\"x\"/>", (3, 16), "`_while`"),
         ("<Sequence port=\"{x}\"><AlwaysSuccess/></Sequence>", (3, 11), "unknown attribute `port`"),
@@ -535,7 +535,7 @@ fn node_types_without_a_meaning_are_listed_at_once() {
       <SubTree ID="Sub"/>
     </PipelineSequence>
   </BehaviorTree>
-  <BehaviorTree ID="Sub"><Timeout msec="5"><A/></Timeout></BehaviorTree>
+  <BehaviorTree ID="Sub"><RunOnce><A/></RunOnce></BehaviorTree>
 </root>"#;
     let e = err(src, "A: {ps: 0.5, mu: 1, nu: 1}");
     assert!(is_unsupported(&e), "{e}");
@@ -549,11 +549,11 @@ fn node_types_without_a_meaning_are_listed_at_once() {
     assert!(lines[0].starts_with("  t.xml:3:5: <PipelineSequence>: Nav2 control node"));
     assert!(lines[1].starts_with("  t.xml:4:7: <RateController>: Nav2 decorator"));
     assert!(lines[2].starts_with("  t.xml:5:17: `_skipIf` attribute on <Sequence>"));
-    assert!(lines[3].starts_with("  t.xml:9:26: <Timeout>"));
+    assert!(lines[3].starts_with("  t.xml:9:26: <RunOnce>"));
     assert_eq!((e.line, e.column), (3, 5));
     // an unknown node with children is a front-end problem, listed first,
     // and the semantic ones follow
-    let src = wrap("<Sequence>\n<Fallbak><A/></Fallbak>\n<Timeout msec=\"3\"><A/></Timeout>\n<Sequense><A/></Sequense>\n</Sequence>");
+    let src = wrap("<Sequence>\n<Fallbak><A/></Fallbak>\n<RunOnce><A/></RunOnce>\n<Sequense><A/></Sequense>\n</Sequence>");
     let e = err(&src, "A: {ps: 0.5, mu: 1, nu: 1}");
     assert!(!is_unsupported(&e), "{e}");
     assert!(e.message.starts_with("2 nodes cannot be read:"), "{e}");
@@ -570,7 +570,7 @@ fn node_types_without_a_meaning_are_listed_at_once() {
     );
     assert!(
         e.message.contains(
-            "and btrel has no stochastic meaning yet for 1 node:\n  t.xml:5:1: <Timeout>"
+            "and btrel has no stochastic meaning yet for 1 node:\n  t.xml:5:1: <RunOnce>"
         ),
         "{e}"
     );

@@ -136,10 +136,9 @@ pub fn atoms(
         }
         NodeKind::Decorator { decorator, child } => {
             if matches!(decorator, Decorator::UntilFailure | Decorator::UntilSuccess) {
-                // infinitely many return instants
-                return Err(AnalysisError::Unbounded {
-                    node: node.name.clone(),
-                });
+                // infinitely many return instants: a shifted law's
+                // truncated series ([`super::shifted`]) instead
+                return Ok(None);
             }
             let Some(c) = atoms(tree, *child, max_atoms)? else {
                 return Ok(None);

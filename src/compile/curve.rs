@@ -139,7 +139,7 @@ pub fn curve(
             children,
         } = &node.kind
         {
-            if *failure_threshold == children.len() - success_threshold + 1 {
+            if *failure_threshold > children.len() - success_threshold {
                 return parallel_by_counts(tree, children, *success_threshold, times, options);
             }
         }
@@ -201,6 +201,11 @@ pub fn curve(
         }
         _ => match phase::phase_chain(tree, id, options.max_states) {
             Ok(c) => c,
+            Err(AnalysisError::NotMarkovian { .. } | AnalysisError::StateBudget { .. })
+                if options.method == Method::Exact && is_race_node(&node.kind) =>
+            {
+                return super::race::curve(tree, id, times, options.max_states);
+            }
             Err(AnalysisError::NotMarkovian { leaf }) => {
                 return match shifted::shifted_law(tree, id, options.max_states)? {
                     Some(law) => curve_by_shifted(&law, times, options, &node.name),
@@ -217,6 +222,13 @@ pub fn curve(
         },
     };
     solve_chain(&chain, times, options, &node.name)
+}
+
+/// Whether `kind` is a Parallel whose two thresholds can both be met
+/// ([`super::race`]).
+fn is_race_node(kind: &NodeKind) -> bool {
+    matches!(kind, NodeKind::Parallel { success_threshold, failure_threshold, children }
+        if super::race::is_race(children.len(), *success_threshold, *failure_threshold))
 }
 
 /// `π(t)` of a Parallel node with the book's thresholds (F = N − M + 1),
@@ -286,7 +298,13 @@ fn loop_curve(
     };
     let mut c = match phase::phase_chain(tree, child, options.max_states) {
         Ok(c) => c,
-        Err(AnalysisError::NotMarkovian { .. }) => return Err(unbounded()),
+        // a child with mixed timing: the loop's truncated geometric series
+        Err(AnalysisError::NotMarkovian { .. }) => {
+            return match shifted::shifted_law(tree, id, options.max_states)? {
+                Some(law) => curve_by_shifted(&law, times, options, &node.name),
+                None => Err(unbounded()),
+            };
+        }
         Err(e) => return Err(e),
     };
     // work with "again" as the Success exit, then swap back

@@ -227,7 +227,7 @@ fn stiff(tree: &Tree, id: NodeId, chain: &PhaseChain, end: f64) -> AnalysisError
 /// would take too many steps (a stiff chain over a long horizon) and the
 /// chain is small — by dense exponentials whose bound is below the sampling
 /// tolerance; `None` otherwise.
-fn sample_weighted(
+pub(crate) fn sample_weighted(
     chain: &PhaseChain,
     points: &[f64],
     weights: &[&[f64]],
@@ -346,7 +346,7 @@ impl Builder<'_> {
                 success_threshold,
                 failure_threshold,
                 children,
-            } if *failure_threshold == children.len() + 1 - success_threshold => {
+            } if *failure_threshold >= children.len() + 1 - success_threshold => {
                 self.counted(id, children, *success_threshold)
             }
             NodeKind::Sequence { children } => self.in_turn(id, children, true),

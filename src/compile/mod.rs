@@ -25,6 +25,7 @@ pub mod flow;
 pub(crate) mod law;
 pub mod mrg;
 pub mod phase;
+pub mod race;
 pub mod shifted;
 
 use crate::solve::chain::{AbsorbingChain, Edge, Target};
@@ -334,7 +335,7 @@ fn node_figures(
             },
             Method::Exact,
         ) => {
-            if failure_threshold == children.len() + 1 - success_threshold {
+            if failure_threshold >= children.len() + 1 - success_threshold {
                 if let Some(f) =
                     parallel_by_counts(tree, id, success_threshold, &child_figs, options, memo)?
                 {
@@ -350,13 +351,28 @@ fn node_figures(
                     }
                     // mixed timing with the book's thresholds: ps, pf by
                     // counting, mean times by quadrature of the curve
-                    if failure_threshold == children.len() + 1 - success_threshold {
+                    // (a loop below: its law is a long series, built once
+                    // by the race's counting rather than at every
+                    // quadrature pass)
+                    let looped = tree.subtree(id).any(|d| {
+                        matches!(
+                            tree.node(d).kind,
+                            NodeKind::Decorator {
+                                decorator: Decorator::UntilFailure | Decorator::UntilSuccess,
+                                ..
+                            }
+                        )
+                    });
+                    if looped {
+                        return race::figures(tree, id, &child_figs, options.max_states);
+                    }
+                    if failure_threshold >= children.len() + 1 - success_threshold {
                         let outcomes: Vec<(f64, f64)> =
                             child_figs.iter().map(|f| (f.ps, f.pf)).collect();
                         let (ps, pf) = counts::status_by_counts(
                             &outcomes,
                             success_threshold,
-                            failure_threshold,
+                            children.len() + 1 - success_threshold,
                         );
                         let [ts, tf] = curve::parallel_times_by_quadrature(
                             tree,
@@ -372,10 +388,18 @@ fn node_figures(
                             mttf: (pf > 0.0).then(|| tf / pf),
                         });
                     }
+                    if race::is_race(children.len(), success_threshold, failure_threshold) {
+                        return race::figures(tree, id, &child_figs, options.max_states);
+                    }
                     return Err(AnalysisError::MixedTiming {
                         node: node.name.clone(),
                         leaf,
                     });
+                }
+                Err(AnalysisError::StateBudget { .. })
+                    if race::is_race(children.len(), success_threshold, failure_threshold) =>
+                {
+                    return race::figures(tree, id, &child_figs, options.max_states);
                 }
                 Err(e) => return Err(e),
             }

@@ -147,9 +147,8 @@ pub fn combine(
                 Decorator::Retry { attempts } => attempts,
                 Decorator::Repeat { times } => times,
                 Decorator::UntilFailure | Decorator::UntilSuccess => {
-                    return Err(AnalysisError::Unbounded {
-                        node: node.name.clone(),
-                    })
+                    let until_success = *decorator == Decorator::UntilSuccess;
+                    return unrolled_loop(&node.name, c, until_success, max_states);
                 }
             };
             let total = c.len() as f64 * copies as f64;
@@ -174,7 +173,7 @@ pub fn combine(
             // [`crate::compile::curve`]): refuse early instead of building it
             let bound: f64 = chains.iter().map(|c| (c.len() + 2) as f64).product();
             let limit = max_states / BOOK_PARALLEL_SHARE;
-            if *failure_threshold == children.len() + 1 - success_threshold && bound > limit as f64
+            if *failure_threshold >= children.len() + 1 - success_threshold && bound > limit as f64
             {
                 return Err(AnalysisError::StateBudget {
                     node: node.name.clone(),
@@ -189,6 +188,81 @@ pub fn combine(
             })
         }
     }
+}
+
+/// Mass a loop's unrolled chain may leave behind ([`unrolled_loop`]).
+pub const LOOP_TAIL: f64 = 1e-14;
+
+/// The phase chain of a loop without a bound (`until_failure`,
+/// `until_success`) over a child with chain `c`, unrolled: K fresh copies of
+/// the child in turn (a Sequence of copies for `until_failure`, a Fallback
+/// for `until_success`), with K the least such that the probability of K
+/// repetitions, `p_againᴷ`, is at most [`LOOP_TAIL`]. The loop's cyclic
+/// chain (the counted exit re-entering the start) is exact but cyclic, and
+/// every solver of absorbing chains here relies on a topological order; the
+/// unrolled chain is acyclic, and differs from the cyclic one only after K
+/// repetitions: that mass (≤ 1e-14) ends the loop at its K-th repetition
+/// instead of going round again, so P(Success), P(Failure) stay exact and
+/// `π(t)` is within 1e-14. Refused when K × the child's phases exceeds
+/// `max_states` (a child that repeats almost surely).
+pub fn unrolled_loop(
+    name: &str,
+    c: PhaseChain,
+    until_success: bool,
+    max_states: usize,
+) -> Result<PhaseChain, AnalysisError> {
+    let absorption = crate::solve::transient::absorption_by_phase(&c);
+    let from_start = |h: &[f64]| c.initial.iter().map(|&(i, p)| p * h[i]).sum::<f64>();
+    let success = c.initial_success + from_start(&absorption.to_success);
+    let failure = c.initial_failure + from_start(&absorption.to_failure);
+    let (again, end) = if until_success {
+        (failure, success)
+    } else {
+        (success, failure)
+    };
+    if end <= 0.0 {
+        return Err(AnalysisError::NeverReturns {
+            node: name.to_string(),
+            until: if until_success { "Success" } else { "Failure" },
+        });
+    }
+    let finish = |mut out: PhaseChain| {
+        // the mass still repeating after the last copy ends the loop too
+        for i in 0..out.len() {
+            let total = out.exit_success[i] + out.exit_failure[i];
+            (out.exit_success[i], out.exit_failure[i]) = if until_success {
+                (total, 0.0)
+            } else {
+                (0.0, total)
+            };
+        }
+        let total = out.initial_success + out.initial_failure;
+        (out.initial_success, out.initial_failure) = if until_success {
+            (total, 0.0)
+        } else {
+            (0.0, total)
+        };
+        out
+    };
+    if c.is_empty() || again <= 0.0 {
+        // instantaneous repetitions take no time; one copy otherwise
+        return Ok(finish(c));
+    }
+    let copies = (LOOP_TAIL.ln() / again.min(1.0 - 1e-300).ln())
+        .ceil()
+        .max(1.0);
+    let total = copies * c.len() as f64;
+    if total > max_states as f64 {
+        return Err(AnalysisError::StateBudget {
+            node: name.to_string(),
+            states: total,
+            budget: max_states,
+        });
+    }
+    Ok(finish(concatenate(
+        vec![c; copies as usize],
+        !until_success,
+    )))
 }
 
 /// A Parallel with the book's thresholds gets its product chain only up to

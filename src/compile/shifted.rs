@@ -258,11 +258,13 @@ pub fn shifted_law(
                     in_turn(vec![l; attempts], false, tree, id, max_states)?
                 }
                 Decorator::Repeat { times } => in_turn(vec![l; times], true, tree, id, max_states)?,
-                Decorator::UntilFailure | Decorator::UntilSuccess => {
-                    return Err(AnalysisError::Unbounded {
-                        node: node.name.clone(),
-                    })
-                }
+                Decorator::UntilFailure | Decorator::UntilSuccess => loop_series(
+                    l,
+                    *decorator == Decorator::UntilSuccess,
+                    tree,
+                    id,
+                    max_states,
+                )?,
             }
         }
         // a mixed Parallel: counted where it is, not a component
@@ -322,6 +324,95 @@ fn in_turn(
         ShiftedLaw {
             success: stopped,
             failure: going,
+        }
+    })
+}
+
+/// Probability that a component's run ends in its counted outcome.
+fn counted_probability(c: &Component) -> f64 {
+    let chain = &c.chain;
+    if chain.is_empty() {
+        return c.weight * chain.initial_success;
+    }
+    let a = crate::solve::transient::absorption_by_phase(chain);
+    let from_start: f64 = chain
+        .initial
+        .iter()
+        .map(|&(i, p)| p * a.to_success[i])
+        .sum();
+    c.weight * (chain.initial_success + from_start)
+}
+
+/// Most repetitions a loop's series may take ([`loop_series`]).
+pub const MAX_LOOP_TERMS: usize = 100_000;
+
+/// The law of a loop without a bound over a child with mixed timing: the
+/// geometric series `Σ_k again^{⊛k} ⊛ end` (`again` the child's repeating
+/// outcome — Success for `until_failure` — and `end` the other), truncated
+/// after K terms with `p_againᴷ ≤ LOOP_TAIL` (1e-14). Each term is a set of
+/// shifted components like any Sequence's; the true law is a non-negative
+/// measure, so dropping the rest changes every CDF by at most `p_againᴷ`
+/// (and no probability of an outcome: the loop's P(end) is 1 by its own
+/// figures). Refused with a budget error when K exceeds
+/// [`MAX_LOOP_TERMS`] or the components exceed `max_states` phases.
+fn loop_series(
+    l: ShiftedLaw,
+    until_success: bool,
+    tree: &Tree,
+    id: NodeId,
+    max_states: usize,
+) -> Result<ShiftedLaw, AnalysisError> {
+    let (again, end) = if until_success {
+        (l.failure, l.success)
+    } else {
+        (l.success, l.failure)
+    };
+    let p_again: f64 = again.iter().map(counted_probability).sum::<f64>().max(0.0);
+    let p_end: f64 = end.iter().map(counted_probability).sum();
+    if p_end <= 0.0 {
+        return Err(AnalysisError::NeverReturns {
+            node: tree.node(id).name.clone(),
+            until: if until_success { "Success" } else { "Failure" },
+        });
+    }
+    let terms = if p_again <= 0.0 {
+        1.0
+    } else {
+        (phase::LOOP_TAIL.ln() / p_again.min(1.0 - 1e-16).ln())
+            .ceil()
+            .max(1.0)
+    };
+    let per_term: usize = again.iter().map(|c| c.chain.len().max(1)).sum();
+    if terms > MAX_LOOP_TERMS as f64 {
+        return Err(budget(tree, id, terms * per_term.max(1) as f64, max_states));
+    }
+    let mut going = vec![atom(0.0, 1.0)];
+    let mut stopped = Vec::new();
+    for _ in 0..terms as usize {
+        stopped.extend(convolve(&going, &end));
+        going = tidy(convolve(&going, &again));
+        let phases: usize = going
+            .iter()
+            .chain(&stopped)
+            .map(|c| c.chain.len().max(1))
+            .sum();
+        if phases > max_states {
+            return Err(budget(tree, id, phases as f64, max_states));
+        }
+    }
+    // the mass still repeating after K rounds ends the loop there (as the
+    // unrolled chain of a Markovian child does): P(end) stays 1
+    stopped.extend(going);
+    let stopped = tidy(stopped);
+    Ok(if until_success {
+        ShiftedLaw {
+            success: stopped,
+            failure: Vec::new(),
+        }
+    } else {
+        ShiftedLaw {
+            success: Vec::new(),
+            failure: stopped,
         }
     })
 }

@@ -81,7 +81,7 @@
 //!   `SubTreePlus` (v3) is `SubTree`.
 //!
 //! Known node types without a stochastic meaning yet (scripting conditions,
-//! Switch, Timeout, loops, Nav2's
+//! Switch, RunOnce, counted loops over queues, Nav2's
 //! PipelineSequence, RateController, RoundRobin, ...), custom control nodes
 //! and decorators, counts from the blackboard (unless the params file gives
 //! the reference a value: `"{name}": {value: N}`) or −1 (forever), and
@@ -873,7 +873,6 @@ fn unsupported(ty: &str) -> Option<&'static str> {
         "Switch2" | "Switch3" | "Switch4" | "Switch5" | "Switch6" | "ManualSelector" => {
             "it branches on blackboard values or user input"
         }
-        "Timeout" => "its outcome depends on the clock",
         "RunOnce" | "LoopInt" | "LoopDouble" | "LoopString"
         | "LoopBool" | "ConsumeQueue" | "ParallelAll" | "ForEach"
         | "RepeatUnlessFailureEachTick"
@@ -919,6 +918,7 @@ const BUILTINS: &[&str] = &[
     "RecoveryNode",
     "IfThenElse",
     "WhileDoElse",
+    "Timeout",
     "Action",
     "Condition",
     "Control",
@@ -1638,6 +1638,63 @@ impl<'a> Builder<'a> {
                 )?;
                 self.set_children(sq, vec![w, c]);
                 Ok(sq)
+            }
+            // BT.CPP Timeout: a timer started with the child halts it at
+            // `msec` if it is still running, and the next tick returns
+            // Failure (no timer for msec 0): the child raced by a deadline,
+            // Parallel{M = 1, F = 1}(deadline, child), the deadline first so
+            // that it wins a tie (the timer fires before the tick that would
+            // see the child's return at the same instant)
+            "Timeout" => {
+                self.check_attrs(e, &attrs(&["msec"]), false)?;
+                let Some(seconds) = self.milliseconds(e, "msec")? else {
+                    let base = self.name_attr(e)?.unwrap_or_else(default_name);
+                    return self.placeholder(e, &base, parent, depth, &path, prefix, retry);
+                };
+                self.one_child(e, ty)?;
+                let base = self.name_attr(e)?.unwrap_or_else(default_name);
+                let race = self.push(
+                    e,
+                    &base,
+                    prefix,
+                    parent,
+                    depth,
+                    &path,
+                    NodeKind::Parallel {
+                        success_threshold: 1,
+                        failure_threshold: 1,
+                        children: Vec::new(),
+                    },
+                )?;
+                let mut kids = Vec::new();
+                if seconds > 0.0 {
+                    let deadline = NodeKind::Action(crate::tree::Action {
+                        ps: 0.0,
+                        pf: 1.0,
+                        success: None,
+                        failure: Some(crate::tree::Duration::Fixed { time: seconds }),
+                    });
+                    kids.push(self.push(
+                        e,
+                        &format!("{base}/deadline"),
+                        prefix,
+                        Some(race),
+                        depth + 1,
+                        &format!("{path}.0"),
+                        deadline,
+                    )?);
+                }
+                let c = self.node(
+                    e.children[0],
+                    Some(race),
+                    depth + 1,
+                    format!("{path}.{}", kids.len()),
+                    prefix,
+                    retry,
+                )?;
+                kids.push(c);
+                self.set_children(race, kids);
+                Ok(race)
             }
             "AlwaysSuccess" | "AlwaysFailure" => {
                 self.check_attrs(e, &attrs(&[]), false)?;

@@ -1,0 +1,846 @@
+//! Parallel nodes with any thresholds and mixed timing: the *race* of the
+//! children, by counting.
+//!
+//! Until a Parallel node returns, its N children run independently. Take
+//! them unhalted and let `K_t`, `J_t` be the numbers that have succeeded and
+//! failed by t. The node (success threshold M, failure threshold F; it also
+//! fails once success is impossible, so `F_eff = min(F, N − M + 1)`) is
+//! still running at t⁻ iff `K_{t⁻} < M` and `J_{t⁻} < F_eff`: counts only
+//! grow, and a threshold met earlier would have ended it. When both
+//! thresholds can be met (`F_eff < N − M + 1`, an "independent" failure
+//! threshold) which one comes first matters, and the node's law is:
+//!
+//! * **densities** between instants: child h returning Success at t ends the
+//!   node with Success iff among the others exactly M − 1 have succeeded and
+//!   fewer than F_eff failed, so
+//!   `s(t) = Σ_h s_h(t) · P(others: K = M − 1, J < F_eff at t)` and likewise
+//!   `f(t)`; a dynamic programme over the children with the counts capped
+//!   (and a "which child returns now" layer, as in dual numbers) gives both
+//!   and the running probability in O(N·M·F) ([`race_densities`]);
+//! * **atoms** at the instants where children may return with positive
+//!   probability (conditions at 0, fixed times, shifted atoms): BT.CPP's
+//!   rule — children that returned before the instant are already counted,
+//!   then within the instant the children are visited in child order and the
+//!   node returns at the first threshold met ([`resolve_instant`], a
+//!   programme over the counts before the instant and the order of the
+//!   returns within it). Instants equal within 1e-12 relative are the same.
+//!
+//! The children's laws are their exact phase chains, shifted phase-type
+//! mixtures ([`shifted`]), counted Parallels with the book's thresholds
+//! (whose `S(t) = P(K_t ≥ M)` needs no integral) or races themselves.
+//! `S(t) = Σ_{τ ≤ t} atom_S(τ) + ∫_0^t s`, computed by Gauss–Legendre
+//! quadrature on panels cut at every instant and shift of the subtree (where
+//! the densities jump or kink) and, for fast phases, at 8^k / the fastest
+//! rate; each panel's 24-point sum is accepted when it agrees with the
+//! 12-point one to 1e-13 relative (1e-16 absolute), panels are halved
+//! otherwise. The figures are the limits: `P(S) = S(∞)`, `E[T·1{S}] = Σ τ
+//! atom_S(τ) + ∫ t s(t) dt`, the tail integrated on doubling panels until the
+//! running probability (exact, from the programme) is below 1e-16 and its
+//! contribution to the mean below 1e-14 relative. The quadrature error is
+//! an *estimate*, not a bound.
+
+use super::curve::CurvePoint;
+use super::law::sample_weighted;
+use super::shifted::{self, ShiftedLaw};
+use super::{atoms, counts, phase, AnalysisError, Figures};
+use crate::solve::chain::PhaseChain;
+use crate::solve::quadrature::GaussLegendre;
+use crate::tree::{NodeId, NodeKind, Tree};
+
+/// Points of the quadrature rule (the error is estimated against half).
+const RULE: usize = 24;
+/// Relative and absolute acceptance of a panel.
+const RELATIVE: f64 = 1e-13;
+const ABSOLUTE: f64 = 1e-16;
+/// Most refinement rounds.
+const MAX_ROUNDS: usize = 60;
+/// Largest resolution programme (children × M³ × F³ cells) for the atoms.
+const MAX_INSTANT_WORK: f64 = 1e9;
+
+/// Whether a Parallel with these thresholds is a race (both thresholds can
+/// be met), rather than a count with the book's thresholds.
+pub fn is_race(n: usize, m: usize, f: usize) -> bool {
+    f.min(n + 1 - m) < n + 1 - m
+}
+
+/// The law of a subtree, ready to be evaluated at any times.
+pub(crate) enum Racer {
+    /// An exact phase chain.
+    Chain(PhaseChain),
+    /// A shifted phase-type mixture.
+    Shifted(ShiftedLaw),
+    /// A Parallel whose failure threshold is the book's (F = N − M + 1).
+    Counted {
+        m: usize,
+        f: usize,
+        children: Vec<Racer>,
+    },
+    /// A Parallel whose thresholds can both be met.
+    Race(Box<Race>),
+}
+
+/// A race node: its children and its atoms.
+pub(crate) struct Race {
+    name: String,
+    m: usize,
+    f: usize,
+    children: Vec<Racer>,
+    /// `(τ, atom_S, atom_F)`, by time.
+    atoms: Vec<(f64, f64, f64)>,
+    /// Where its densities may jump or kink.
+    cuts: Vec<f64>,
+}
+
+/// `[S, F, s, f]`: probabilities of having succeeded and failed, and densities.
+type Row = [f64; 4];
+
+fn same_time(a: f64, b: f64) -> bool {
+    (a - b).abs() <= atoms::TIME_TOLERANCE * a.abs().max(b.abs()).max(1.0)
+}
+
+fn sorted_unique(mut v: Vec<f64>) -> Vec<f64> {
+    v.retain(|t| t.is_finite() && *t >= 0.0);
+    v.sort_by(f64::total_cmp);
+    v.dedup_by(|a, b| same_time(*a, *b));
+    v
+}
+
+fn numerical(name: &str, what: &str) -> AnalysisError {
+    AnalysisError::Numerical {
+        node: name.to_string(),
+        what: what.to_string(),
+    }
+}
+
+fn stiff(name: &str, chain: &PhaseChain, times: &[f64]) -> AnalysisError {
+    AnalysisError::Stiff {
+        node: name.to_string(),
+        work: crate::solve::transient::uniformization_work(chain, times),
+        limit: crate::solve::transient::MAX_SINGLE_PASS_STEPS as f64,
+    }
+}
+
+impl Racer {
+    /// The law of the subtree at `id`.
+    pub(crate) fn build(
+        tree: &Tree,
+        id: NodeId,
+        max_states: usize,
+    ) -> Result<Racer, AnalysisError> {
+        let node = tree.node(id);
+        let err = match phase::phase_chain(tree, id, max_states) {
+            Ok(c) => return Ok(Racer::Chain(c)),
+            Err(e @ (AnalysisError::NotMarkovian { .. } | AnalysisError::StateBudget { .. })) => e,
+            Err(e) => return Err(e),
+        };
+        if let NodeKind::Parallel {
+            success_threshold: m,
+            failure_threshold: f,
+            children,
+        } = &node.kind
+        {
+            let n = children.len();
+            let f = (*f).min(n + 1 - m);
+            let kids = children
+                .iter()
+                .map(|&c| Racer::build(tree, c, max_states))
+                .collect::<Result<Vec<_>, _>>()?;
+            if !is_race(n, *m, f) {
+                return Ok(Racer::Counted {
+                    m: *m,
+                    f,
+                    children: kids,
+                });
+            }
+            return Ok(Racer::Race(Box::new(Race::new(
+                node.name.clone(),
+                *m,
+                f,
+                kids,
+            )?)));
+        }
+        match shifted::shifted_law(tree, id, max_states)? {
+            Some(law) => Ok(Racer::Shifted(law)),
+            None => Err(match err {
+                AnalysisError::NotMarkovian { leaf } => AnalysisError::MixedTiming {
+                    node: node.name.clone(),
+                    leaf,
+                },
+                e => e,
+            }),
+        }
+    }
+
+    /// Instants at which the subtree may return with positive probability.
+    fn instants(&self, out: &mut Vec<f64>) {
+        match self {
+            Racer::Chain(c) => {
+                if c.initial_success + c.initial_failure > 0.0 {
+                    out.push(0.0);
+                }
+            }
+            Racer::Shifted(l) => out.extend(
+                l.success
+                    .iter()
+                    .chain(&l.failure)
+                    .filter(|c| c.chain.initial_success != 0.0)
+                    .map(|c| c.shift),
+            ),
+            Racer::Counted { children, .. } => children.iter().for_each(|c| c.instants(out)),
+            Racer::Race(r) => out.extend(r.atoms.iter().map(|a| a.0)),
+        }
+    }
+
+    /// Instants where the subtree's densities may jump or kink.
+    fn cuts(&self, out: &mut Vec<f64>) {
+        match self {
+            Racer::Chain(_) => {}
+            Racer::Shifted(l) => out.extend(l.shifts()),
+            Racer::Counted { children, .. } => children.iter().for_each(|c| c.cuts(out)),
+            Racer::Race(r) => out.extend(&r.cuts),
+        }
+    }
+
+    /// Largest exit rate of any phase (boundary layers of width 1/rate).
+    fn fastest(&self) -> f64 {
+        let chain_rate = |c: &PhaseChain| (0..c.len()).map(|i| c.total_rate(i)).fold(0.0, f64::max);
+        match self {
+            Racer::Chain(c) => chain_rate(c),
+            Racer::Shifted(l) => l
+                .success
+                .iter()
+                .chain(&l.failure)
+                .map(|c| chain_rate(&c.chain))
+                .fold(0.0, f64::max),
+            Racer::Counted { children, .. } => {
+                children.iter().map(Racer::fastest).fold(0.0, f64::max)
+            }
+            Racer::Race(r) => r.children.iter().map(Racer::fastest).fold(0.0, f64::max),
+        }
+    }
+
+    /// `[S, F, s, f]` at `times`; `left`: the probabilities just before
+    /// each time (without a return exactly then).
+    fn rows(&self, name: &str, times: &[f64], left: bool) -> Result<Vec<Row>, AnalysisError> {
+        match self {
+            Racer::Chain(c) => {
+                let weights = [&c.exit_success[..], &c.exit_failure[..]];
+                let rows =
+                    sample_weighted(c, times, &weights).ok_or_else(|| stiff(name, c, times))?;
+                Ok(times
+                    .iter()
+                    .zip(rows)
+                    .map(|(&t, r)| {
+                        if left && t <= 0.0 {
+                            [0.0, 0.0, r[2], r[3]]
+                        } else {
+                            [r[0], r[1], r[2], r[3]]
+                        }
+                    })
+                    .collect())
+            }
+            Racer::Shifted(l) => {
+                let mut out = vec![[0.0; 4]; times.len()];
+                for (o, part) in [&l.success, &l.failure].into_iter().enumerate() {
+                    for c in part {
+                        let (idx, local): (Vec<usize>, Vec<f64>) = times
+                            .iter()
+                            .enumerate()
+                            .filter(|&(_, &t)| {
+                                let at = same_time(t, c.shift);
+                                if left {
+                                    t > c.shift && !at
+                                } else {
+                                    t > c.shift || at
+                                }
+                            })
+                            .map(|(k, &t)| (k, (t - c.shift).max(0.0)))
+                            .unzip();
+                        if idx.is_empty() {
+                            continue;
+                        }
+                        if c.chain.is_empty() {
+                            for &k in &idx {
+                                out[k][o] += c.weight * c.chain.initial_success;
+                            }
+                            continue;
+                        }
+                        let weights = [&c.chain.exit_success[..]];
+                        let rows = sample_weighted(&c.chain, &local, &weights)
+                            .ok_or_else(|| stiff(name, &c.chain, &local))?;
+                        for (&k, r) in idx.iter().zip(rows) {
+                            out[k][o] += c.weight * r[0];
+                            out[k][2 + o] += c.weight * r[2];
+                        }
+                    }
+                }
+                Ok(out)
+            }
+            Racer::Counted { m, f, children } => {
+                let columns = children
+                    .iter()
+                    .map(|c| c.rows(name, times, left))
+                    .collect::<Result<Vec<_>, _>>()?;
+                let mut row = vec![[0.0; 4]; children.len()];
+                Ok((0..times.len())
+                    .map(|k| {
+                        for (r, col) in row.iter_mut().zip(&columns) {
+                            *r = col[k];
+                        }
+                        counts::status_and_densities_by_counts(&row, *m, *f)
+                    })
+                    .collect())
+            }
+            Racer::Race(r) => r.rows(times, left),
+        }
+    }
+}
+
+impl Race {
+    fn new(name: String, m: usize, f: usize, children: Vec<Racer>) -> Result<Race, AnalysisError> {
+        let n = children.len() as f64;
+        let work = n * (m as f64).powi(3) * (f as f64).powi(3);
+        if work > MAX_INSTANT_WORK {
+            return Err(AnalysisError::StateBudget {
+                node: name,
+                states: work,
+                budget: MAX_INSTANT_WORK as usize,
+            });
+        }
+        let mut instants = vec![0.0];
+        let mut cuts = vec![];
+        for c in &children {
+            c.instants(&mut instants);
+            c.cuts(&mut cuts);
+        }
+        let instants = sorted_unique(instants);
+        cuts.extend(&instants);
+        let mut race = Race {
+            name,
+            m,
+            f,
+            children,
+            atoms: Vec::new(),
+            cuts: sorted_unique(cuts),
+        };
+        let before = race.child_rows(&instants, true)?;
+        let after = race.child_rows(&instants, false)?;
+        for (k, &t) in instants.iter().enumerate() {
+            let rows: Vec<Row> = before
+                .iter()
+                .zip(&after)
+                .map(|(b, a)| {
+                    let (b, a) = (b[k], a[k]);
+                    [b[0], b[1], (a[0] - b[0]).max(0.0), (a[1] - b[1]).max(0.0)]
+                })
+                .collect();
+            let (s, f) = resolve_instant(&rows, m, f);
+            if s > 0.0 || f > 0.0 {
+                race.atoms.push((t, s, f));
+            }
+        }
+        Ok(race)
+    }
+
+    /// Per child, its rows at `times`.
+    fn child_rows(&self, times: &[f64], left: bool) -> Result<Vec<Vec<Row>>, AnalysisError> {
+        self.children
+            .iter()
+            .map(|c| c.rows(&self.name, times, left))
+            .collect()
+    }
+
+    /// `[s, f, running]` at `times` (not at instants of atoms).
+    fn densities(&self, times: &[f64]) -> Result<Vec<[f64; 3]>, AnalysisError> {
+        let columns = self.child_rows(times, false)?;
+        let mut row = vec![[0.0; 4]; self.children.len()];
+        Ok((0..times.len())
+            .map(|k| {
+                for (r, col) in row.iter_mut().zip(&columns) {
+                    *r = col[k];
+                }
+                race_densities(&row, self.m, self.f)
+            })
+            .collect())
+    }
+
+    /// Integrals of `[s, f, t·s, t·f]` over each panel, adaptively.
+    fn integrate(&self, panels: &[(f64, f64)]) -> Result<Vec<[f64; 4]>, AnalysisError> {
+        let full = GaussLegendre::new(RULE);
+        let half = GaussLegendre::new(RULE / 2);
+        let mut totals = vec![[0.0f64; 4]; panels.len()];
+        // (panel index, a, b)
+        let mut pending: Vec<(usize, f64, f64)> = panels
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.1 > p.0)
+            .map(|(k, p)| (k, p.0, p.1))
+            .collect();
+        for _ in 0..MAX_ROUNDS {
+            if pending.is_empty() {
+                return Ok(totals);
+            }
+            let mut times = Vec::with_capacity(pending.len() * (RULE + RULE / 2));
+            for &(_, a, b) in &pending {
+                let (c, h) = (0.5 * (a + b), 0.5 * (b - a));
+                times.extend(full.nodes.iter().chain(&half.nodes).map(|x| c + h * x));
+            }
+            let values = self.densities(&times)?;
+            let per = full.len() + half.len();
+            let mut next = Vec::new();
+            for (q, &(k, a, b)) in pending.iter().enumerate() {
+                let h = 0.5 * (b - a);
+                let v = &values[q * per..(q + 1) * per];
+                let t = &times[q * per..(q + 1) * per];
+                let sum = |w: &[f64], off: usize| {
+                    let mut s = [0.0f64; 4];
+                    for (i, w) in w.iter().enumerate() {
+                        let (x, d) = (t[off + i], v[off + i]);
+                        s[0] += w * d[0];
+                        s[1] += w * d[1];
+                        s[2] += w * x * d[0];
+                        s[3] += w * x * d[1];
+                    }
+                    s.map(|x| x * h)
+                };
+                let (s_full, s_half) = (sum(&full.weights, 0), sum(&half.weights, full.len()));
+                let ok = (0..4).all(|i| {
+                    let scale = if i < 2 { 1.0 } else { b.max(1.0) };
+                    (s_full[i] - s_half[i]).abs() <= ABSOLUTE * scale + RELATIVE * s_full[i].abs()
+                });
+                if ok || b - a <= 1e-12 * b.max(1.0) {
+                    for i in 0..4 {
+                        totals[k][i] += s_full[i];
+                    }
+                } else {
+                    let mid = 0.5 * (a + b);
+                    next.push((k, a, mid));
+                    next.push((k, mid, b));
+                }
+            }
+            pending = next;
+        }
+        Err(numerical(
+            &self.name,
+            "the quadrature of its densities did not converge",
+        ))
+    }
+
+    /// Panels from 0 to `end` cut at every instant and shift, and near 0
+    /// at 8^k / the fastest rate.
+    fn panels_to(&self, points: &[f64], end: f64) -> Vec<(f64, f64)> {
+        let mut cuts: Vec<f64> = self.cuts.iter().copied().filter(|&t| t < end).collect();
+        cuts.extend(points.iter().copied().filter(|&t| t < end));
+        cuts.push(0.0);
+        cuts.push(end);
+        let fastest = self.children.iter().map(Racer::fastest).fold(0.0, f64::max);
+        if fastest > 0.0 {
+            let mut t = 1.0 / fastest;
+            while t < end {
+                cuts.push(t);
+                t *= 8.0;
+            }
+        }
+        let cuts = sorted_unique(cuts);
+        cuts.windows(2).map(|w| (w[0], w[1])).collect()
+    }
+
+    /// `[S, F, s, f]` at `times` (any order).
+    fn rows(&self, times: &[f64], left: bool) -> Result<Vec<Row>, AnalysisError> {
+        let end = times.iter().copied().fold(0.0, f64::max);
+        let panels = self.panels_to(times, end);
+        let sums = self.integrate(&panels)?;
+        // cumulative integrals at panel ends
+        let mut ends = Vec::with_capacity(panels.len() + 1);
+        let mut acc = [0.0f64; 2];
+        ends.push((0.0, acc));
+        for (p, s) in panels.iter().zip(&sums) {
+            acc[0] += s[0];
+            acc[1] += s[1];
+            ends.push((p.1, acc));
+        }
+        let dens = self.densities(times)?;
+        Ok(times
+            .iter()
+            .zip(dens)
+            .map(|(&t, d)| {
+                let k = ends.partition_point(|e| e.0 < t && !same_time(e.0, t));
+                let base = ends[k.min(ends.len() - 1)];
+                let mut row = [base.1[0], base.1[1], d[0], d[1]];
+                for &(tau, s, f) in &self.atoms {
+                    let counted = if left {
+                        tau < t && !same_time(tau, t)
+                    } else {
+                        tau <= t || same_time(tau, t)
+                    };
+                    if counted {
+                        row[0] += s;
+                        row[1] += f;
+                    }
+                }
+                row
+            })
+            .collect())
+    }
+
+    /// `[P(S), P(F), E[T·1{S}], E[T·1{F}]]`: the limits of the curve.
+    fn limits(&self, scale: f64) -> Result<[f64; 4], AnalysisError> {
+        let mut out = [0.0f64; 4];
+        for &(t, s, f) in &self.atoms {
+            out[0] += s;
+            out[1] += f;
+            out[2] += t * s;
+            out[3] += t * f;
+        }
+        let last = self.cuts.last().copied().unwrap_or(0.0);
+        let mut start = last.max(scale);
+        for s in self.integrate(&self.panels_to(&[], start))? {
+            (0..4).for_each(|i| out[i] += s[i]);
+        }
+        let mut width = scale.max(start / 8.0).max(f64::MIN_POSITIVE);
+        for _ in 0..200 {
+            let running = self.densities(&[start])?[0][2];
+            let mean = (out[2] + out[3]).max(f64::MIN_POSITIVE);
+            // (a floor of a few 1e-16 is rounding in `1 − S_h − F_h`)
+            if running <= 1e-14 || running <= 1e-12 && running * width <= 1e-12 * mean {
+                return Ok(out);
+            }
+            // a batch of doubling panels at a time
+            let mut panels = Vec::new();
+            for _ in 0..4 {
+                panels.push((start, start + width));
+                start += width;
+                width *= 2.0;
+            }
+            for s in self.integrate(&panels)? {
+                (0..4).for_each(|i| out[i] += s[i]);
+            }
+        }
+        Err(numerical(
+            &self.name,
+            "its running probability did not vanish",
+        ))
+    }
+}
+
+/// `[s, f, running]` of a race from its children's `[S, F, s, f]` at one
+/// time (module docs): `V[k][j]` the probability of k successes and j
+/// failures (k < m, j < f), `D_S` the same with one child's success density
+/// in place of its probability (up to m successes), `D_F` likewise.
+pub fn race_densities(rows: &[Row], m: usize, f: usize) -> [f64; 3] {
+    let (w, ws) = (f, f);
+    let mut v = vec![0.0f64; m * w];
+    let mut ds = vec![0.0f64; (m + 1) * ws];
+    let mut df = vec![0.0f64; m * (f + 1)];
+    v[0] = 1.0;
+    for &[s_cdf, f_cdf, s_den, f_den] in rows {
+        let r = (1.0 - s_cdf - f_cdf).max(0.0);
+        let mut nv = vec![0.0f64; v.len()];
+        let mut nds = vec![0.0f64; ds.len()];
+        let mut ndf = vec![0.0f64; df.len()];
+        for k in 0..=m {
+            for j in 0..=f {
+                // V
+                if k < m && j < f {
+                    let x = v[k * w + j];
+                    if x != 0.0 {
+                        nv[k * w + j] += x * r;
+                        if k + 1 < m {
+                            nv[(k + 1) * w + j] += x * s_cdf;
+                        }
+                        if j + 1 < f {
+                            nv[k * w + j + 1] += x * f_cdf;
+                        }
+                        // this child returns now
+                        nds[(k + 1) * ws + j] += x * s_den;
+                        ndf[k * (f + 1) + j + 1] += x * f_den;
+                    }
+                }
+                // D_S: k ≤ m, j < f
+                if j < f {
+                    let x = ds[k * ws + j];
+                    if x != 0.0 {
+                        nds[k * ws + j] += x * r;
+                        if k < m {
+                            nds[(k + 1) * ws + j] += x * s_cdf;
+                        }
+                        if j + 1 < f {
+                            nds[k * ws + j + 1] += x * f_cdf;
+                        }
+                    }
+                }
+                // D_F: k < m, j ≤ f
+                if k < m {
+                    let x = df[k * (f + 1) + j];
+                    if x != 0.0 {
+                        ndf[k * (f + 1) + j] += x * r;
+                        if k + 1 < m {
+                            ndf[(k + 1) * (f + 1) + j] += x * s_cdf;
+                        }
+                        if j < f {
+                            ndf[k * (f + 1) + j + 1] += x * f_cdf;
+                        }
+                    }
+                }
+            }
+        }
+        v = nv;
+        ds = nds;
+        df = ndf;
+    }
+    let s: f64 = (0..f).map(|j| ds[m * ws + j]).sum();
+    let fail: f64 = (0..m).map(|k| df[k * (f + 1) + f]).sum();
+    [
+        s.max(0.0),
+        fail.max(0.0),
+        v.iter().sum::<f64>().clamp(0.0, 1.0),
+    ]
+}
+
+/// The node's atom `(P(Success at τ), P(Failure at τ))` at one instant τ
+/// from each child's `[S(τ⁻), F(τ⁻), P(Success at τ), P(Failure at τ)]`:
+/// the counts before τ are `(K0, J0)` (below the thresholds, else the node
+/// returned earlier), then the returns at τ are taken in child order until
+/// a threshold is met (BT.CPP's tick). For each `(K0, J0)` a programme over
+/// the children in order tracks the children counted before τ (to match
+/// K0, J0 at the end) and the returns at τ so far.
+pub fn resolve_instant(rows: &[Row], m: usize, f: usize) -> (f64, f64) {
+    let (mut out_s, mut out_f) = (0.0, 0.0);
+    for k0 in 0..m {
+        for j0 in 0..f {
+            let (need_s, need_f) = (m - k0, f - j0);
+            // classes: undecided (a, b) with a < need_s, b < need_f; then S, F
+            let undecided = need_s * need_f;
+            let classes = undecided + 2;
+            let (cls_s, cls_f) = (undecided, undecided + 1);
+            let idx = |k: usize, j: usize, c: usize| (k * (j0 + 1) + j) * classes + c;
+            let mut dp = vec![0.0f64; (k0 + 1) * (j0 + 1) * classes];
+            dp[idx(0, 0, 0)] = 1.0;
+            for &[before_s, before_f, at_s, at_f] in rows {
+                let after = (1.0 - before_s - before_f - at_s - at_f).max(0.0);
+                let mut next = vec![0.0f64; dp.len()];
+                for k in 0..=k0 {
+                    for j in 0..=j0 {
+                        for c in 0..classes {
+                            let x = dp[idx(k, j, c)];
+                            if x == 0.0 {
+                                continue;
+                            }
+                            if k < k0 {
+                                next[idx(k + 1, j, c)] += x * before_s;
+                            }
+                            if j < j0 {
+                                next[idx(k, j + 1, c)] += x * before_f;
+                            }
+                            if c >= undecided {
+                                next[idx(k, j, c)] += x * (after + at_s + at_f);
+                                continue;
+                            }
+                            next[idx(k, j, c)] += x * after;
+                            let (a, b) = (c / need_f, c % need_f);
+                            let up = if a + 1 == need_s {
+                                cls_s
+                            } else {
+                                (a + 1) * need_f + b
+                            };
+                            next[idx(k, j, up)] += x * at_s;
+                            let right = if b + 1 == need_f {
+                                cls_f
+                            } else {
+                                a * need_f + b + 1
+                            };
+                            next[idx(k, j, right)] += x * at_f;
+                        }
+                    }
+                }
+                dp = next;
+            }
+            out_s += dp[idx(k0, j0, cls_s)];
+            out_f += dp[idx(k0, j0, cls_f)];
+        }
+    }
+    (out_s, out_f)
+}
+
+/// The race node `id` (a Parallel whose thresholds can both be met).
+fn race_of(tree: &Tree, id: NodeId, max_states: usize) -> Result<Race, AnalysisError> {
+    let node = tree.node(id);
+    let NodeKind::Parallel {
+        success_threshold: m,
+        failure_threshold: f,
+        children,
+    } = &node.kind
+    else {
+        unreachable!("races are Parallel nodes")
+    };
+    let f = (*f).min(children.len() + 1 - m);
+    let kids = children
+        .iter()
+        .map(|&c| Racer::build(tree, c, max_states))
+        .collect::<Result<Vec<_>, _>>()?;
+    Race::new(node.name.clone(), *m, f, kids)
+}
+
+/// Figures of race `id` (module docs); `child_figures` set the scale of the
+/// horizon.
+pub(crate) fn figures(
+    tree: &Tree,
+    id: NodeId,
+    child_figures: &[Figures],
+    max_states: usize,
+) -> Result<Figures, AnalysisError> {
+    let race = race_of(tree, id, max_states)?;
+    let scale = child_figures
+        .iter()
+        .map(Figures::mean_time)
+        .fold(0.0, f64::max);
+    let [ps, pf, ts, tf] = race.limits(scale)?;
+    Ok(Figures {
+        ps,
+        pf,
+        mtts: (ps > 0.0).then(|| ts / ps),
+        mttf: (pf > 0.0).then(|| tf / pf),
+    })
+}
+
+/// `π(t)` of race `id` at `times` (module docs).
+pub(crate) fn curve(
+    tree: &Tree,
+    id: NodeId,
+    times: &[f64],
+    max_states: usize,
+) -> Result<Vec<CurvePoint>, AnalysisError> {
+    let race = race_of(tree, id, max_states)?;
+    let rows = race.rows(times, false)?;
+    Ok(times
+        .iter()
+        .zip(rows)
+        .map(|(&t, r)| {
+            let (success, failure) = (r[0].clamp(0.0, 1.0), r[1].clamp(0.0, 1.0));
+            CurvePoint {
+                t,
+                success,
+                failure,
+                running: (1.0 - success - failure).max(0.0),
+            }
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Brute force over the 5^n classes of the children at an instant,
+    /// replaying BT.CPP's tick.
+    fn brute_instant(rows: &[Row], m: usize, f: usize) -> (f64, f64) {
+        let n = rows.len();
+        let (mut s, mut fl) = (0.0, 0.0);
+        for code in 0..5usize.pow(n as u32) {
+            let cls: Vec<usize> = (0..n).map(|h| code / 5usize.pow(h as u32) % 5).collect();
+            let mut p = 1.0;
+            for (h, &c) in cls.iter().enumerate() {
+                let [bs, bf, a_s, a_f] = rows[h];
+                p *= [bs, bf, a_s, a_f, 1.0 - bs - bf - a_s - a_f][c];
+            }
+            let k0 = cls.iter().filter(|&&c| c == 0).count();
+            let j0 = cls.iter().filter(|&&c| c == 1).count();
+            if k0 >= m || j0 >= f {
+                continue;
+            }
+            let (mut k, mut j) = (k0, j0);
+            for &c in &cls {
+                if c == 2 {
+                    k += 1;
+                    if k >= m {
+                        s += p;
+                        break;
+                    }
+                } else if c == 3 {
+                    j += 1;
+                    if j >= f {
+                        fl += p;
+                        break;
+                    }
+                }
+            }
+        }
+        (s, fl)
+    }
+
+    #[test]
+    fn instants_match_brute_force() {
+        let rows = [
+            [0.1, 0.2, 0.3, 0.1],
+            [0.0, 0.3, 0.2, 0.4],
+            [0.25, 0.05, 0.1, 0.3],
+            [0.2, 0.2, 0.0, 0.5],
+        ];
+        for m in 1..=4 {
+            for f in 1..=4 {
+                let got = resolve_instant(&rows, m, f);
+                let want = brute_instant(&rows, m, f);
+                assert!(
+                    (got.0 - want.0).abs() < 1e-15 && (got.1 - want.1).abs() < 1e-15,
+                    "m={m} f={f}: {got:?} vs {want:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn densities_match_enumeration() {
+        // s(t) = Σ_h s_h · P(others: exactly m − 1 succeeded, < f failed)
+        let rows = [
+            [0.1, 0.2, 0.5, 0.3],
+            [0.4, 0.1, 0.2, 0.7],
+            [0.0, 0.6, 1.5, 0.1],
+            [0.3, 0.3, 0.05, 0.4],
+        ];
+        let n = rows.len();
+        for m in 1..=4 {
+            for f in 1..=4 {
+                let mut want = [0.0; 3];
+                for code in 0..3usize.pow(n as u32) {
+                    let cls: Vec<usize> = (0..n).map(|h| code / 3usize.pow(h as u32) % 3).collect();
+                    let p = |skip: usize| -> f64 {
+                        (0..n)
+                            .filter(|&h| h != skip)
+                            .map(|h| {
+                                let [s, fl, _, _] = rows[h];
+                                [s, fl, 1.0 - s - fl][cls[h]]
+                            })
+                            .product()
+                    };
+                    let (k, j) = (
+                        cls.iter().filter(|&&c| c == 0).count(),
+                        cls.iter().filter(|&&c| c == 1).count(),
+                    );
+                    if k < m && j < f {
+                        want[2] += p(usize::MAX);
+                    }
+                    // child h returns now, the others as classed (h's class
+                    // must be "running" to count each configuration once)
+                    for h in 0..n {
+                        if cls[h] != 2 {
+                            continue;
+                        }
+                        if k == m - 1 && j < f {
+                            want[0] += rows[h][2] * p(h);
+                        }
+                        if k < m && j == f - 1 {
+                            want[1] += rows[h][3] * p(h);
+                        }
+                    }
+                }
+                let got = race_densities(&rows, m, f);
+                for i in 0..3 {
+                    assert!(
+                        (got[i] - want[i]).abs() < 1e-14,
+                        "m={m} f={f} i={i}: {got:?} vs {want:?}"
+                    );
+                }
+            }
+        }
+    }
+}
