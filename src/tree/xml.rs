@@ -806,13 +806,17 @@ fn unsupported(ty: &str) -> Option<&'static str> {
         | "LoopPose" => {
             "it loops until a failure, over a queue, or runs its child at most once"
         }
-        "PipelineSequence" | "RoundRobin" | "NonblockingSequence" | "PersistentSequence"
-        | "PauseResumeController" => {
-            "Nav2 control node: it re-ticks running children or keeps state across executions"
+        "NonblockingSequence" | "PersistentSequence" | "PauseResumeController" => {
+            "Nav2 control node: it keeps state across executions or waits for an external request"
         }
-        "RateController" | "DistanceController" | "SpeedController" | "GoalUpdater"
-        | "GoalUpdatedController" | "PathLongerOnApproach" | "SingleTrigger" => {
-            "Nav2 decorator: it ticks its child depending on time, distance, speed or goal updates"
+        "DistanceController" | "SpeedController" => {
+            "Nav2 decorator: it ticks its child again when the robot has moved a distance (or at \
+             a rate set by its speed), which depends on the robot's motion (simulate a \
+             RateController with the period you expect instead)"
+        }
+        "GoalUpdatedController" | "PathLongerOnApproach" => {
+            "Nav2 decorator: it ticks its child depending on goal updates or path lengths on \
+             the blackboard"
         }
         _ => return None,
     })
@@ -842,6 +846,11 @@ const BUILTINS: &[&str] = &[
     "RetryUntilSuccessful",
     "Repeat",
     "RecoveryNode",
+    "PipelineSequence",
+    "RoundRobin",
+    "RateController",
+    "SingleTrigger",
+    "GoalUpdater",
     "Action",
     "Condition",
     "Control",
@@ -899,6 +908,9 @@ struct Builder<'a> {
     /// Node counts of expanded trees (memo for [`Builder::tree_size`]).
     sizes: HashMap<&'a str, u64>,
     sizing: HashSet<&'a str>,
+    /// RoundRobin index slots by element and SubTree instance: the copies
+    /// of one element made by a RecoveryNode share their index.
+    slots: HashMap<String, usize>,
 }
 
 impl<'a> Builder<'a> {
@@ -1014,6 +1026,57 @@ impl<'a> Builder<'a> {
         }
     }
 
+    /// RateController's `hz` (default 10, as in Nav2) as a period in
+    /// seconds; `None` (a problem recorded) for a blackboard reference.
+    fn period(&mut self, e: &Elem, ty: &str) -> Result<Option<f64>, TreeError> {
+        let Some(a) = e.attr("hz") else {
+            return Ok(Some(0.1));
+        };
+        let v = a.value.trim();
+        if v.starts_with('{') {
+            self.problem(
+                e.doc,
+                a.loc,
+                format!("<{ty}> with hz = \"{v}\", a blackboard reference: the rate is only known at run time"),
+                true,
+            );
+            return Ok(None);
+        }
+        match v.parse::<f64>() {
+            Ok(hz) if hz.is_finite() && hz > 0.0 && (1.0 / hz).is_finite() => Ok(Some(1.0 / hz)),
+            _ => Err(self
+                .err(a.loc, format!("hz = \"{v}\" is not a valid rate"))
+                .with_help("hz is a number of re-runs per second, > 0 (e.g. 1.0 or 0.5)")),
+        }
+    }
+
+    /// RoundRobin's `wrap_around`; by default `false` in BehaviorTree.CPP v4
+    /// files (Nav2's default since 2025) and `true` in v3 files (Nav2 Humble
+    /// and Iron always wrapped). `None` (a problem recorded) for a
+    /// blackboard reference.
+    fn wrap_around(&mut self, e: &Elem, ty: &str) -> Result<Option<bool>, TreeError> {
+        let Some(a) = e.attr("wrap_around") else {
+            return Ok(Some(self.sources[e.doc].format != Format::V4));
+        };
+        let v = a.value.trim();
+        if v.starts_with('{') {
+            self.problem(
+                e.doc,
+                a.loc,
+                format!("<{ty}> with wrap_around = \"{v}\", a blackboard reference: known only at run time"),
+                true,
+            );
+            return Ok(None);
+        }
+        match v {
+            "true" | "True" | "TRUE" | "1" => Ok(Some(true)),
+            "false" | "False" | "FALSE" | "0" => Ok(Some(false)),
+            _ => Err(self
+                .err(a.loc, format!("wrap_around = \"{v}\" is not a boolean"))
+                .with_help("write wrap_around=\"true\" or \"false\"")),
+        }
+    }
+
     /// A whole-number attribute; `None` if absent.
     fn int_attr(&self, e: &Elem, key: &str) -> Result<Option<(i64, Loc)>, TreeError> {
         let Some(a) = e.attr(key) else {
@@ -1116,9 +1179,11 @@ impl<'a> Builder<'a> {
         match &mut self.nodes[id].kind {
             NodeKind::Sequence { children }
             | NodeKind::Fallback { children }
+            | NodeKind::Pipeline { children }
+            | NodeKind::RoundRobin { children, .. }
             | NodeKind::Parallel { children, .. } => *children = ids,
             NodeKind::Decorator { child, .. } => *child = ids[0],
-            _ => {}
+            NodeKind::Action(_) | NodeKind::Condition { .. } => {}
         }
     }
 
@@ -1229,6 +1294,67 @@ impl<'a> Builder<'a> {
         let canon = canonical(ty);
         let default_name = || ty.to_string();
         match canon {
+            "PipelineSequence" | "RoundRobin" => {
+                let robin = canon == "RoundRobin";
+                let keys: &[&'static str] = if robin { &["wrap_around"] } else { &[] };
+                self.check_attrs(e, &attrs(keys), false)?;
+                if e.children.is_empty() {
+                    return Err(self
+                        .err(e.loc, format!("<{ty}> has no children"))
+                        .with_help("a control node needs at least one child"));
+                }
+                let base = self.name_attr(e)?.unwrap_or_else(default_name);
+                let kind = if robin {
+                    let Some(wrap) = self.wrap_around(e, ty)? else {
+                        return self.placeholder(e, &base, parent, depth, &path, prefix, retry);
+                    };
+                    let key = format!("{ei}|{:?}", self.expanding);
+                    let next = self.slots.len();
+                    let slot = *self.slots.entry(key).or_insert(next);
+                    NodeKind::RoundRobin {
+                        children: Vec::new(),
+                        wrap,
+                        slot,
+                    }
+                } else {
+                    NodeKind::Pipeline {
+                        children: Vec::new(),
+                    }
+                };
+                let id = self.push(e, &base, prefix, parent, depth, &path, kind)?;
+                let ids = self.children(e, id, depth, &path, prefix, retry)?;
+                self.set_children(id, ids);
+                Ok(id)
+            }
+            // GoalUpdater copies an updated goal to the blackboard and
+            // returns its child's status: the child itself
+            "GoalUpdater" => {
+                self.check_attrs(e, &attrs(&[]), true)?;
+                self.one_child(e, ty)?;
+                self.node(e.children[0], parent, depth, path, prefix, retry)
+            }
+            "RateController" | "SingleTrigger" => {
+                let rate = canon == "RateController";
+                self.check_attrs(e, &attrs(if rate { &["hz"] } else { &[] }), false)?;
+                self.one_child(e, ty)?;
+                let base = self.name_attr(e)?.unwrap_or_else(default_name);
+                let decorator = if rate {
+                    let Some(period) = self.period(e, ty)? else {
+                        return self.placeholder(e, &base, parent, depth, &path, prefix, retry);
+                    };
+                    Decorator::Rate { period }
+                } else {
+                    Decorator::SingleTrigger
+                };
+                let kind = NodeKind::Decorator {
+                    decorator,
+                    child: 0,
+                };
+                let id = self.push(e, &base, prefix, parent, depth, &path, kind)?;
+                let ids = self.children(e, id, depth, &path, prefix, retry)?;
+                self.set_children(id, ids);
+                Ok(id)
+            }
             "Sequence" | "SequenceWithMemory" | "ReactiveSequence" | "Fallback"
             | "ReactiveFallback" | "Parallel" => {
                 let parallel = canon == "Parallel";
@@ -2251,6 +2377,7 @@ fn build(files: Files, params: &str, params_file: &str) -> Result<Tree, TreeErro
         expanding: Vec::new(),
         sizes: HashMap::new(),
         sizing: HashSet::new(),
+        slots: HashMap::new(),
     };
     // (ID, BehaviorTree element) of the main file, in order
     let mut order: Vec<(&str, usize)> = Vec::new();
