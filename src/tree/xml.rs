@@ -2725,12 +2725,21 @@ fn build(files: Files, params: &str, params_file: &str) -> Result<Tree, TreeErro
     // RUNNING and ticks them again from IDLE on the next tick: an action in
     // an earlier child is restarted while a later child runs (and that one
     // is halted), which a Sequence / Fallback does not model. Refused when
-    // two or more children hold actions; conditions only re-read their value.
+    // two or more children hold actions that take time; conditions only
+    // re-read their value, and zero-time actions (`tau_s: 0`, `tau_f: 0`:
+    // synchronous, never RUNNING) return in the tick that starts them.
     let has_action = |root: usize| {
         let mut stack = vec![root];
         while let Some(n) = stack.pop() {
             match &b.nodes[n].kind {
-                NodeKind::Action(_) => return true,
+                NodeKind::Action(a)
+                    if [a.success, a.failure].iter().flatten().any(
+                        |d| !matches!(d, crate::tree::Duration::Fixed { time } if *time == 0.0),
+                    ) =>
+                {
+                    return true
+                }
+                NodeKind::Action(_) => {}
                 k => stack.extend(k.children().iter().copied()),
             }
         }
