@@ -72,9 +72,10 @@ pub fn outcomes(tree: &Tree, id: NodeId) -> (bool, bool) {
         .iter()
         .map(|&c| outcomes(tree, c))
         .collect();
-    let any = |f: fn(&(bool, bool)) -> bool| kids.iter().any(f);
-    let all = |f: fn(&(bool, bool)) -> bool| kids.iter().all(f);
-    let (s, f): (fn(&(bool, bool)) -> bool, fn(&(bool, bool)) -> bool) = (|o| o.0, |o| o.1);
+    type Pick = fn(&(bool, bool)) -> bool;
+    let any = |f: Pick| kids.iter().any(f);
+    let all = |f: Pick| kids.iter().all(f);
+    let (s, f): (Pick, Pick) = (|o| o.0, |o| o.1);
     match &tree.nodes[id].kind {
         NodeKind::Action(a) => (a.ps > 0.0, a.pf > 0.0),
         NodeKind::Condition { ps } => (*ps > 0.0, *ps < 1.0),
@@ -89,9 +90,8 @@ pub fn outcomes(tree: &Tree, id: NodeId) -> (bool, bool) {
         // a start index past a failing child may still reach every child
         NodeKind::RoundRobin { wrap, .. } => (any(s), !wrap || any(f)),
         NodeKind::Parallel { .. } => (any(s), any(f)),
-        NodeKind::Decorator { decorator, child } => {
+        NodeKind::Decorator { decorator, .. } => {
             let (s, f) = kids[0];
-            let _ = child;
             match decorator {
                 Decorator::Inverter => (f, s),
                 Decorator::ForceSuccess => (true, false),
