@@ -1621,6 +1621,7 @@ fn export(args: ExportArgs) -> Result<(), Failure> {
                         btrel::tree::NodeKind::Action(_)
                             | btrel::tree::NodeKind::Condition { .. }
                             | btrel::tree::NodeKind::Decorator { .. }
+                            | btrel::tree::NodeKind::Flow(_)
                     ) {
                         return Err(Failure::input(format!(
                             "node '{}' is {}: only Sequence, Fallback and Parallel nodes have a marking reachability graph\n  help: give --mrg one of those",

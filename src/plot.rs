@@ -389,6 +389,12 @@ pub fn time_scale(tree: &Tree, node: NodeId) -> f64 {
             .iter()
             .map(|&c| time_scale(tree, c))
             .fold(0.0, f64::max),
+        // a run visits each state at most once
+        NodeKind::Flow(flow) => flow
+            .states
+            .iter()
+            .map(|s| time_scale(tree, flow.children[s.child]))
+            .sum(),
         NodeKind::Decorator { decorator, child } => {
             let k = match decorator {
                 Decorator::Retry { attempts } => *attempts as f64,

@@ -11,7 +11,10 @@
 //!   book's thresholds and the M = 1, F = 1 tie over two conditions, where
 //!   the child order decides), Inverter, ForceSuccess, ForceFailure,
 //!   RetryUntilSuccessful, Repeat, AlwaysSuccess, AlwaysFailure, Script,
-//!   SetBlackboard and SubTree. Accepted: |z| < 5 with the binomial standard
+//!   SetBlackboard, SubTree, IfThenElse (with a Sequence as its condition
+//!   child, with and without else), WhileDoElse (over a condition) and
+//!   SequenceWithMemory under RetryUntilSuccessful (resumed at the failed
+//!   child: a flow). Accepted: |z| < 5 with the binomial standard
 //!   error sqrt(p(1 − p)/n) at btrel's p (an exact 0 or 1 must be met exactly).
 //! * Mean times (MTTS, MTTF) of Sequence, Fallback and Parallel trees of
 //!   timed actions, one params time unit = 10 ms of wall clock. BT.CPP's
@@ -72,6 +75,11 @@ struct Case {
     /// not: the BT.CPP frequency is asserted to be this value exactly and
     /// btrel must refuse the tree (node semantics).
     btcpp_ps: Option<f64>,
+    /// Create the BT.CPP tree afresh for every run: btrel models one
+    /// execution of a fresh tree, and a node that keeps state across
+    /// executions (SequenceWithMemory after its Retry failed) would carry it
+    /// into the next run of a reused tree.
+    fresh_tree: bool,
 }
 
 fn main_tree(body: &str) -> String {
@@ -101,6 +109,7 @@ fn cases() -> Vec<Case> {
             scale: fast,
             steps: None,
             btcpp_ps: None,
+            fresh_tree: false,
         },
         Case {
             name: "reactive nested, under Retry",
@@ -115,6 +124,7 @@ fn cases() -> Vec<Case> {
             scale: fast,
             steps: None,
             btcpp_ps: None,
+            fresh_tree: false,
         },
         Case {
             name: "parallel 2 of 3",
@@ -126,6 +136,7 @@ fn cases() -> Vec<Case> {
             scale: fast,
             steps: None,
             btcpp_ps: None,
+            fresh_tree: false,
         },
         Case {
             name: "parallel tie, first child 0.3",
@@ -137,6 +148,7 @@ fn cases() -> Vec<Case> {
             scale: fast,
             steps: None,
             btcpp_ps: None,
+            fresh_tree: false,
         },
         Case {
             name: "parallel tie, first child 0.9",
@@ -148,6 +160,7 @@ fn cases() -> Vec<Case> {
             scale: fast,
             steps: None,
             btcpp_ps: None,
+            fresh_tree: false,
         },
         Case {
             name: "decorators and zero-time leaves",
@@ -170,6 +183,42 @@ fn cases() -> Vec<Case> {
             scale: fast,
             steps: None,
             btcpp_ps: None,
+            fresh_tree: false,
+        },
+        // IfThenElse with a general condition subtree (a Sequence holding an
+        // action), with and without an else branch; WhileDoElse over a
+        // condition (re-ticked while its branch runs, keeping its value)
+        Case {
+            name: "if then else",
+            xml: main_tree(
+                r#"<Fallback>
+                     <IfThenElse><Sequence><C1/><A1/></Sequence><A2/><A3/></IfThenElse>
+                     <IfThenElse><C2/><A4/></IfThenElse>
+                     <WhileDoElse><C3/><A5/><A6/></WhileDoElse>
+                   </Fallback>"#,
+            ),
+            params: json!({"C1": c(0.6), "A1": a(0.5), "A2": a(0.3), "A3": a(0.4),
+                "C2": c(0.7), "A4": a(0.2), "C3": c(0.4), "A5": a(0.5), "A6": a(0.3)}),
+            runs: 1500,
+            scale: fast,
+            steps: None,
+            btcpp_ps: None,
+            fresh_tree: false,
+        },
+        // a failed child of SequenceWithMemory is resumed on the next attempt
+        Case {
+            name: "retry over sequence with memory",
+            xml: main_tree(
+                r#"<RetryUntilSuccessful num_attempts="3">
+                     <SequenceWithMemory><A1/><C1/><A2/></SequenceWithMemory>
+                   </RetryUntilSuccessful>"#,
+            ),
+            params: json!({"A1": a(0.5), "C1": c(0.6), "A2": a(0.4)}),
+            runs: 1500,
+            scale: fast,
+            steps: None,
+            btcpp_ps: None,
+            fresh_tree: true,
         },
         Case {
             name: "subtree used twice",
@@ -183,6 +232,7 @@ fn cases() -> Vec<Case> {
             scale: fast,
             steps: None,
             btcpp_ps: None,
+            fresh_tree: false,
         },
         // The difference this referee found: BT.CPP's ReactiveSequence halts
         // (resets) its earlier children when a later one returns RUNNING and
@@ -197,6 +247,7 @@ fn cases() -> Vec<Case> {
             scale: 0.002,
             steps: None,
             btcpp_ps: Some(0.0),
+            fresh_tree: false,
         },
         // Mean times: 10 ms per unit, exponential and fixed durations.
         Case {
@@ -208,6 +259,7 @@ fn cases() -> Vec<Case> {
             scale: 0.01,
             steps: Some(2.0),
             btcpp_ps: None,
+            fresh_tree: false,
         },
         Case {
             name: "fallback, times",
@@ -218,6 +270,7 @@ fn cases() -> Vec<Case> {
             scale: 0.01,
             steps: Some(2.0),
             btcpp_ps: None,
+            fresh_tree: false,
         },
         Case {
             name: "parallel 1 of 2, times",
@@ -230,6 +283,7 @@ fn cases() -> Vec<Case> {
             scale: 0.01,
             steps: Some(1.0),
             btcpp_ps: None,
+            fresh_tree: false,
         },
     ]
 }
@@ -265,7 +319,7 @@ fn referee(python: &Path, cases: &[Case]) -> Vec<Value> {
         .enumerate()
         .map(|(i, c)| {
             json!({"name": c.name, "xml": c.xml, "params": c.params, "runs": c.runs,
-                "seed": 1000 + i, "scale": c.scale, "sleep_ms": 1})
+                "seed": 1000 + i, "scale": c.scale, "sleep_ms": 1, "fresh_tree": c.fresh_tree})
         })
         .collect();
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("btcpp_referee");

@@ -20,7 +20,7 @@
 use super::mrg::{Outcome, Policy, Status};
 use super::{AnalysisError, Figures};
 use crate::tree::Decorator;
-use crate::tree::{Duration, NodeId, NodeKind, Tree};
+use crate::tree::{Duration, Flow, FlowNext, NodeId, NodeKind, Tree};
 
 /// Relative tolerance under which two instants are the same.
 pub const TIME_TOLERANCE: f64 = 1e-12;
@@ -128,6 +128,18 @@ pub fn atoms(
                 }
             }
             chain(lists.iter(), cont, max_atoms)
+                .map_err(budget)
+                .map(Some)
+        }
+        NodeKind::Flow(flow) => {
+            let mut lists = Vec::with_capacity(flow.children.len());
+            for &c in &flow.children {
+                match atoms(tree, c, max_atoms)? {
+                    Some(a) => lists.push(a),
+                    None => return Ok(None),
+                }
+            }
+            flow_atoms(flow, &lists, max_atoms)
                 .map_err(budget)
                 .map(Some)
         }
@@ -303,6 +315,48 @@ fn chain<'a>(
         outcome: cont,
         prob,
     }));
+    Ok(normalise(out))
+}
+
+/// A flow's atoms from its children's (`children[k]` for `flow.children[k]`):
+/// the instants at which each state is entered are carried forward, state
+/// by state, shifted by the state's child's atoms. Fails with the number of
+/// atoms if it would exceed `max_atoms`.
+pub fn flow_atoms(flow: &Flow, children: &[Vec<Atom>], max_atoms: usize) -> Result<Vec<Atom>, f64> {
+    // entry instants of each state, as atoms whose outcome is irrelevant
+    let mut entered: Vec<Vec<Atom>> = vec![Vec::new(); flow.states.len()];
+    entered[0].push(Atom {
+        time: 0.0,
+        outcome: Outcome::Success,
+        prob: 1.0,
+    });
+    let mut out = Vec::new();
+    for (i, s) in flow.states.iter().enumerate() {
+        let here = normalise(std::mem::take(&mut entered[i]));
+        for e in &here {
+            for a in &children[s.child] {
+                let next = match a.outcome {
+                    Outcome::Success => s.on_success,
+                    Outcome::Failure => s.on_failure,
+                };
+                let (list, outcome) = match next {
+                    FlowNext::State(j) => (&mut entered[j], Outcome::Success),
+                    FlowNext::Success => (&mut out, Outcome::Success),
+                    FlowNext::Failure => (&mut out, Outcome::Failure),
+                };
+                list.push(Atom {
+                    time: e.time + a.time,
+                    outcome,
+                    prob: e.prob * a.prob,
+                });
+            }
+        }
+        let held = out.len() + entered.iter().map(Vec::len).sum::<usize>();
+        if held > max_atoms {
+            return Err(held as f64);
+        }
+        out = normalise(out);
+    }
     Ok(normalise(out))
 }
 

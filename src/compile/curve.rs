@@ -186,6 +186,8 @@ fn curve_of(
             let figs: Vec<_> = children.iter().map(|&c| analysis.nodes[c]).collect();
             if let NodeKind::Decorator { decorator, .. } = node.kind {
                 book_ctmc::book_decorator(decorator, figs[0])
+            } else if let NodeKind::Flow(flow) = &node.kind {
+                compile::flow::book_chain(flow, &figs)
             } else {
                 let policy = Policy::of(&node.kind).expect("control node");
                 if let Policy::Parallel {

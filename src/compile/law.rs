@@ -45,7 +45,7 @@ use crate::solve::transient::{
     absorption_by_phase, transient_split, transient_weighted, uniformization_work, CurvePoint,
     MAX_SINGLE_PASS_STEPS,
 };
-use crate::tree::{Decorator, NodeId, NodeKind, Tree};
+use crate::tree::{Decorator, Flow, FlowNext, NodeId, NodeKind, Tree};
 
 /// Dropped Poisson mass in each sampled density.
 const SAMPLE_TOLERANCE: f64 = 1e-16;
@@ -356,6 +356,7 @@ impl Builder<'_> {
             NodeKind::Fallback { children } | NodeKind::RoundRobin { children, .. } => {
                 self.in_turn(id, children, false)
             }
+            NodeKind::Flow(flow) => self.flow(id, flow),
             NodeKind::Decorator { decorator, child } => {
                 let law = match self.piece(*child)? {
                     Piece::Law(l) => l,
@@ -491,6 +492,58 @@ impl Builder<'_> {
             laws.push(self.chain_law(id, &phase::concatenate(run, sequence))?);
         }
         self.fold(id, &laws, sequence)
+    }
+
+    /// A flow: the law of the time each state is entered (`δ₀` for state 0)
+    /// carried forward, convolved with the state's child's Success and
+    /// Failure laws and added to where each leads.
+    fn flow(&self, id: NodeId, flow: &Flow) -> Result<Law, AnalysisError> {
+        let laws = flow
+            .children
+            .iter()
+            .map(|&c| match self.piece(c)? {
+                Piece::Law(l) => Ok(l),
+                Piece::Chain(chain) => self.chain_law(c, &chain),
+            })
+            .collect::<Result<Vec<_>, AnalysisError>>()?;
+        let mut entered: Vec<Option<Measure>> = vec![None; flow.states.len()];
+        entered[0] = Some(Measure::unit());
+        let mut ends = [Measure::zero(), Measure::zero()];
+        for (i, s) in flow.states.iter().enumerate() {
+            let Some(here) = entered[i].take() else {
+                continue;
+            };
+            if here.mass() < NEGLIGIBLE {
+                continue;
+            }
+            for (o, next) in [(SUCCESS, s.on_success), (FAILURE, s.on_failure)] {
+                let m = self.convolve(id, &here, &laws[s.child].measure(o))?;
+                let slot = match next {
+                    FlowNext::State(j) => &mut entered[j],
+                    FlowNext::Success => {
+                        ends[SUCCESS] = self.add(id, &ends[SUCCESS], &m)?;
+                        continue;
+                    }
+                    FlowNext::Failure => {
+                        ends[FAILURE] = self.add(id, &ends[FAILURE], &m)?;
+                        continue;
+                    }
+                };
+                *slot = Some(match slot.take() {
+                    Some(before) => self.add(id, &before, &m)?,
+                    None => m,
+                });
+            }
+        }
+        let [s, f] = ends;
+        let zero = || Interpolant::zero(self.end);
+        Ok(Law {
+            atom: [s.atom, f.atom],
+            density: [
+                s.density.unwrap_or_else(zero),
+                f.density.unwrap_or_else(zero),
+            ],
+        })
     }
 
     /// Children's laws run in turn; a Sequence (`sequence`) goes on after a

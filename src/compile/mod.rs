@@ -21,6 +21,7 @@ pub mod atoms;
 pub mod book_ctmc;
 pub mod counts;
 pub mod curve;
+pub mod flow;
 pub(crate) mod law;
 pub mod mrg;
 pub mod phase;
@@ -329,6 +330,10 @@ fn node_figures(
             return Ok(f);
         }
         return decorator_figures(decorator, child_figs[0]).map_err(numerical);
+    }
+    if let NodeKind::Flow(flow) = &node.kind {
+        let a = solve_absorbing(&flow::figures_chain(flow, &child_figs)).map_err(numerical)?;
+        return Ok(Figures::from_absorption(&a));
     }
     let policy = Policy::of(&node.kind).expect("control node");
     let numerical = |what: String| AnalysisError::Numerical {

@@ -131,6 +131,17 @@ pub fn combine(
             );
             Ok(concatenate(chains, sequence))
         }
+        NodeKind::Flow(flow) => {
+            let total = super::flow::glued_len(flow, &chains);
+            if total > max_states {
+                return Err(AnalysisError::StateBudget {
+                    node: node.name.clone(),
+                    states: total as f64,
+                    budget: max_states,
+                });
+            }
+            Ok(super::flow::glue(flow, &chains))
+        }
         NodeKind::Decorator { decorator, .. } => {
             let mut c = chains.into_iter().next().expect("a decorator has a child");
             let decorator = decorator.as_primitive();

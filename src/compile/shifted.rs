@@ -37,7 +37,7 @@ use super::mrg::Outcome;
 use super::phase;
 use super::AnalysisError;
 use crate::solve::chain::PhaseChain;
-use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
+use crate::tree::{Decorator, Duration, Flow, FlowNext, NodeId, NodeKind, Tree};
 
 /// One term `weight · (δ_shift ⊛ PH(chain))` of an outcome's law.
 #[derive(Debug, Clone)]
@@ -243,6 +243,7 @@ pub fn shifted_law(
         NodeKind::Fallback { .. } | NodeKind::RoundRobin { .. } => {
             in_turn(laws, false, tree, id, max_states)?
         }
+        NodeKind::Flow(flow) => through_flow(&laws, flow, tree, id, max_states)?,
         NodeKind::Decorator { decorator, .. } => {
             let l = laws.pop().expect("a decorator has a child");
             match decorator.as_primitive() {
@@ -330,5 +331,50 @@ fn in_turn(
             success: stopped,
             failure: going,
         }
+    })
+}
+
+/// A flow: the law of the time each state is entered (`δ₀` for state 0),
+/// carried forward state by state — convolved with the state's child's
+/// Success and Failure laws and added to the entry law of the state each
+/// leads to, or to the node's outcome.
+fn through_flow(
+    laws: &[ShiftedLaw],
+    flow: &Flow,
+    tree: &Tree,
+    id: NodeId,
+    max_states: usize,
+) -> Result<ShiftedLaw, AnalysisError> {
+    let mut entered: Vec<Vec<Component>> = vec![Vec::new(); flow.states.len()];
+    entered[0].push(atom(0.0, 1.0));
+    let mut out = ShiftedLaw::default();
+    for (i, s) in flow.states.iter().enumerate() {
+        let here = tidy(std::mem::take(&mut entered[i]));
+        if here.is_empty() {
+            continue;
+        }
+        let l = &laws[s.child];
+        for (side, next) in [(&l.success, s.on_success), (&l.failure, s.on_failure)] {
+            let comps = convolve(&here, side);
+            match next {
+                FlowNext::State(j) => entered[j].extend(comps),
+                FlowNext::Success => out.success.extend(comps),
+                FlowNext::Failure => out.failure.extend(comps),
+            }
+        }
+        let phases: usize = entered
+            .iter()
+            .flatten()
+            .chain(&out.success)
+            .chain(&out.failure)
+            .map(|c| c.chain.len().max(1))
+            .sum();
+        if phases > max_states {
+            return Err(budget(tree, id, phases as f64, max_states));
+        }
+    }
+    Ok(ShiftedLaw {
+        success: tidy(out.success),
+        failure: tidy(out.failure),
     })
 }

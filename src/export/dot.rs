@@ -86,6 +86,10 @@ fn node_lines(tree: &Tree, id: NodeId) -> (Vec<String>, &'static str) {
             }
             (vec![head, name], CONTROL)
         }
+        NodeKind::Flow(flow) => (
+            vec![format!("⑂ flow, {} states", flow.states.len()), name],
+            CONTROL,
+        ),
         NodeKind::Decorator { decorator, .. } => {
             let kind = match decorator {
                 Decorator::Retry { attempts } => format!("retry {attempts}"),

@@ -29,7 +29,7 @@
 use rand::Rng;
 use rand_distr::{Distribution, Exp1};
 
-use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
+use crate::tree::{Decorator, Duration, FlowNext, NodeId, NodeKind, Tree};
 
 /// Outcomes compare the top 53 bits of a `u64` draw with `round(ps · 2^53)`.
 const ONE53: f64 = (1u64 << 53) as f64;
@@ -113,6 +113,11 @@ enum Op {
         kind: DecoratorOp,
         n: u32,
     },
+    /// A flow: its states are `Program::steps[first..end]`, state 0 first.
+    Flow {
+        first: u32,
+        end: u32,
+    },
     /// Nav2 PipelineSequence; `modes[first..end - 1]` (same offsets as the
     /// children in `kids`) say what re-ticking each earlier child does.
     Pipeline {
@@ -155,6 +160,18 @@ struct Rerun {
     since: f64,
 }
 
+/// One state of a flow: run op `child`, then go to `next[ok as usize]`
+/// (a state index relative to the flow's first, or [`FLOW_SUCCESS`] /
+/// [`FLOW_FAILURE`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Step {
+    child: u32,
+    next: [u32; 2],
+}
+
+const FLOW_SUCCESS: u32 = u32::MAX - 1;
+const FLOW_FAILURE: u32 = u32::MAX;
+
 /// What a decorator does with its child's runs.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum DecoratorOp {
@@ -184,6 +201,7 @@ pub(crate) struct Program {
     ops: Vec<Op>,
     kids: Vec<u32>,
     leaves: Vec<Leaf>,
+    steps: Vec<Step>,
     root: u32,
     /// Total number of children of Parallel nodes (bounds the scratch stacks).
     parallel_kids: usize,
@@ -210,6 +228,7 @@ impl Program {
             ops: Vec::new(),
             kids: Vec::new(),
             leaves: Vec::new(),
+            steps: Vec::new(),
             root: 0,
             parallel_kids: 0,
             modes: Vec::new(),
@@ -305,6 +324,25 @@ impl Program {
                     wrap,
                     slot,
                 });
+            }
+            NodeKind::Flow(flow) => {
+                let ops: Vec<u32> = flow
+                    .children
+                    .iter()
+                    .map(|&c| self.compile(tree, c))
+                    .collect();
+                let code = |n: FlowNext| match n {
+                    FlowNext::State(j) => j as u32,
+                    FlowNext::Success => FLOW_SUCCESS,
+                    FlowNext::Failure => FLOW_FAILURE,
+                };
+                let first = self.steps.len() as u32;
+                self.steps.extend(flow.states.iter().map(|s| Step {
+                    child: ops[s.child],
+                    next: [code(s.on_failure), code(s.on_success)],
+                }));
+                let end = self.steps.len() as u32;
+                return self.push(Op::Flow { first, end });
             }
             NodeKind::Sequence { children } => (Chain::Sequence, children),
             NodeKind::Fallback { children } => (Chain::Fallback, children),
@@ -477,6 +515,21 @@ impl Program {
                 // all failed: halt() resets the index
                 scratch.rr[slot as usize] = 0;
                 (false, t)
+            }
+            Op::Flow { first, end } => {
+                let steps = &self.steps[first as usize..end as usize];
+                let (mut state, mut t) = (0u32, 0.0);
+                loop {
+                    let step = steps[state as usize];
+                    let (ok, d) = self.run(step.child, rng, scratch);
+                    t += d;
+                    state = step.next[ok as usize];
+                    match state {
+                        FLOW_SUCCESS => return (true, t),
+                        FLOW_FAILURE => return (false, t),
+                        _ => {}
+                    }
+                }
             }
             Op::Decorator { child, kind, n } => match kind {
                 DecoratorOp::Invert => {

@@ -270,6 +270,28 @@ fn endless_loop(tree: &Tree, root: NodeId) -> Option<NodeId> {
                 let f_needed = (*failure_threshold).min(kids.len() + 1 - success_threshold);
                 (s >= *success_threshold, f >= f_needed)
             }
+            NodeKind::Flow(flow) => {
+                use crate::tree::FlowNext;
+                // which states, and which outcomes, some run reaches
+                let mut reached = vec![false; flow.states.len()];
+                reached[0] = true;
+                let (mut s, mut f) = (false, false);
+                for (i, st) in flow.states.iter().enumerate() {
+                    if !reached[i] {
+                        continue;
+                    }
+                    let (cs, cf) = can[flow.children[st.child]];
+                    for (possible, next) in [(cs, st.on_success), (cf, st.on_failure)] {
+                        match next {
+                            _ if !possible => {}
+                            FlowNext::State(j) => reached[j] = true,
+                            FlowNext::Success => s = true,
+                            FlowNext::Failure => f = true,
+                        }
+                    }
+                }
+                (s, f)
+            }
             NodeKind::Decorator { decorator, child } => {
                 let (s, f) = can[*child];
                 match decorator {

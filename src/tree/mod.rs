@@ -101,6 +101,12 @@ pub enum NodeKind {
         /// Identity of the index: nodes with the same slot share one index.
         slot: usize,
     },
+    /// A flow: a finite acyclic graph of states, each running one child (a
+    /// fresh, independent run at every visit), whose Success and Failure
+    /// edges lead to a later state or to the node's own Success or Failure.
+    /// The run starts in state 0. Sequence, Fallback, IfThenElse, Switch and
+    /// a Retry of a SequenceWithMemory are flows (see [`Flow`]).
+    Flow(Flow),
     /// A node with one child that changes its outcome or repeats it.
     Decorator {
         /// Which decorator.
@@ -108,6 +114,104 @@ pub enum NodeKind {
         /// The child.
         child: NodeId,
     },
+}
+
+/// Where a flow goes after a state's child returns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FlowNext {
+    /// Run the state with this index (greater than the current one).
+    State(usize),
+    /// The flow returns Success.
+    Success,
+    /// The flow returns Failure.
+    Failure,
+}
+
+/// One state of a [`Flow`]: run child `children[child]`, then follow
+/// `on_success` or `on_failure`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FlowState {
+    /// Position of the child in [`Flow::children`].
+    pub child: usize,
+    /// Where to go when the child returns Success.
+    pub on_success: FlowNext,
+    /// Where to go when the child returns Failure.
+    pub on_failure: FlowNext,
+}
+
+/// The branching primitive: see [`NodeKind::Flow`].
+///
+/// Invariants (checked by [`Flow::new`]): at least one state; every state's
+/// child exists; every edge to a state goes to a later one (the graph is
+/// acyclic and its states are in topological order); every child is run by
+/// some state.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Flow {
+    /// The children (distinct subtrees), in tree order.
+    pub children: Vec<NodeId>,
+    /// The states; the run starts in `states[0]`.
+    pub states: Vec<FlowState>,
+}
+
+impl Flow {
+    /// A flow over `children` with `states`, or what is wrong with it.
+    pub fn new(children: Vec<NodeId>, states: Vec<FlowState>) -> Result<Flow, String> {
+        if states.is_empty() {
+            return Err("a flow needs at least one state".into());
+        }
+        let mut used = vec![false; children.len()];
+        for (i, s) in states.iter().enumerate() {
+            let Some(u) = used.get_mut(s.child) else {
+                return Err(format!(
+                    "state {i} runs child {} but the flow has {} children",
+                    s.child,
+                    children.len()
+                ));
+            };
+            *u = true;
+            for next in [s.on_success, s.on_failure] {
+                if let FlowNext::State(j) = next {
+                    if j <= i || j >= states.len() {
+                        return Err(format!(
+                            "state {i} goes to state {j}: a state may only go to a later state \
+                             (1..{} here), to success or to failure",
+                            states.len()
+                        ));
+                    }
+                }
+            }
+        }
+        if let Some(c) = used.iter().position(|u| !u) {
+            return Err(format!("child {c} is run by no state"));
+        }
+        Ok(Flow { children, states })
+    }
+
+    /// `IfThenElse(C, T, E)`: run C; on Success run T, on Failure run E (or
+    /// return Failure without `E`); return what T or E returns.
+    pub fn if_then_else(condition: NodeId, then: NodeId, otherwise: Option<NodeId>) -> Flow {
+        let mut children = vec![condition, then];
+        let mut states = vec![FlowState {
+            child: 0,
+            on_success: FlowNext::State(1),
+            on_failure: FlowNext::Failure,
+        }];
+        states.push(FlowState {
+            child: 1,
+            on_success: FlowNext::Success,
+            on_failure: FlowNext::Failure,
+        });
+        if let Some(e) = otherwise {
+            children.push(e);
+            states[0].on_failure = FlowNext::State(2);
+            states.push(FlowState {
+                child: 2,
+                on_success: FlowNext::Success,
+                on_failure: FlowNext::Failure,
+            });
+        }
+        Flow { children, states }
+    }
 }
 
 /// Decorators (BehaviorTree.CPP semantics under the SBT assumptions).
@@ -189,6 +293,7 @@ impl NodeKind {
             NodeKind::Parallel { .. } => "parallel",
             NodeKind::Pipeline { .. } => "pipeline_sequence",
             NodeKind::RoundRobin { .. } => "round_robin",
+            NodeKind::Flow(_) => "flow",
             NodeKind::Decorator { decorator, .. } => decorator.keyword(),
         }
     }
@@ -200,7 +305,8 @@ impl NodeKind {
             | NodeKind::Fallback { children }
             | NodeKind::Pipeline { children }
             | NodeKind::RoundRobin { children, .. }
-            | NodeKind::Parallel { children, .. } => children,
+            | NodeKind::Parallel { children, .. }
+            | NodeKind::Flow(Flow { children, .. }) => children,
             NodeKind::Decorator { child, .. } => std::slice::from_ref(child),
             NodeKind::Action(_) | NodeKind::Condition { .. } => &[],
         }

@@ -90,6 +90,12 @@ pub fn outcomes(tree: &Tree, id: NodeId) -> (bool, bool) {
         // a start index past a failing child may still reach every child
         NodeKind::RoundRobin { wrap, .. } => (any(s), !wrap || any(f)),
         NodeKind::Parallel { .. } => (any(s), any(f)),
+        // a flow's edges may map either outcome of a child to either of its
+        // own: any return is possible as far as this rough test knows
+        NodeKind::Flow(_) => {
+            let r = any(s) || any(f);
+            (r, r)
+        }
         NodeKind::Decorator { decorator, .. } => {
             let (s, f) = kids[0];
             match decorator {
@@ -252,9 +258,14 @@ fn repeated(tree: &Tree, id: NodeId, slot: usize) -> Option<String> {
     }) {
         return Some(format!("'{}' is a copy of it", other.1.name));
     }
-    let mut up = tree.nodes[id].parent;
+    let (mut below, mut up) = (id, tree.nodes[id].parent);
     while let Some(a) = up {
         let again = match &tree.nodes[a].kind {
+            // a flow may visit the same child from several states
+            NodeKind::Flow(flow) => {
+                let at = flow.children.iter().position(|&c| c == below);
+                at.is_some_and(|k| flow.states.iter().filter(|s| s.child == k).count() > 1)
+            }
             NodeKind::Decorator { decorator, .. } => match decorator {
                 Decorator::Retry { attempts } => *attempts > 1,
                 Decorator::Repeat { times } => *times > 1,
@@ -266,7 +277,7 @@ fn repeated(tree: &Tree, id: NodeId, slot: usize) -> Option<String> {
         if again {
             return Some(format!("its ancestor '{}' repeats it", tree.nodes[a].name));
         }
-        up = tree.nodes[a].parent;
+        (below, up) = (a, tree.nodes[a].parent);
     }
     None
 }

@@ -23,7 +23,7 @@ use serde::Deserialize;
 
 use super::action::{sloc, validate_action, ActionParams, At};
 use super::error::{nearest, TreeError};
-use super::{Action, Decorator, Node, NodeKind, Tree};
+use super::{Action, Decorator, Flow, FlowNext, FlowState, Node, NodeKind, Tree};
 
 /// Bounds on what the parser accepts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -62,6 +62,8 @@ const NODE_KINDS: &[&str] = &[
     "repeat",
     "until_failure",
     "until_success",
+    "if_then_else",
+    "flow",
 ];
 
 impl NodeDef {
@@ -72,9 +74,10 @@ impl NodeDef {
         while let Some(d) = stack.pop() {
             n += 1;
             match d {
-                NodeDef::Sequence(c) | NodeDef::Fallback(c) => {
+                NodeDef::Sequence(c) | NodeDef::Fallback(c) | NodeDef::IfThenElse(c) => {
                     stack.extend(c.children.value.iter().map(|c| &c.value))
                 }
+                NodeDef::Flow(f) => stack.extend(f.children.value.iter().map(|c| &c.value)),
                 NodeDef::Parallel(p) => stack.extend(p.children.value.iter().map(|c| &c.value)),
                 NodeDef::Action(_) | NodeDef::Condition(_) => {}
                 NodeDef::Inverter(d)
@@ -113,6 +116,33 @@ enum NodeDef {
     Repeat(Box<RepeatDef>),
     UntilFailure(Box<DecoratorDef>),
     UntilSuccess(Box<DecoratorDef>),
+    IfThenElse(ControlDef),
+    Flow(FlowDef),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FlowDef {
+    #[serde(default)]
+    name: Option<At<String>>,
+    children: At<Vec<At<NodeDef>>>,
+    states: At<Vec<At<StateDef>>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct StateDef {
+    run: At<f64>,
+    success: At<NextDef>,
+    failure: At<NextDef>,
+}
+
+/// Where a flow state leads: a state number or `success` / `failure`.
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum NextDef {
+    State(f64),
+    Outcome(String),
 }
 
 #[derive(Deserialize)]
@@ -955,9 +985,29 @@ impl Builder<'_> {
                 },
                 Some(&p.children),
             ),
+            NodeDef::IfThenElse(c) => (
+                &c.name,
+                NodeKind::Flow(Flow {
+                    children: Vec::new(),
+                    states: Vec::new(),
+                }),
+                Some(&c.children),
+            ),
+            NodeDef::Flow(f) => (
+                &f.name,
+                NodeKind::Flow(Flow {
+                    children: Vec::new(),
+                    states: Vec::new(),
+                }),
+                Some(&f.children),
+            ),
             _ => unreachable!("decorators are handled above"),
         };
-        let name = self.node_name(name, kind.keyword(), &path)?;
+        let keyword = match &def.value {
+            NodeDef::IfThenElse(_) => "if_then_else",
+            _ => kind.keyword(),
+        };
+        let name = self.node_name(name, keyword, &path)?;
         self.nodes.push(Node {
             name,
             path: path.clone(),
@@ -982,6 +1032,24 @@ impl Builder<'_> {
                 NodeDef::Parallel(p) => Some(self.thresholds(p, ids.len())?),
                 _ => None,
             };
+            let flow = match &def.value {
+                NodeDef::IfThenElse(_) => {
+                    if !(2..=3).contains(&ids.len()) {
+                        return Err(self
+                            .err(
+                                loc(list),
+                                format!("if_then_else has {} children", ids.len()),
+                            )
+                            .with_help(
+                                "if_then_else takes 2 or 3 children: condition, then, else \
+                                 (without else it fails when the condition fails)",
+                            ));
+                    }
+                    Some(Flow::if_then_else(ids[0], ids[1], ids.get(2).copied()))
+                }
+                NodeDef::Flow(f) => Some(self.flow(f, ids.clone())?),
+                _ => None,
+            };
             match &mut self.nodes[id].kind {
                 NodeKind::Sequence { children } | NodeKind::Fallback { children } => {
                     *children = ids
@@ -994,6 +1062,7 @@ impl Builder<'_> {
                     *children = ids;
                     (*success_threshold, *failure_threshold) = thresholds.unwrap_or((0, 0));
                 }
+                NodeKind::Flow(f) => *f = flow.expect("a flow definition"),
                 _ => unreachable!("only control nodes have children"),
             }
         }
@@ -1042,6 +1111,65 @@ impl Builder<'_> {
             ),
             _ => return Ok(None),
         }))
+    }
+
+    /// The states of a `flow:` over children `ids`.
+    fn flow(&self, def: &FlowDef, ids: Vec<usize>) -> Result<Flow, TreeError> {
+        let n_states = def.states.value.len();
+        let index = |v: &At<f64>, what: &str, bound: usize| -> Result<usize, TreeError> {
+            let x = v.value;
+            if !(x.is_finite() && x.fract() == 0.0 && x >= 0.0 && x < bound as f64) {
+                return Err(self
+                    .err(loc(v), format!("{what} {x} does not exist"))
+                    .with_help(format!(
+                        "{what}s are numbered from 0 to {} in the order written",
+                        bound.saturating_sub(1)
+                    )));
+            }
+            Ok(x as usize)
+        };
+        let mut states = Vec::with_capacity(n_states);
+        for (i, s) in def.states.value.iter().enumerate() {
+            let child = index(&s.value.run, "child", ids.len())?;
+            let next = |n: &At<NextDef>| -> Result<FlowNext, TreeError> {
+                match &n.value {
+                    NextDef::Outcome(w) if w == "success" => Ok(FlowNext::Success),
+                    NextDef::Outcome(w) if w == "failure" => Ok(FlowNext::Failure),
+                    NextDef::Outcome(w) => Err(self
+                        .err(loc(n), format!("`{w}` is not a state"))
+                        .with_help("write a later state's number, `success` or `failure`")),
+                    NextDef::State(_) => {
+                        let at = At {
+                            value: match n.value {
+                                NextDef::State(x) => x,
+                                _ => unreachable!(),
+                            },
+                            line: n.line,
+                            column: n.column,
+                        };
+                        let j = index(&at, "state", n_states)?;
+                        if j <= i {
+                            return Err(self
+                                .err(loc(n), format!("state {i} goes back to state {j}"))
+                                .with_help(
+                                    "a flow is acyclic: a state may only lead to a later state \
+                                     (repeat with retry/repeat around the flow instead)",
+                                ));
+                        }
+                        Ok(FlowNext::State(j))
+                    }
+                }
+            };
+            states.push(FlowState {
+                child,
+                on_success: next(&s.value.success)?,
+                on_failure: next(&s.value.failure)?,
+            });
+        }
+        Flow::new(ids, states).map_err(|what| {
+            self.err(loc(&def.states), format!("invalid flow: {what}"))
+                .with_help("every child must be run by some state; state 0 runs first")
+        })
     }
 
     /// A repetition count: a whole number from 1 to 1,000,000.
@@ -1164,8 +1292,9 @@ fn name_location(def: &At<NodeDef>) -> Option<(usize, usize)> {
     let name = match &def.value {
         NodeDef::Action(a) => &a.name,
         NodeDef::Condition(c) => &c.name,
-        NodeDef::Sequence(c) | NodeDef::Fallback(c) => &c.name,
+        NodeDef::Sequence(c) | NodeDef::Fallback(c) | NodeDef::IfThenElse(c) => &c.name,
         NodeDef::Parallel(p) => &p.name,
+        NodeDef::Flow(f) => &f.name,
         NodeDef::Inverter(d)
         | NodeDef::ForceSuccess(d)
         | NodeDef::ForceFailure(d)

@@ -52,7 +52,14 @@
 //!   child when ticked again after a failure, so below a node that ticks a
 //!   failed child again (`RetryUntilSuccessful` with more than one attempt,
 //!   the main branch of a `RecoveryNode`) it differs from a fresh Sequence:
-//!   that case is refused.
+//!   that case is refused — except as the direct child of a
+//!   `RetryUntilSuccessful` without a retrying ancestor, which becomes one
+//!   flow over (failures so far, child index) ([`Builder::retry_with_memory`]).
+//! * `IfThenElse` (2 or 3 children) is the flow C → (Success: T, Failure: E
+//!   or Failure); `WhileDoElse` likewise when its condition child holds
+//!   conditions only (BT.CPP re-ticks it while a branch runs, which changes
+//!   nothing while conditions keep their value); with an action there it is
+//!   refused.
 //! * `Parallel`: v4 `success_count` (default −1), `failure_count` (default
 //!   1); v3 `success_threshold` (required), `failure_threshold` (default 1);
 //!   a negative count k means N + k + 1. A file without `BTCPP_format` uses
@@ -74,7 +81,7 @@
 //!   `SubTreePlus` (v3) is `SubTree`.
 //!
 //! Known node types without a stochastic meaning yet (scripting conditions,
-//! Switch, IfThenElse, Timeout, Delay, KeepRunningUntilFailure, loops, Nav2's
+//! Switch, Timeout, loops, Nav2's
 //! PipelineSequence, RateController, RoundRobin, ...), custom control nodes
 //! and decorators, counts from the blackboard or −1 (forever), and
 //! pre-conditions (`_skipIf`, `_failureIf`, `_successIf`, `_while`, unless
@@ -117,7 +124,7 @@ use std::path::Path;
 
 use super::action::{sloc, validate_action, ActionParams, At, Loc};
 use super::error::{nearest, TreeError};
-use super::{Decorator, Node, NodeKind, Tree};
+use super::{Decorator, Flow, FlowNext, FlowState, Node, NodeKind, Tree};
 
 /// Largest XML or params file, in bytes.
 pub const MAX_BYTES: usize = 256 << 20;
@@ -796,8 +803,9 @@ fn unsupported(ty: &str) -> Option<&'static str> {
         | "BlackboardCheckString" | "BlackboardCheckBool" => {
             "its outcome is computed from blackboard values"
         }
-        "Switch2" | "Switch3" | "Switch4" | "Switch5" | "Switch6" | "IfThenElse"
-        | "WhileDoElse" | "ManualSelector" => "it branches on blackboard values or user input",
+        "Switch2" | "Switch3" | "Switch4" | "Switch5" | "Switch6" | "ManualSelector" => {
+            "it branches on blackboard values or user input"
+        }
         "Timeout" => "its outcome depends on the clock",
         "RunOnce" | "LoopInt" | "LoopDouble" | "LoopString"
         | "LoopBool" | "ConsumeQueue" | "ParallelAll" | "ForEach"
@@ -851,6 +859,8 @@ const BUILTINS: &[&str] = &[
     "RateController",
     "SingleTrigger",
     "GoalUpdater",
+    "IfThenElse",
+    "WhileDoElse",
     "Action",
     "Condition",
     "Control",
@@ -862,6 +872,10 @@ const BUILTINS: &[&str] = &[
     "SetBlackboard",
     "UnsetBlackboard",
 ];
+
+/// Most states of a flow built from BT.CPP nodes (a RetryUntilSuccessful
+/// over a SequenceWithMemory has attempts × children states).
+pub const MAX_FLOW_STATES: usize = 1_000_000;
 
 /// Most retries of a RecoveryNode (each adds two levels to the tree).
 pub const MAX_RECOVERY_RETRIES: u64 = 1000;
@@ -898,6 +912,9 @@ struct Builder<'a> {
     /// ReactiveSequence / ReactiveFallback nodes (node, source, location,
     /// type), checked once the leaves are known to be actions or conditions.
     reactive: Vec<(usize, usize, Loc, &'a str)>,
+    /// WhileDoElse nodes (node, source, location), checked once the leaves
+    /// are known: their condition child must take no time.
+    while_do_else: Vec<(usize, usize, Loc)>,
     problems: Vec<Problem>,
     seen_problems: HashSet<(usize, Loc, String)>,
     /// The source of the element being built (for error locations).
@@ -1183,7 +1200,8 @@ impl<'a> Builder<'a> {
             | NodeKind::RoundRobin { children, .. }
             | NodeKind::Parallel { children, .. } => *children = ids,
             NodeKind::Decorator { child, .. } => *child = ids[0],
-            NodeKind::Action(_) | NodeKind::Condition { .. } => {}
+            // a flow is built whole once its children are known
+            NodeKind::Action(_) | NodeKind::Condition { .. } | NodeKind::Flow(_) => {}
         }
     }
 
@@ -1202,6 +1220,81 @@ impl<'a> Builder<'a> {
             ids.push(self.node(c, Some(id), depth + 1, format!("{path}.{i}"), prefix, retry)?);
         }
         Ok(ids)
+    }
+
+    /// `RetryUntilSuccessful(n ≥ 2)` over a `SequenceWithMemory` (element
+    /// `swm`): BT.CPP's SequenceWithMemory keeps its index after a failure,
+    /// so the next attempt resumes at the failed child. One flow over
+    /// (failures so far f < n, child i): child i's Success goes to (f, i + 1)
+    /// (Success after the last child), its Failure to (f + 1, i) (Failure at
+    /// the n-th). The flow node carries the Retry's name; the
+    /// SequenceWithMemory's children are its children. Exact as long as
+    /// nothing ticks the Retry again after it failed (checked by the caller:
+    /// no retrying ancestor), where the kept index would carry over.
+    #[allow(clippy::too_many_arguments)]
+    fn retry_with_memory(
+        &mut self,
+        e: &'a Elem,
+        swm: usize,
+        base: &str,
+        attempts: usize,
+        parent: Option<usize>,
+        depth: usize,
+        path: &str,
+        prefix: &str,
+    ) -> Result<usize, TreeError> {
+        let s = self.elem(swm);
+        self.check_attrs(s, &["name"], false)?;
+        let k = s.children.len();
+        if k == 0 {
+            return Err(self
+                .err(s.loc, format!("<{}> has no children", s.name))
+                .with_help("a control node needs at least one child"));
+        }
+        if attempts.saturating_mul(k) > MAX_FLOW_STATES {
+            self.problem(
+                e.doc,
+                e.loc,
+                format!(
+                    "<{}> of {attempts} attempts over a SequenceWithMemory of {k} children: \
+                     {} states, more than the {MAX_FLOW_STATES} btrel builds",
+                    e.name,
+                    attempts.saturating_mul(k)
+                ),
+                true,
+            );
+            return self.placeholder(e, base, parent, depth, path, prefix, None);
+        }
+        let kind = NodeKind::Flow(Flow {
+            children: Vec::new(),
+            states: Vec::new(),
+        });
+        let id = self.push(e, base, prefix, parent, depth, path, kind)?;
+        // the SequenceWithMemory's children sit directly below the flow;
+        // below them, a failed child is ticked again (on the next attempt)
+        let ids = self.children(s, id, depth, path, prefix, Some("RetryUntilSuccessful"))?;
+        let mut states = Vec::with_capacity(attempts * k);
+        for f in 0..attempts {
+            for i in 0..k {
+                states.push(FlowState {
+                    child: i,
+                    on_success: if i + 1 < k {
+                        FlowNext::State(f * k + i + 1)
+                    } else {
+                        FlowNext::Success
+                    },
+                    on_failure: if f + 1 < attempts {
+                        FlowNext::State((f + 1) * k + i)
+                    } else {
+                        FlowNext::Failure
+                    },
+                });
+            }
+        }
+        self.nodes[id].kind = NodeKind::Flow(
+            Flow::new(ids, states).expect("the states of a retried SequenceWithMemory are valid"),
+        );
+        Ok(id)
     }
 
     /// A stand-in for a node that is reported as a problem: its children
@@ -1417,6 +1510,30 @@ impl<'a> Builder<'a> {
                 }
                 Ok(id)
             }
+            "IfThenElse" | "WhileDoElse" => {
+                self.check_attrs(e, &attrs(&[]), false)?;
+                if !(2..=3).contains(&e.children.len()) {
+                    return Err(self
+                        .err(e.loc, format!("<{ty}> has {} children", e.children.len()))
+                        .with_help(format!(
+                            "<{ty}> takes 2 or 3 children: the condition, the branch run on its \
+                             Success, and (optionally) the one run on its Failure"
+                        )));
+                }
+                let base = self.name_attr(e)?.unwrap_or_else(default_name);
+                let kind = NodeKind::Flow(Flow {
+                    children: Vec::new(),
+                    states: Vec::new(),
+                });
+                let id = self.push(e, &base, prefix, parent, depth, &path, kind)?;
+                let ids = self.children(e, id, depth, &path, prefix, retry)?;
+                self.nodes[id].kind =
+                    NodeKind::Flow(Flow::if_then_else(ids[0], ids[1], ids.get(2).copied()));
+                if canon == "WhileDoElse" {
+                    self.while_do_else.push((id, e.doc, e.loc));
+                }
+                Ok(id)
+            }
             "Inverter"
             | "ForceSuccess"
             | "ForceFailure"
@@ -1454,6 +1571,16 @@ impl<'a> Builder<'a> {
                             let base = self.name_attr(e)?.unwrap_or_else(default_name);
                             return self.placeholder(e, &base, parent, depth, &path, prefix, retry);
                         };
+                        if attempts > 1 && retry.is_none() {
+                            if let [only] = e.children[..] {
+                                if canonical(&self.elem(only).name) == "SequenceWithMemory" {
+                                    let base = self.name_attr(e)?.unwrap_or_else(default_name);
+                                    return self.retry_with_memory(
+                                        e, only, &base, attempts, parent, depth, &path, prefix,
+                                    );
+                                }
+                            }
+                        }
                         // one attempt never ticks a failed child again
                         let r = if attempts > 1 {
                             Some("RetryUntilSuccessful")
@@ -2371,6 +2498,7 @@ fn build(files: Files, params: &str, params_file: &str) -> Result<Tree, TreeErro
         name_bytes: 0,
         leaves: Vec::new(),
         reactive: Vec::new(),
+        while_do_else: Vec::new(),
         problems: Vec::new(),
         seen_problems: HashSet::new(),
         cur: std::cell::Cell::new(0),
@@ -2772,6 +2900,26 @@ fn build(files: Files, params: &str, params_file: &str) -> Result<Tree, TreeErro
             });
         }
     }
+    // WhileDoElse ticks its condition child again at every tick of a
+    // running branch and halts the branch if the outcome changes: with
+    // conditions only (which keep their value) that is IfThenElse; an action
+    // there would be ticked again after it returned, which no fresh run
+    // models.
+    for &(id, doc, loc) in &b.while_do_else {
+        let condition = b.nodes[id].kind.children()[0];
+        if has_action(condition) {
+            restarts.push(Problem {
+                doc,
+                loc,
+                text: "<WhileDoElse> whose condition child holds an action: BT.CPP ticks that \
+                       child again at every tick while a branch runs (and halts the branch when \
+                       its outcome changes); read as IfThenElse only when the condition child \
+                       takes no time (conditions only)"
+                    .to_string(),
+                semantic: true,
+            });
+        }
+    }
     if let Some(first) = restarts.first() {
         let n = restarts.len();
         let refs: Vec<&Problem> = restarts.iter().collect();
@@ -2788,7 +2936,8 @@ fn build(files: Files, params: &str, params_file: &str) -> Result<Tree, TreeErro
             .with_help(
                 "ReactiveSequence and ReactiveFallback are read as Sequence and Fallback when \
                  at most one child holds actions (conditions before it are re-ticked, which \
-                 changes nothing while they keep their value)",
+                 changes nothing while they keep their value); WhileDoElse is read as \
+                 IfThenElse when its condition child holds conditions only",
             ));
     }
     Ok(Tree {

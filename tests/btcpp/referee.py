@@ -31,6 +31,10 @@ Leaves (registered under every leaf ID of the tree):
   nothing below that ancestor has been idle since the draw: then it keeps the
   value it drew. Retry/Repeat re-executions draw fresh values.
 
+With "fresh_tree" (--jobs) the tree is created afresh for every run (btrel
+models one execution of a fresh tree; SequenceWithMemory keeps its index
+after a failure, also into the next execution of the same tree instance).
+
 The tree is ticked by Tree.tick_while_running(sleep_ms): BT.CPP ticks,
 sleeps sleep_ms, ticks again. An action that finishes between two ticks is
 noticed at the next tick, so each sequential action step is observed late by
@@ -64,8 +68,10 @@ BUILTIN = {
     "Inverter", "ForceSuccess", "ForceFailure", "RetryUntilSuccessful",
     "RetryUntilSuccesful", "Repeat", "AlwaysSuccess", "AlwaysFailure",
     "Script", "SetBlackboard", "UnsetBlackboard", "Control", "Decorator",
+    "IfThenElse", "WhileDoElse",
 }
-REACTIVE = {"ReactiveSequence", "ReactiveFallback"}
+# nodes that tick their (condition) children again while a later child runs
+REACTIVE = {"ReactiveSequence", "ReactiveFallback", "WhileDoElse"}
 
 
 def fail(msg):
@@ -150,6 +156,7 @@ class Referee:
             else:
                 self.factory.register_simple_condition(leaf_id, self.condition)
         self.tree = self.factory.create_tree_from_text(self.xml)
+        self.fresh_tree = False
 
     def reset(self):
         self.actions = {}  # uid -> (deadline, outcome, last on_running time)
@@ -231,6 +238,8 @@ class Referee:
         start_all = time.monotonic()
         for _ in range(runs):
             self.reset()
+            if self.fresh_tree:
+                self.tree = self.factory.create_tree_from_text(self.xml)
             t0 = time.monotonic()
             status = self.tree.tick_while_running(sleep_ms)
             t1 = time.monotonic()
@@ -269,8 +278,9 @@ class Referee:
         }
 
 
-def job(xml_text, params, runs, seed, scale, sleep_ms):
+def job(xml_text, params, runs, seed, scale, sleep_ms, fresh_tree=False):
     ref = Referee(xml_text, params, scale, random.Random(seed))
+    ref.fresh_tree = fresh_tree
     return ref.run(runs, sleep_ms)
 
 
@@ -292,7 +302,8 @@ def main():
         out = []
         for j in jobs:
             r = job(j["xml"], j["params"], int(j.get("runs", a.runs)), int(j.get("seed", a.seed)),
-                    float(j.get("scale", a.scale)), int(j.get("sleep_ms", a.sleep_ms)))
+                    float(j.get("scale", a.scale)), int(j.get("sleep_ms", a.sleep_ms)),
+                    bool(j.get("fresh_tree", False)))
             r["name"] = j.get("name")
             out.append(r)
         json.dump(out, sys.stdout, indent=1)
