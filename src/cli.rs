@@ -721,7 +721,7 @@ fn analysis_failure(cmd: Cmd, method: Method) -> impl Fn(AnalysisError) -> Failu
                 }
                 fixes.push(simulate);
             }
-            AnalysisError::Unbounded { .. } => fixes.push(simulate),
+            AnalysisError::Unbounded { .. } | AnalysisError::Nav2 { .. } => fixes.push(simulate),
             AnalysisError::Numerical { .. } | AnalysisError::NeverReturns { .. } => {}
         }
         if cmd == Cmd::Plot && !matches!(e, AnalysisError::NeverReturns { .. }) {

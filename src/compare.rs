@@ -505,6 +505,8 @@ pub fn compare_with_progress(
         method: options.method,
         max_states: options.max_states,
     };
+    let view = compile::primitive_view(tree)?;
+    let tree = view.as_ref().unwrap_or(tree);
     let analysis = analyze(tree, &compile_options)?;
     let mut ev = Evaluator {
         tree: tree.clone(),

@@ -379,7 +379,10 @@ pub fn time_scale(tree: &Tree, node: NodeId) -> f64 {
             mean(a.success, a.ps).max(mean(a.failure, a.pf))
         }
         NodeKind::Condition { .. } => 0.0,
-        NodeKind::Sequence { children } | NodeKind::Fallback { children } => {
+        NodeKind::Sequence { children }
+        | NodeKind::Fallback { children }
+        | NodeKind::Pipeline { children }
+        | NodeKind::RoundRobin { children, .. } => {
             children.iter().map(|&c| time_scale(tree, c)).sum()
         }
         NodeKind::Parallel { children, .. } => children

@@ -529,11 +529,11 @@ fn all_leaves_without_parameters_are_listed_at_once() {
 fn node_types_without_a_meaning_are_listed_at_once() {
     let src = r#"<root BTCPP_format="4" main_tree_to_execute="Main">
   <BehaviorTree ID="Main">
-    <PipelineSequence>
-      <RateController hz="1"><A/></RateController>
+    <PersistentSequence>
+      <DistanceController distance="1"><A/></DistanceController>
       <Sequence _skipIf="x > 1"><A/></Sequence>
       <SubTree ID="Sub"/>
-    </PipelineSequence>
+    </PersistentSequence>
   </BehaviorTree>
   <BehaviorTree ID="Sub"><RunOnce><A/></RunOnce></BehaviorTree>
 </root>"#;
@@ -546,8 +546,8 @@ fn node_types_without_a_meaning_are_listed_at_once() {
     );
     let lines: Vec<&str> = e.message.lines().skip(1).collect();
     assert_eq!(lines.len(), 4, "{e}");
-    assert!(lines[0].starts_with("  t.xml:3:5: <PipelineSequence>: Nav2 control node"));
-    assert!(lines[1].starts_with("  t.xml:4:7: <RateController>: Nav2 decorator"));
+    assert!(lines[0].starts_with("  t.xml:3:5: <PersistentSequence>: Nav2 control node"));
+    assert!(lines[1].starts_with("  t.xml:4:7: <DistanceController>: Nav2 decorator"));
     assert!(lines[2].starts_with("  t.xml:5:17: `_skipIf` attribute on <Sequence>"));
     assert!(lines[3].starts_with("  t.xml:9:26: <RunOnce>"));
     assert_eq!((e.line, e.column), (3, 5));
@@ -1003,7 +1003,7 @@ fn include_elements_and_folders_are_read_from_disk() {
     // a tree refused for node semantics only exits with 1
     std::fs::write(
         p.join("nav.xml"),
-        r#"<root><BehaviorTree ID="M"><PipelineSequence><Put/></PipelineSequence></BehaviorTree></root>"#,
+        r#"<root><BehaviorTree ID="M"><PersistentSequence><Put/></PersistentSequence></BehaviorTree></root>"#,
     )
     .unwrap();
     std::fs::write(p.join("nav.params.yaml"), "Put: {ps: 0.5}").unwrap();

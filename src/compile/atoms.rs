@@ -105,8 +105,17 @@ pub fn atoms(
                 prob: 1.0 - ps,
             },
         ]))),
-        NodeKind::Sequence { children } | NodeKind::Fallback { children } => {
-            let cont = if matches!(node.kind, NodeKind::Sequence { .. }) {
+        // Nav2 nodes reach here only as their primitive equivalents
+        // (`tree::nav2::primitive_view`): a pipeline is a Sequence, a
+        // RoundRobin a Fallback
+        NodeKind::Sequence { children }
+        | NodeKind::Fallback { children }
+        | NodeKind::Pipeline { children }
+        | NodeKind::RoundRobin { children, .. } => {
+            let cont = if matches!(
+                node.kind,
+                NodeKind::Sequence { .. } | NodeKind::Pipeline { .. }
+            ) {
                 Outcome::Success
             } else {
                 Outcome::Failure
@@ -153,7 +162,7 @@ pub fn atoms(
                         .collect(),
                 )
             };
-            Ok(Some(match *decorator {
+            Ok(Some(match decorator.as_primitive() {
                 Decorator::Inverter => map(&|o| match o {
                     Outcome::Success => Outcome::Failure,
                     Outcome::Failure => Outcome::Success,
@@ -171,6 +180,9 @@ pub fn atoms(
                         .map_err(budget)?
                 }
                 Decorator::UntilFailure | Decorator::UntilSuccess => unreachable!("refused above"),
+                Decorator::Rate { .. } | Decorator::SingleTrigger => {
+                    unreachable!("as_primitive maps Nav2 decorators to repeat 1")
+                }
             }))
         }
         NodeKind::Parallel { children, .. } => {

@@ -98,13 +98,25 @@ pub fn curve(
     times: &[f64],
     options: &CurveOptions,
 ) -> Result<Vec<CurvePoint>, AnalysisError> {
+    match super::primitive_view(tree)? {
+        Some(view) => curve_of(&view, id, times, options),
+        None => curve_of(tree, id, times, options),
+    }
+}
+
+fn curve_of(
+    tree: &Tree,
+    id: NodeId,
+    times: &[f64],
+    options: &CurveOptions,
+) -> Result<Vec<CurvePoint>, AnalysisError> {
     if options.timing == Timing::Deterministic {
         let det = deterministic_version(tree);
         let opts = CurveOptions {
             timing: Timing::AsGiven,
             ..*options
         };
-        return curve(&det, id, times, &opts);
+        return curve_of(&det, id, times, &opts);
     }
     let node = tree.node(id);
     let is_control = !node.kind.children().is_empty();
@@ -199,7 +211,7 @@ pub fn curve(
                 book_ctmc::book_ctmc(&Mrg::build(policy, children.len()), &figs)
             }
         }
-        _ => match phase::phase_chain(tree, id, options.max_states) {
+        _ => match phase::chain_of(tree, id, options.max_states) {
             Ok(c) => c,
             Err(AnalysisError::NotMarkovian { .. } | AnalysisError::StateBudget { .. })
                 if options.method == Method::Exact && is_race_node(&node.kind) =>
@@ -256,7 +268,7 @@ fn parallel_by_counts(
     let f_cap = n - m + 1;
     let curves = children
         .iter()
-        .map(|&c| curve(tree, c, times, options))
+        .map(|&c| curve_of(tree, c, times, options))
         .collect::<Result<Vec<_>, _>>()?;
     Ok(times
         .iter()
@@ -296,7 +308,7 @@ fn loop_curve(
     let unbounded = || AnalysisError::Unbounded {
         node: node.name.clone(),
     };
-    let mut c = match phase::phase_chain(tree, child, options.max_states) {
+    let mut c = match phase::chain_of(tree, child, options.max_states) {
         Ok(c) => c,
         // a child with mixed timing: the loop's truncated geometric series
         Err(AnalysisError::NotMarkovian { .. }) => {
@@ -513,7 +525,7 @@ pub(crate) fn parallel_times_by_quadrature(
     // too, geometrically up to the longest mean
     let fastest = children
         .iter()
-        .filter_map(|&c| phase::phase_chain(tree, c, max_states).ok())
+        .filter_map(|&c| phase::chain_of(tree, c, max_states).ok())
         .flat_map(|c| (0..c.len()).map(move |i| c.total_rate(i)))
         .fold(0.0, f64::max);
     if fastest > 0.0 {

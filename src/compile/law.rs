@@ -156,7 +156,7 @@ pub(crate) fn counted_parallel_times(
     // children with chains has decayed by e^{-30}
     let slowest = children
         .iter()
-        .filter_map(|&c| phase::phase_chain(tree, c, max_states).ok())
+        .filter_map(|&c| phase::chain_of(tree, c, max_states).ok())
         .filter_map(|c| (0..c.len()).map(|i| c.total_rate(i)).reduce(f64::min))
         .fold(f64::INFINITY, f64::min);
     let start = (4.0 * longest).max(if slowest.is_finite() {
@@ -302,7 +302,7 @@ impl Builder<'_> {
 
     /// The child's chain if it has one within the budget, else its law.
     fn piece(&self, id: NodeId) -> Result<Piece, AnalysisError> {
-        match phase::phase_chain(self.tree, id, self.max_states) {
+        match phase::chain_of(self.tree, id, self.max_states) {
             Ok(chain) => Ok(Piece::Chain(chain)),
             Err(e @ AnalysisError::StateBudget { .. }) => {
                 let key = (id, self.end.to_bits());
@@ -349,8 +349,13 @@ impl Builder<'_> {
             } if *failure_threshold >= children.len() + 1 - success_threshold => {
                 self.counted(id, children, *success_threshold)
             }
-            NodeKind::Sequence { children } => self.in_turn(id, children, true),
-            NodeKind::Fallback { children } => self.in_turn(id, children, false),
+            // Nav2 nodes as their primitive equivalents (`primitive_view`)
+            NodeKind::Sequence { children } | NodeKind::Pipeline { children } => {
+                self.in_turn(id, children, true)
+            }
+            NodeKind::Fallback { children } | NodeKind::RoundRobin { children, .. } => {
+                self.in_turn(id, children, false)
+            }
             NodeKind::Flow(flow) => self.flow(id, flow),
             NodeKind::Decorator { decorator, child } => {
                 let law = match self.piece(*child)? {
@@ -358,7 +363,7 @@ impl Builder<'_> {
                     // the child fits, so its copies are what exceeded the budget
                     Piece::Chain(c) => self.chain_law(*child, &c)?,
                 };
-                match *decorator {
+                match decorator.as_primitive() {
                     Decorator::Inverter => {
                         let [s, f] = law.density;
                         Ok(Law {
@@ -381,6 +386,9 @@ impl Builder<'_> {
                         Err(AnalysisError::Unbounded {
                             node: self.name(id),
                         })
+                    }
+                    Decorator::Rate { .. } | Decorator::SingleTrigger => {
+                        unreachable!("as_primitive maps Nav2 decorators to repeat 1")
                     }
                 }
             }

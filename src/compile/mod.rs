@@ -185,6 +185,21 @@ pub enum AnalysisError {
         /// The loop node.
         node: String,
     },
+    /// A Nav2 node (PipelineSequence, RoundRobin, ...) that is not exactly
+    /// one of the primitives where it stands ([`crate::tree::nav2::primitive_view`]).
+    #[error("node '{node}' ({kind}, path {path}{at}) has no exact analysis yet: {reason}")]
+    Nav2 {
+        /// The node.
+        node: String,
+        /// `, line L, column C` when the node's place in its file is known.
+        at: String,
+        /// Its kind keyword.
+        kind: &'static str,
+        /// Its path.
+        path: String,
+        /// Why.
+        reason: String,
+    },
     /// The linear algebra produced a non-finite or out-of-range number.
     #[error("numerical failure at node '{node}': {what}")]
     Numerical {
@@ -204,8 +219,27 @@ pub struct Analysis {
     pub nodes: Vec<Figures>,
 }
 
+/// The tree with its Nav2 nodes replaced by their exact primitive
+/// equivalents (`None`: the tree has none), or the refusal naming the node.
+pub fn primitive_view(tree: &Tree) -> Result<Option<Tree>, AnalysisError> {
+    crate::tree::nav2::primitive_view(tree).map_err(|e| {
+        let n = tree.node(e.node);
+        AnalysisError::Nav2 {
+            node: n.name.clone(),
+            at: n
+                .location
+                .map_or(String::new(), |(l, c)| format!(", line {l}, column {c}")),
+            kind: n.kind.keyword(),
+            path: n.path.clone(),
+            reason: e.reason,
+        }
+    })
+}
+
 /// Analyses every node of the tree, bottom-up.
 pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError> {
+    let view = primitive_view(tree)?;
+    let tree = view.as_ref().unwrap_or(tree);
     let mut figures: Vec<Option<Figures>> = vec![None; tree.nodes.len()];
     let memo = law::LawMemo::default();
     // pre-order: children come after their parent, so reverse order is bottom-up
@@ -229,7 +263,8 @@ pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError
 /// Updates `analysis` after the children of the nodes in `changed` were
 /// reordered: recomputes those nodes and their ancestors, bottom-up, and
 /// reuses every other node's figures. `analysis` must be of the same tree
-/// shape (same node ids) and `options.method` must match.
+/// shape (same node ids) and `options.method` must match; a tree with Nav2
+/// nodes must be passed as its [`primitive_view`] (as [`analyze`] does).
 pub fn reanalyze(
     tree: &Tree,
     analysis: &mut Analysis,
@@ -342,7 +377,7 @@ fn node_figures(
                     return Ok(f);
                 }
             }
-            match phase::phase_chain(tree, id, options.max_states) {
+            match phase::chain_of(tree, id, options.max_states) {
                 Ok(chain) => chain.jump_chain(),
                 Err(AnalysisError::NotMarkovian { leaf }) => {
                     // all-deterministic subtrees have finitely many atoms
@@ -431,7 +466,7 @@ fn parallel_by_counts(
     let children = node.kind.children();
     let mut chains = Vec::with_capacity(children.len());
     for &c in children {
-        match phase::phase_chain(tree, c, options.max_states) {
+        match phase::chain_of(tree, c, options.max_states) {
             Ok(chain) => chains.push(chain),
             Err(AnalysisError::NotMarkovian { .. }) => return Ok(None),
             // a child holds a wide Parallel itself
@@ -563,6 +598,7 @@ pub fn loop_figures(
 /// * retry N: a Fallback of N fresh copies; repeat N: a Sequence of N copies,
 ///   solved over their MRG like any Fallback/Sequence.
 pub fn decorator_figures(decorator: Decorator, child: Figures) -> Result<Figures, String> {
+    let decorator = decorator.as_primitive();
     Ok(match decorator {
         Decorator::Inverter => Figures {
             ps: child.pf,
@@ -595,6 +631,9 @@ pub fn decorator_figures(decorator: Decorator, child: Figures) -> Result<Figures
             };
             let chain = mrg_chain(&Mrg::build(policy, n), &vec![child; n], false);
             Figures::from_absorption(&solve_absorbing(&chain)?)
+        }
+        Decorator::Rate { .. } | Decorator::SingleTrigger => {
+            unreachable!("as_primitive maps Nav2 decorators to repeat 1")
         }
     })
 }

@@ -43,6 +43,17 @@ pub fn phase_chain(
     id: NodeId,
     max_states: usize,
 ) -> Result<PhaseChain, AnalysisError> {
+    match super::primitive_view(tree)? {
+        Some(view) => chain_of(&view, id, max_states),
+        None => chain_of(tree, id, max_states),
+    }
+}
+
+pub(crate) fn chain_of(
+    tree: &Tree,
+    id: NodeId,
+    max_states: usize,
+) -> Result<PhaseChain, AnalysisError> {
     let node = tree.node(id);
     match &node.kind {
         NodeKind::Action(a) => {
@@ -79,7 +90,7 @@ pub fn phase_chain(
                 .kind
                 .children()
                 .iter()
-                .map(|&c| phase_chain(tree, c, max_states))
+                .map(|&c| chain_of(tree, c, max_states))
                 .collect::<Result<Vec<_>, _>>()?;
             combine(tree, id, chains, max_states)
         }
@@ -101,7 +112,11 @@ pub fn combine(
         NodeKind::Action(_) | NodeKind::Condition { .. } => {
             unreachable!("combine is called on control nodes")
         }
-        NodeKind::Sequence { .. } | NodeKind::Fallback { .. } => {
+        // Nav2 nodes as their primitive equivalents (`primitive_view`)
+        NodeKind::Sequence { .. }
+        | NodeKind::Fallback { .. }
+        | NodeKind::Pipeline { .. }
+        | NodeKind::RoundRobin { .. } => {
             let total: usize = chains.iter().map(PhaseChain::len).sum();
             if total > max_states {
                 return Err(AnalysisError::StateBudget {
@@ -110,7 +125,10 @@ pub fn combine(
                     budget: max_states,
                 });
             }
-            let sequence = matches!(node.kind, NodeKind::Sequence { .. });
+            let sequence = matches!(
+                node.kind,
+                NodeKind::Sequence { .. } | NodeKind::Pipeline { .. }
+            );
             Ok(concatenate(chains, sequence))
         }
         NodeKind::Flow(flow) => {
@@ -126,14 +144,15 @@ pub fn combine(
         }
         NodeKind::Decorator { decorator, .. } => {
             let mut c = chains.into_iter().next().expect("a decorator has a child");
-            let copies = match *decorator {
+            let decorator = decorator.as_primitive();
+            let copies = match decorator {
                 Decorator::Inverter => {
                     std::mem::swap(&mut c.exit_success, &mut c.exit_failure);
                     std::mem::swap(&mut c.initial_success, &mut c.initial_failure);
                     return Ok(c);
                 }
                 Decorator::ForceSuccess | Decorator::ForceFailure => {
-                    let success = *decorator == Decorator::ForceSuccess;
+                    let success = decorator == Decorator::ForceSuccess;
                     for i in 0..c.len() {
                         let total = c.exit_success[i] + c.exit_failure[i];
                         (c.exit_success[i], c.exit_failure[i]) =
@@ -149,6 +168,9 @@ pub fn combine(
                 Decorator::UntilFailure | Decorator::UntilSuccess => {
                     let until_success = *decorator == Decorator::UntilSuccess;
                     return unrolled_loop(&node.name, c, until_success, max_states);
+                }
+                Decorator::Rate { .. } | Decorator::SingleTrigger => {
+                    unreachable!("as_primitive maps Nav2 decorators to repeat 1")
                 }
             };
             let total = c.len() as f64 * copies as f64;

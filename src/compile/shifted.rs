@@ -236,12 +236,17 @@ pub fn shifted_law(
         Ok(l)
     };
     let law = match &node.kind {
-        NodeKind::Sequence { .. } => in_turn(laws, true, tree, id, max_states)?,
-        NodeKind::Fallback { .. } => in_turn(laws, false, tree, id, max_states)?,
+        // Nav2 nodes as their primitive equivalents (`primitive_view`)
+        NodeKind::Sequence { .. } | NodeKind::Pipeline { .. } => {
+            in_turn(laws, true, tree, id, max_states)?
+        }
+        NodeKind::Fallback { .. } | NodeKind::RoundRobin { .. } => {
+            in_turn(laws, false, tree, id, max_states)?
+        }
         NodeKind::Flow(flow) => through_flow(&laws, flow, tree, id, max_states)?,
         NodeKind::Decorator { decorator, .. } => {
             let l = laws.pop().expect("a decorator has a child");
-            match *decorator {
+            match decorator.as_primitive() {
                 Decorator::Inverter => ShiftedLaw {
                     success: l.failure,
                     failure: l.success,
@@ -265,6 +270,9 @@ pub fn shifted_law(
                     id,
                     max_states,
                 )?,
+                Decorator::Rate { .. } | Decorator::SingleTrigger => {
+                    unreachable!("as_primitive maps Nav2 decorators to repeat 1")
+                }
             }
         }
         // a mixed Parallel: counted where it is, not a component

@@ -72,6 +72,8 @@ fn node_lines(tree: &Tree, id: NodeId) -> (Vec<String>, &'static str) {
         NodeKind::Condition { ps } => (vec![name, format!("ps = {}", short(*ps))], "ellipse"),
         NodeKind::Sequence { .. } => (vec!["→".to_string(), name], CONTROL),
         NodeKind::Fallback { .. } => (vec!["?".to_string(), name], CONTROL),
+        NodeKind::Pipeline { .. } => (vec!["→ (pipeline)".to_string(), name], CONTROL),
+        NodeKind::RoundRobin { .. } => (vec!["? (round robin)".to_string(), name], CONTROL),
         NodeKind::Parallel {
             success_threshold: m,
             failure_threshold: f,

@@ -118,6 +118,46 @@ enum Op {
         first: u32,
         end: u32,
     },
+    /// Nav2 PipelineSequence; `modes[first..end - 1]` (same offsets as the
+    /// children in `kids`) say what re-ticking each earlier child does.
+    Pipeline {
+        first: u32,
+        end: u32,
+    },
+    /// Nav2 RoundRobin; its index is `Scratch::rr[slot]`.
+    RoundRobin {
+        first: u32,
+        end: u32,
+        wrap: bool,
+        slot: u32,
+    },
+}
+
+/// What a PipelineSequence does with a child that has returned Success
+/// while a later child runs (`tree::nav2::Retick`, compiled).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Mode {
+    /// Nothing (placeholder for the last child too).
+    Inert,
+    /// Runs `op` again `period` s after each Success (0: back to back),
+    /// until a run fails.
+    Again { op: u32, period: f64 },
+    /// Fails at the next tick (SingleTrigger).
+    Fail,
+}
+
+/// An earlier pipeline child being re-run: when its next run starts, and
+/// when a run failed (∞ while none has). `strict`: the failure happened in
+/// zero time at the very instant the child first succeeded, i.e. one tick
+/// after the later children were ticked at that instant.
+#[derive(Debug, Clone, Copy)]
+struct Rerun {
+    op: u32,
+    period: f64,
+    next: f64,
+    fail_at: f64,
+    strict: bool,
+    since: f64,
 }
 
 /// One state of a flow: run op `child`, then go to `next[ok as usize]`
@@ -149,6 +189,10 @@ pub(crate) struct Scratch {
     /// `(success, time)` of each child in child order (Parallels with an
     /// independent failure threshold, whose ties are replayed).
     order: Vec<(bool, f64)>,
+    /// Index of each RoundRobin slot (reset to 0 at every episode).
+    rr: Vec<u32>,
+    /// Earlier children of the PipelineSequences being run.
+    reruns: Vec<Rerun>,
 }
 
 /// A subtree compiled for fast episodes; its root is `ops[root]`.
@@ -161,6 +205,13 @@ pub(crate) struct Program {
     root: u32,
     /// Total number of children of Parallel nodes (bounds the scratch stacks).
     parallel_kids: usize,
+    /// Re-tick modes of pipeline children, at the children's offsets in
+    /// `kids` (other offsets unused).
+    modes: Vec<Mode>,
+    /// RoundRobin slots of the tree, in order of first appearance.
+    slots: Vec<usize>,
+    /// Total number of children of pipelines (bounds `Scratch::reruns`).
+    pipeline_kids: usize,
 }
 
 /// The kind of control node a child may be spliced into.
@@ -180,6 +231,9 @@ impl Program {
             steps: Vec::new(),
             root: 0,
             parallel_kids: 0,
+            modes: Vec::new(),
+            slots: Vec::new(),
+            pipeline_kids: 0,
         };
         p.root = p.compile(tree, id);
         p
@@ -232,7 +286,7 @@ impl Program {
             }
             NodeKind::Decorator { decorator, child } => {
                 let child = self.compile(tree, *child);
-                let (kind, n) = match *decorator {
+                let (kind, n) = match decorator.as_primitive() {
                     Decorator::Inverter => (DecoratorOp::Invert, 1),
                     Decorator::ForceSuccess => (DecoratorOp::Force(true), 1),
                     Decorator::ForceFailure => (DecoratorOp::Force(false), 1),
@@ -242,8 +296,34 @@ impl Program {
                     // refused before simulating: `never_returns`)
                     Decorator::UntilSuccess => (DecoratorOp::Retry, u32::MAX),
                     Decorator::UntilFailure => (DecoratorOp::Repeat, u32::MAX),
+                    Decorator::Rate { .. } | Decorator::SingleTrigger => {
+                        unreachable!("as_primitive maps Nav2 decorators to repeat 1")
+                    }
                 };
                 return self.push(Op::Decorator { child, kind, n });
+            }
+            NodeKind::Pipeline { children } => return self.pipeline(tree, children),
+            NodeKind::RoundRobin {
+                children,
+                wrap,
+                slot,
+            } => {
+                let ids: Vec<u32> = children.iter().map(|&c| self.compile(tree, c)).collect();
+                let (first, end) = self.kids_range(ids);
+                let slot = match self.slots.iter().position(|s| s == slot) {
+                    Some(i) => i,
+                    None => {
+                        self.slots.push(*slot);
+                        self.slots.len() - 1
+                    }
+                } as u32;
+                let wrap = *wrap;
+                return self.push(Op::RoundRobin {
+                    first,
+                    end,
+                    wrap,
+                    slot,
+                });
             }
             NodeKind::Flow(flow) => {
                 let ops: Vec<u32> = flow
@@ -298,12 +378,52 @@ impl Program {
         })
     }
 
+    /// Appends `ids` to `kids`; their range.
+    fn kids_range(&mut self, ids: Vec<u32>) -> (u32, u32) {
+        let first = self.kids.len() as u32;
+        self.kids.extend(ids);
+        (first, self.kids.len() as u32)
+    }
+
+    /// A PipelineSequence: its children and what re-ticking each does.
+    fn pipeline(&mut self, tree: &Tree, children: &[NodeId]) -> u32 {
+        use crate::tree::nav2::{retick, Retick};
+        let ids: Vec<u32> = children.iter().map(|&c| self.compile(tree, c)).collect();
+        let modes: Vec<Mode> = children
+            .iter()
+            .zip(&ids)
+            .enumerate()
+            .map(|(i, (&c, &op))| {
+                if i + 1 == children.len() {
+                    return Mode::Inert;
+                }
+                match retick(tree, c) {
+                    Retick::Inert => Mode::Inert,
+                    Retick::Restart => Mode::Again { op, period: 0.0 },
+                    // the RateController's child, run afresh each period
+                    Retick::Rate(period) => match self.ops[op as usize] {
+                        Op::Decorator { child, .. } => Mode::Again { op: child, period },
+                        _ => unreachable!("a RateController compiles to a decorator"),
+                    },
+                    Retick::Fail => Mode::Fail,
+                }
+            })
+            .collect();
+        self.pipeline_kids += ids.len();
+        let (first, end) = self.kids_range(ids);
+        self.modes.resize(end as usize, Mode::Inert);
+        self.modes[first as usize..end as usize].copy_from_slice(&modes);
+        self.push(Op::Pipeline { first, end })
+    }
+
     /// A scratch space big enough for any episode of this program.
     pub(crate) fn scratch(&self) -> Scratch {
         Scratch {
             succ: Vec::with_capacity(self.parallel_kids),
             fail: Vec::with_capacity(self.parallel_kids),
             order: Vec::with_capacity(self.parallel_kids),
+            rr: vec![0; self.slots.len()],
+            reruns: Vec::with_capacity(self.pipeline_kids),
         }
     }
 
@@ -311,6 +431,8 @@ impl Program {
     /// duration).
     #[inline]
     pub(crate) fn episode<R: Rng>(&self, rng: &mut R, scratch: &mut Scratch) -> (bool, f64) {
+        // every run starts with the RoundRobins at their first child
+        scratch.rr.fill(0);
         self.run(self.root, rng, scratch)
     }
 
@@ -362,6 +484,38 @@ impl Program {
                 (false, t)
             }
             Op::Parallel { first, end, m, f } => self.parallel(first, end, m, f, rng, scratch),
+            Op::Pipeline { first, end } => self.run_pipeline(first, end, rng, scratch),
+            Op::RoundRobin {
+                first,
+                end,
+                wrap,
+                slot,
+            } => {
+                let kids = &self.kids[first as usize..end as usize];
+                let n = kids.len() as u32;
+                let mut idx = scratch.rr[slot as usize];
+                let mut t = 0.0;
+                for _ in 0..n {
+                    let (ok, d) = self.run(kids[idx as usize], rng, scratch);
+                    t += d;
+                    idx += 1;
+                    if idx == n {
+                        if !wrap {
+                            // Nav2 leaves its loop here, whatever the status
+                            scratch.rr[slot as usize] = 0;
+                            return (false, t);
+                        }
+                        idx = 0;
+                    }
+                    if ok {
+                        scratch.rr[slot as usize] = idx;
+                        return (true, t);
+                    }
+                }
+                // all failed: halt() resets the index
+                scratch.rr[slot as usize] = 0;
+                (false, t)
+            }
             Op::Flow { first, end } => {
                 let steps = &self.steps[first as usize..end as usize];
                 let (mut state, mut t) = (0u32, 0.0);
@@ -398,6 +552,81 @@ impl Program {
                 }
             },
         }
+    }
+
+    /// A PipelineSequence: child i starts when child i − 1 first succeeds;
+    /// meanwhile every earlier child that is ticked again re-runs as its
+    /// [`Mode`] says. The node fails at the first Failure among the current
+    /// child and the re-runs (a re-run failing at the instant a later child
+    /// returns wins: earlier children are ticked first), and succeeds when
+    /// the last child succeeds.
+    #[inline(never)]
+    fn run_pipeline<R: Rng>(
+        &self,
+        first: u32,
+        end: u32,
+        rng: &mut R,
+        scratch: &mut Scratch,
+    ) -> (bool, f64) {
+        let base = scratch.reruns.len();
+        let mut t = 0.0;
+        let last = end - 1;
+        let mut result = None;
+        for i in first..end {
+            let (ok, d) = self.run(self.kids[i as usize], rng, scratch);
+            let stop = t + d;
+            // the earliest failure of a re-run that comes before `stop`
+            let mut fail = f64::INFINITY;
+            for k in base..scratch.reruns.len() {
+                let mut r = scratch.reruns[k];
+                while r.fail_at == f64::INFINITY && r.next <= stop {
+                    let (ok, d) = self.run(r.op, rng, scratch);
+                    if ok {
+                        r.next += d + r.period;
+                    } else {
+                        r.fail_at = r.next + d;
+                        r.strict = same_instant(r.fail_at, r.since) && d == 0.0;
+                    }
+                }
+                scratch.reruns[k] = r;
+                let before = r.fail_at < stop
+                    || (same_instant(r.fail_at, stop)
+                        && !(r.strict && same_instant(stop, r.since)));
+                if before && r.fail_at.is_finite() {
+                    fail = fail.min(r.fail_at);
+                }
+            }
+            if fail.is_finite() {
+                result = Some((false, fail));
+                break;
+            }
+            if !ok || i == last {
+                result = Some((ok, stop));
+                break;
+            }
+            t = stop;
+            match self.modes[i as usize] {
+                Mode::Inert => {}
+                Mode::Again { op, period } => scratch.reruns.push(Rerun {
+                    op,
+                    period,
+                    next: t + period,
+                    fail_at: f64::INFINITY,
+                    strict: false,
+                    since: t,
+                }),
+                Mode::Fail => scratch.reruns.push(Rerun {
+                    op: 0,
+                    period: 0.0,
+                    next: t,
+                    fail_at: t,
+                    strict: true,
+                    since: t,
+                }),
+            }
+        }
+        scratch.reruns.truncate(base);
+        result.expect("the last child ends the loop")
     }
 
     /// A Parallel node. All children start at 0 and run independently, so

@@ -207,6 +207,14 @@ pub enum SimError {
     /// over a child that always succeeds): an episode would never end.
     #[error("node '{0}' never returns: its child can never end the loop")]
     NeverReturns(String),
+    /// A RoundRobin that a Parallel or a PipelineSequence above it may halt
+    /// while it runs (which resets its index in Nav2): the simulator lets
+    /// halted children finish, which would keep the wrong index.
+    #[error(
+        "RoundRobin '{0}' is below {1} '{2}', which may halt it while it runs (resetting its \
+         index); the simulator does not model that yet"
+    )]
+    HaltedRoundRobin(String, &'static str, String),
     /// The worker thread pool could not be created.
     #[error("cannot create the simulation thread pool: {0}")]
     ThreadPool(String),
@@ -237,7 +245,10 @@ fn endless_loop(tree: &Tree, root: NodeId) -> Option<NodeId> {
                     .any(|x| x);
                 (all, fail)
             }
-            NodeKind::Fallback { .. } => {
+            NodeKind::Pipeline { .. } => crate::tree::nav2::outcomes(tree, id),
+            // without wrap_around the last child's Success is a Failure
+            NodeKind::RoundRobin { wrap: false, .. } => crate::tree::nav2::outcomes(tree, id),
+            NodeKind::Fallback { .. } | NodeKind::RoundRobin { .. } => {
                 let all = kids.iter().all(|&c| can[c].1);
                 let succeed = kids
                     .iter()
@@ -287,7 +298,10 @@ fn endless_loop(tree: &Tree, root: NodeId) -> Option<NodeId> {
                     Decorator::Inverter => (f, s),
                     Decorator::ForceSuccess => (true, false),
                     Decorator::ForceFailure => (false, true),
-                    Decorator::Retry { .. } | Decorator::Repeat { .. } => (s, f),
+                    Decorator::Retry { .. }
+                    | Decorator::Repeat { .. }
+                    | Decorator::Rate { .. }
+                    | Decorator::SingleTrigger => (s, f),
                     Decorator::UntilFailure if !f => return Some(id),
                     Decorator::UntilSuccess if !s => return Some(id),
                     Decorator::UntilFailure => (false, true),
@@ -295,6 +309,34 @@ fn endless_loop(tree: &Tree, root: NodeId) -> Option<NodeId> {
                 }
             }
         };
+    }
+    None
+}
+
+/// A RoundRobin in the subtree at `root` below a Parallel or a
+/// PipelineSequence (also in that subtree).
+fn halted_round_robin(tree: &Tree, root: NodeId) -> Option<SimError> {
+    use crate::tree::NodeKind;
+    for id in tree.subtree(root) {
+        if !matches!(tree.node(id).kind, NodeKind::RoundRobin { .. }) {
+            continue;
+        }
+        let mut up = tree.node(id).parent;
+        while let Some(a) = up.filter(|&a| a >= root) {
+            let what = match tree.node(a).kind {
+                NodeKind::Parallel { .. } => "the Parallel",
+                NodeKind::Pipeline { .. } => "the PipelineSequence",
+                _ => {
+                    up = tree.node(a).parent;
+                    continue;
+                }
+            };
+            return Some(SimError::HaltedRoundRobin(
+                tree.node(id).name.clone(),
+                what,
+                tree.node(a).name.clone(),
+            ));
+        }
     }
     None
 }
@@ -343,6 +385,9 @@ pub fn simulate_node(
     }
     if let Some(id) = endless_loop(tree, node) {
         return Err(SimError::NeverReturns(tree.node(id).name.clone()));
+    }
+    if let Some(e) = halted_round_robin(tree, node) {
+        return Err(e);
     }
 
     let targets: Vec<usize> = if opts.per_node {

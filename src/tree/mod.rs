@@ -7,6 +7,7 @@
 
 mod action;
 pub mod error;
+pub mod nav2;
 pub mod parse;
 pub mod xml;
 
@@ -74,6 +75,31 @@ pub enum NodeKind {
         failure_threshold: usize,
         /// Children (at least one).
         children: Vec<NodeId>,
+    },
+    /// Nav2's PipelineSequence: ticks its children in order like a Sequence,
+    /// but re-ticks the children that have already returned Success on every
+    /// tick while a later child runs; a Failure of any of them halts all and
+    /// fails; the last child's Success ends it. What a re-tick does depends
+    /// on the child ([`nav2::retick`]).
+    Pipeline {
+        /// Children, in order (at least one).
+        children: Vec<NodeId>,
+    },
+    /// Nav2's RoundRobin: a Fallback that starts at the child after the one
+    /// that last succeeded, remembered across executions (and across the
+    /// copies of one XML element, which share `slot`). With `wrap` it tries
+    /// every child once, wrapping around; without (Nav2's default since
+    /// 2025), it stops after the last child and returns Failure even when
+    /// that child succeeded (Nav2's `round_robin_node.cpp` breaks out of its
+    /// loop before looking at the last child's status). A Failure resets the
+    /// index to 0.
+    RoundRobin {
+        /// Children, in order (at least one).
+        children: Vec<NodeId>,
+        /// Whether the index wraps around to the first child.
+        wrap: bool,
+        /// Identity of the index: nodes with the same slot share one index.
+        slot: usize,
     },
     /// A flow: a finite acyclic graph of states, each running one child (a
     /// fresh, independent run at every visit), whose Success and Failure
@@ -189,7 +215,7 @@ impl Flow {
 }
 
 /// Decorators (BehaviorTree.CPP semantics under the SBT assumptions).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Decorator {
     /// Success ↔ Failure.
     Inverter,
@@ -215,9 +241,31 @@ pub enum Decorator {
     /// Run a fresh child until it succeeds, then return Success
     /// (BehaviorTree.CPP `RetryUntilSuccessful num_attempts="-1"`).
     UntilSuccess,
+    /// Nav2's RateController: runs its child once per execution; as an
+    /// earlier child of a [`NodeKind::Pipeline`] it runs the child again
+    /// `period` seconds after each Success until the pipeline ends.
+    Rate {
+        /// Seconds between a Success of the child and its next start (1/hz).
+        period: f64,
+    },
+    /// Nav2's SingleTrigger: runs its child once per execution; ticked
+    /// again without being reset (as an earlier child of a
+    /// [`NodeKind::Pipeline`]) it returns Failure.
+    SingleTrigger,
 }
 
 impl Decorator {
+    /// The primitive decorator that runs the child the same way within one
+    /// execution: RateController and SingleTrigger run their child once
+    /// (`repeat` 1); they differ only when ticked again without a reset, which
+    /// [`nav2::primitive_view`] refuses.
+    pub fn as_primitive(self) -> Decorator {
+        match self {
+            Decorator::Rate { .. } | Decorator::SingleTrigger => Decorator::Repeat { times: 1 },
+            d => d,
+        }
+    }
+
     /// The keyword in the YAML format.
     pub fn keyword(&self) -> &'static str {
         match self {
@@ -228,6 +276,8 @@ impl Decorator {
             Decorator::Repeat { .. } => "repeat",
             Decorator::UntilFailure => "until_failure",
             Decorator::UntilSuccess => "until_success",
+            Decorator::Rate { .. } => "rate_controller",
+            Decorator::SingleTrigger => "single_trigger",
         }
     }
 }
@@ -241,6 +291,8 @@ impl NodeKind {
             NodeKind::Sequence { .. } => "sequence",
             NodeKind::Fallback { .. } => "fallback",
             NodeKind::Parallel { .. } => "parallel",
+            NodeKind::Pipeline { .. } => "pipeline_sequence",
+            NodeKind::RoundRobin { .. } => "round_robin",
             NodeKind::Flow(_) => "flow",
             NodeKind::Decorator { decorator, .. } => decorator.keyword(),
         }
@@ -251,6 +303,8 @@ impl NodeKind {
         match self {
             NodeKind::Sequence { children }
             | NodeKind::Fallback { children }
+            | NodeKind::Pipeline { children }
+            | NodeKind::RoundRobin { children, .. }
             | NodeKind::Parallel { children, .. }
             | NodeKind::Flow(Flow { children, .. }) => children,
             NodeKind::Decorator { child, .. } => std::slice::from_ref(child),

@@ -880,13 +880,17 @@ fn unsupported(ty: &str) -> Option<&'static str> {
         | "LoopPose" => {
             "it loops until a failure, over a queue, or runs its child at most once"
         }
-        "PipelineSequence" | "RoundRobin" | "NonblockingSequence" | "PersistentSequence"
-        | "PauseResumeController" => {
-            "Nav2 control node: it re-ticks running children or keeps state across executions"
+        "NonblockingSequence" | "PersistentSequence" | "PauseResumeController" => {
+            "Nav2 control node: it keeps state across executions or waits for an external request"
         }
-        "RateController" | "DistanceController" | "SpeedController" | "GoalUpdater"
-        | "GoalUpdatedController" | "PathLongerOnApproach" | "SingleTrigger" => {
-            "Nav2 decorator: it ticks its child depending on time, distance, speed or goal updates"
+        "DistanceController" | "SpeedController" => {
+            "Nav2 decorator: it ticks its child again when the robot has moved a distance (or at \
+             a rate set by its speed), which depends on the robot's motion (simulate a \
+             RateController with the period you expect instead)"
+        }
+        "GoalUpdatedController" | "PathLongerOnApproach" => {
+            "Nav2 decorator: it ticks its child depending on goal updates or path lengths on \
+             the blackboard"
         }
         _ => return None,
     })
@@ -916,6 +920,11 @@ const BUILTINS: &[&str] = &[
     "RetryUntilSuccessful",
     "Repeat",
     "RecoveryNode",
+    "PipelineSequence",
+    "RoundRobin",
+    "RateController",
+    "SingleTrigger",
+    "GoalUpdater",
     "IfThenElse",
     "WhileDoElse",
     "Timeout",
@@ -983,6 +992,9 @@ struct Builder<'a> {
     /// Node counts of expanded trees (memo for [`Builder::tree_size`]).
     sizes: HashMap<&'a str, u64>,
     sizing: HashSet<&'a str>,
+    /// RoundRobin index slots by element and SubTree instance: the copies
+    /// of one element made by a RecoveryNode share their index.
+    slots: HashMap<String, usize>,
 }
 
 impl<'a> Builder<'a> {
@@ -1099,6 +1111,58 @@ impl<'a> Builder<'a> {
                 .with_help(format!("write {key}=\"N\", N in milliseconds"))),
         }
     }
+
+    /// RateController's `hz` (default 10, as in Nav2) as a period in
+    /// seconds; `None` (a problem recorded) for a blackboard reference.
+    fn period(&mut self, e: &Elem, ty: &str) -> Result<Option<f64>, TreeError> {
+        let Some(a) = e.attr("hz") else {
+            return Ok(Some(0.1));
+        };
+        let v = a.value.trim();
+        if v.starts_with('{') {
+            self.problem(
+                e.doc,
+                a.loc,
+                format!("<{ty}> with hz = \"{v}\", a blackboard reference: the rate is only known at run time"),
+                true,
+            );
+            return Ok(None);
+        }
+        match v.parse::<f64>() {
+            Ok(hz) if hz.is_finite() && hz > 0.0 && (1.0 / hz).is_finite() => Ok(Some(1.0 / hz)),
+            _ => Err(self
+                .err(a.loc, format!("hz = \"{v}\" is not a valid rate"))
+                .with_help("hz is a number of re-runs per second, > 0 (e.g. 1.0 or 0.5)")),
+        }
+    }
+
+    /// RoundRobin's `wrap_around`; by default `false` in BehaviorTree.CPP v4
+    /// files (Nav2's default since 2025) and `true` in v3 files (Nav2 Humble
+    /// and Iron always wrapped). `None` (a problem recorded) for a
+    /// blackboard reference.
+    fn wrap_around(&mut self, e: &Elem, ty: &str) -> Result<Option<bool>, TreeError> {
+        let Some(a) = e.attr("wrap_around") else {
+            return Ok(Some(self.sources[e.doc].format != Format::V4));
+        };
+        let v = a.value.trim();
+        if v.starts_with('{') {
+            self.problem(
+                e.doc,
+                a.loc,
+                format!("<{ty}> with wrap_around = \"{v}\", a blackboard reference: known only at run time"),
+                true,
+            );
+            return Ok(None);
+        }
+        match v {
+            "true" | "True" | "TRUE" | "1" => Ok(Some(true)),
+            "false" | "False" | "FALSE" | "0" => Ok(Some(false)),
+            _ => Err(self
+                .err(a.loc, format!("wrap_around = \"{v}\" is not a boolean"))
+                .with_help("write wrap_around=\"true\" or \"false\"")),
+        }
+    }
+
 
     /// Whether `value` is a blackboard reference (`{name}`) without a value
     /// in the params file.
@@ -1228,9 +1292,12 @@ impl<'a> Builder<'a> {
         match &mut self.nodes[id].kind {
             NodeKind::Sequence { children }
             | NodeKind::Fallback { children }
+            | NodeKind::Pipeline { children }
+            | NodeKind::RoundRobin { children, .. }
             | NodeKind::Parallel { children, .. } => *children = ids,
             NodeKind::Decorator { child, .. } => *child = ids[0],
-            _ => {}
+            // a flow is built whole once its children are known
+            NodeKind::Action(_) | NodeKind::Condition { .. } | NodeKind::Flow(_) => {}
         }
     }
 
@@ -1416,6 +1483,67 @@ impl<'a> Builder<'a> {
         let canon = canonical(ty);
         let default_name = || ty.to_string();
         match canon {
+            "PipelineSequence" | "RoundRobin" => {
+                let robin = canon == "RoundRobin";
+                let keys: &[&'static str] = if robin { &["wrap_around"] } else { &[] };
+                self.check_attrs(e, &attrs(keys), false)?;
+                if e.children.is_empty() {
+                    return Err(self
+                        .err(e.loc, format!("<{ty}> has no children"))
+                        .with_help("a control node needs at least one child"));
+                }
+                let base = self.name_attr(e)?.unwrap_or_else(default_name);
+                let kind = if robin {
+                    let Some(wrap) = self.wrap_around(e, ty)? else {
+                        return self.placeholder(e, &base, parent, depth, &path, prefix, retry);
+                    };
+                    let key = format!("{ei}|{:?}", self.expanding);
+                    let next = self.slots.len();
+                    let slot = *self.slots.entry(key).or_insert(next);
+                    NodeKind::RoundRobin {
+                        children: Vec::new(),
+                        wrap,
+                        slot,
+                    }
+                } else {
+                    NodeKind::Pipeline {
+                        children: Vec::new(),
+                    }
+                };
+                let id = self.push(e, &base, prefix, parent, depth, &path, kind)?;
+                let ids = self.children(e, id, depth, &path, prefix, retry)?;
+                self.set_children(id, ids);
+                Ok(id)
+            }
+            // GoalUpdater copies an updated goal to the blackboard and
+            // returns its child's status: the child itself
+            "GoalUpdater" => {
+                self.check_attrs(e, &attrs(&[]), true)?;
+                self.one_child(e, ty)?;
+                self.node(e.children[0], parent, depth, path, prefix, retry)
+            }
+            "RateController" | "SingleTrigger" => {
+                let rate = canon == "RateController";
+                self.check_attrs(e, &attrs(if rate { &["hz"] } else { &[] }), false)?;
+                self.one_child(e, ty)?;
+                let base = self.name_attr(e)?.unwrap_or_else(default_name);
+                let decorator = if rate {
+                    let Some(period) = self.period(e, ty)? else {
+                        return self.placeholder(e, &base, parent, depth, &path, prefix, retry);
+                    };
+                    Decorator::Rate { period }
+                } else {
+                    Decorator::SingleTrigger
+                };
+                let kind = NodeKind::Decorator {
+                    decorator,
+                    child: 0,
+                };
+                let id = self.push(e, &base, prefix, parent, depth, &path, kind)?;
+                let ids = self.children(e, id, depth, &path, prefix, retry)?;
+                self.set_children(id, ids);
+                Ok(id)
+            }
             "Sequence" | "SequenceWithMemory" | "ReactiveSequence" | "Fallback"
             | "ReactiveFallback" | "Parallel" => {
                 let parallel = canon == "Parallel";
@@ -2585,6 +2713,7 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
         expanding: Vec::new(),
         sizes: HashMap::new(),
         sizing: HashSet::new(),
+        slots: HashMap::new(),
     };
     // (ID, BehaviorTree element) of the main file, in order
     let mut order: Vec<(&str, usize)> = Vec::new();
@@ -2951,12 +3080,21 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
     // RUNNING and ticks them again from IDLE on the next tick: an action in
     // an earlier child is restarted while a later child runs (and that one
     // is halted), which a Sequence / Fallback does not model. Refused when
-    // two or more children hold actions; conditions only re-read their value.
+    // two or more children hold actions that take time; conditions only
+    // re-read their value, and zero-time actions (`tau_s: 0`, `tau_f: 0`:
+    // synchronous, never RUNNING) return in the tick that starts them.
     let has_action = |root: usize| {
         let mut stack = vec![root];
         while let Some(n) = stack.pop() {
             match &b.nodes[n].kind {
-                NodeKind::Action(_) => return true,
+                NodeKind::Action(a)
+                    if [a.success, a.failure].iter().flatten().any(
+                        |d| !matches!(d, crate::tree::Duration::Fixed { time } if *time == 0.0),
+                    ) =>
+                {
+                    return true
+                }
+                NodeKind::Action(_) => {}
                 k => stack.extend(k.children().iter().copied()),
             }
         }

@@ -1,0 +1,274 @@
+//! Nav2's node types (PipelineSequence, RateController, RoundRobin,
+//! SingleTrigger, GoalUpdater): the simulator against closed forms derived
+//! by hand from Nav2's tick semantics, the exact analysis where a node is a
+//! primitive, and the refusals elsewhere.
+
+mod common;
+
+use btrel::sim::{simulate, SimOptions, SimResult};
+use btrel::tree::xml::{is_unsupported, parse_xml_str};
+use btrel::tree::Tree;
+use btrel::{analyze, AnalysisError, Options};
+use common::{assert_within_z, run_btrel};
+
+fn xml(body: &str, params: &str) -> Tree {
+    let text = format!(
+        "<root BTCPP_format=\"4\">\n<BehaviorTree ID=\"T\">\n{body}\n</BehaviorTree>\n</root>\n"
+    );
+    parse_xml_str(&text, "t.xml", params, "t.params.yaml").expect("test tree parses")
+}
+
+fn sim_root(tree: &Tree, runs: u64) -> SimResult {
+    let opts = SimOptions {
+        runs,
+        per_node: false,
+        ..Default::default()
+    };
+    simulate(tree, &opts, None).expect("simulates")
+}
+
+/// The race of Nav2's replanning pipeline, by hand.
+///
+/// `Pipeline(Sel, RateController(period T)(P), F)`: Sel (ps 1, Exp(r)) runs
+/// once (a leaf ticked again returns its old status); P runs (ps p,
+/// Exp(a) / Exp(b)); if it fails the pipeline fails. Otherwise, from P's
+/// success, the follower F (ps s, Exp(mu) / Exp(nu)) runs, and the loop
+/// "wait T, run P" runs beside it until a run of P fails, at time L after
+/// the start. K successful cycles are geometric, so the Laplace transform of
+/// L (defective when p = 1) is
+///   Λ(x) = E[e^{-xL}] = (1-p)·e^{-xT}·b/(b+x) / (1 − p·e^{-xT}·a/(a+x)).
+/// F succeeds iff its success draw comes before L: for X ~ Exp(mu),
+/// P(X < L) = 1 − E[e^{-mu L}] = 1 − Λ(mu), and
+/// E[X·1{X<L}] = 1/mu − Λ(mu)/mu + Λ'(mu); the loop wins against an
+/// exponential X with E[L·1{L<X}] = E[L e^{-mu L}] = −Λ'(mu).
+/// Returns (ps, MTTS, MTTF) of the pipeline.
+#[allow(clippy::too_many_arguments)]
+fn race(r: f64, p: f64, a: f64, b: f64, t: f64, s: f64, mu: f64, nu: f64) -> (f64, f64, f64) {
+    let lam = |x: f64| {
+        (1.0 - p) * (-x * t).exp() * b / (b + x) / (1.0 - p * (-x * t).exp() * a / (a + x))
+    };
+    let h = 1e-5;
+    let dlam = |x: f64| (lam(x + h) - lam(x - h)) / (2.0 * h);
+    let (sel, first) = (1.0 / r, 1.0 / a);
+    // after P's first success
+    let win = s * (1.0 - lam(mu));
+    let x_win = s * (1.0 / mu - lam(mu) / mu + dlam(mu));
+    let y_lose = (1.0 - s) * ((1.0 - lam(nu)) / nu + dlam(nu));
+    let l_wins = s * -dlam(mu) + (1.0 - s) * -dlam(nu);
+    let ps = p * win;
+    let ets = p * ((sel + first) * win + x_win);
+    let pf = (1.0 - p) + p * (1.0 - win);
+    let etf = (1.0 - p) * (sel + 1.0 / b) + p * ((sel + first) * (1.0 - win) + y_lose + l_wins);
+    (ps, ets / ps, etf / pf)
+}
+
+fn check_race(tree: &Tree, exact: (f64, f64, f64), runs: u64) {
+    let r = sim_root(tree, runs);
+    let n = &r.nodes[0];
+    assert_within_z("ps", &n.ps, exact.0);
+    assert_within_z("MTTS", n.mtts.as_ref().unwrap(), exact.1);
+    assert_within_z("MTTF", n.mttf.as_ref().unwrap(), exact.2);
+}
+
+const RACE_PARAMS: &str = "Sel: {ps: 1.0, mu: 100}\nPlan: {ps: 0.9, mu: 2, nu: 4}\n\
+                           Follow: {ps: 0.8, mu: 0.05, nu: 0.1}\n";
+
+#[test]
+fn rate_controller_replanning_races_the_follower() {
+    let tree = xml(
+        "<PipelineSequence name=\"pipe\">\n<Sel/>\n<RateController hz=\"0.5\"><Plan/></RateController>\n<Follow/>\n</PipelineSequence>",
+        RACE_PARAMS,
+    );
+    let exact = race(100.0, 0.9, 2.0, 4.0, 2.0, 0.8, 0.05, 0.1);
+    // sanity of the derivation: replanning lowers the success probability
+    // below the Sequence's 0.9·0.8 = 0.72
+    assert!(exact.0 < 0.72 && exact.0 > 0.2, "{exact:?}");
+    check_race(&tree, exact, 200_000);
+    // and the analysis refuses, naming the node and its place
+    let e = analyze(&tree, &Options::default()).unwrap_err();
+    assert!(matches!(e, AnalysisError::Nav2 { .. }), "{e}");
+    let msg = e.to_string();
+    assert!(
+        msg.contains("'pipe'") && msg.contains("line 3, column 1"),
+        "{msg}"
+    );
+    assert!(msg.contains("2 s after each of its successes"), "{msg}");
+}
+
+#[test]
+fn a_control_child_is_rerun_back_to_back() {
+    // a Sequence child is restarted on every tick after its success: the
+    // loop of the race without waits (T = 0)
+    let tree = xml(
+        "<PipelineSequence name=\"pipe\">\n<Sel/>\n<Sequence><Plan/></Sequence>\n<Follow/>\n</PipelineSequence>",
+        RACE_PARAMS,
+    );
+    check_race(
+        &tree,
+        race(100.0, 0.9, 2.0, 4.0, 0.0, 0.8, 0.05, 0.1),
+        200_000,
+    );
+}
+
+#[test]
+fn leaf_children_are_not_rerun_so_the_pipeline_is_a_sequence() {
+    // a leaf action ticked again returns the status it finished with
+    let params = "A: {ps: 0.9, mu: 2, nu: 4}\nB: {ps: 0.8, mu: 0.5, nu: 0.25}\nC: {ps: 0.7}\n";
+    let tree = xml(
+        "<PipelineSequence name=\"pipe\">\n<A/>\n<C/>\n<B/>\n</PipelineSequence>",
+        params,
+    );
+    let f = analyze(&tree, &Options::default()).unwrap().nodes[0];
+    let ps = 0.9 * 0.7 * 0.8;
+    assert!((f.ps - ps).abs() < 1e-12);
+    assert!((f.mtts.unwrap() - (0.5 + 2.0)).abs() < 1e-12);
+    // E[T·1{F}] = 0.1·0.25 + 0.9·0.3·0.5 + 0.9·0.7·0.2·(0.5 + 4)
+    let etf = 0.1 * 0.25 + 0.9 * 0.3 * 0.5 + 0.9 * 0.7 * 0.2 * 4.5;
+    assert!((f.mttf.unwrap() - etf / (1.0 - ps)).abs() < 1e-12);
+    let r = sim_root(&tree, 100_000);
+    assert_within_z("ps", &r.nodes[0].ps, ps);
+    assert_within_z("MTTS", r.nodes[0].mtts.as_ref().unwrap(), 2.5);
+    assert_within_z("MTTF", r.nodes[0].mttf.as_ref().unwrap(), etf / (1.0 - ps));
+}
+
+/// RecoveryNode(main fails at once, RoundRobin(a0: 1 s, a1: 10 s), n
+/// retries): the copies of the RoundRobin made for each retry share Nav2's
+/// one index.
+fn robin(wrap: &str, retries: usize) -> Tree {
+    xml(
+        &format!(
+            "<RecoveryNode number_of_retries=\"{retries}\" name=\"rec\">\n<Main/>\n\
+             <RoundRobin name=\"rr\"{wrap}><A0/><A1/></RoundRobin>\n</RecoveryNode>"
+        ),
+        "Main: {ps: 0.0}\nA0: {ps: 1.0, tau_s: 1}\nA1: {ps: 1.0, tau_s: 10}\n",
+    )
+}
+
+#[test]
+fn round_robin_index_survives_the_recovery_retries() {
+    // wrap: retry 1 runs a0 (1 s), retry 2 a1 (10 s), retry 3 a0 again (1 s),
+    // then the main branch fails with no retries left: Failure at 12 s
+    // (fresh copies would give 3 s)
+    let r = sim_root(&robin(" wrap_around=\"true\"", 3), 1000);
+    assert_eq!(r.nodes[0].ps.mean, 0.0);
+    assert_eq!(r.nodes[0].mttf.as_ref().unwrap().mean, 12.0);
+    // without wrap_around (Nav2's default in v4 files): retry 2 runs a1,
+    // the last child, whose Success Nav2 returns as Failure: the recovery
+    // fails and the node with it, at 11 s
+    let r = sim_root(&robin("", 3), 1000);
+    assert_eq!(r.nodes[0].mttf.as_ref().unwrap().mean, 11.0);
+    // the analysis cannot follow the index yet
+    let e = analyze(&robin(" wrap_around=\"true\"", 3), &Options::default()).unwrap_err();
+    let msg = e.to_string();
+    assert!(
+        msg.contains("recovery 1/rr'") && msg.contains("is a copy of it"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn round_robin_run_once_is_a_fallback() {
+    let params = "A: {ps: 0.3, mu: 1, nu: 2}\nB: {ps: 0.6, mu: 0.5, nu: 0.25}\n";
+    let tree = xml(
+        "<RoundRobin name=\"rr\" wrap_around=\"true\"><A/><B/></RoundRobin>",
+        params,
+    );
+    let f = analyze(&tree, &Options::default()).unwrap().nodes[0];
+    // Fallback: ps = 1 − 0.7·0.4; E[T·1{S}] = 0.3·1 + 0.7·0.6·(0.5 + 2)
+    let ps = 1.0 - 0.7 * 0.4;
+    assert!((f.ps - ps).abs() < 1e-12);
+    assert!((f.mtts.unwrap() - (0.3 + 0.7 * 0.6 * 2.5) / ps).abs() < 1e-12);
+    let r = sim_root(&tree, 100_000);
+    assert_within_z("ps", &r.nodes[0].ps, ps);
+    // without wrap_around the last child's Success is a Failure
+    let tree = xml("<RoundRobin name=\"rr\"><A/><B/></RoundRobin>", params);
+    let r = sim_root(&tree, 100_000);
+    assert_within_z("ps", &r.nodes[0].ps, 0.3);
+    assert!(analyze(&tree, &Options::default())
+        .unwrap_err()
+        .to_string()
+        .contains("returns Failure when its last child succeeds"));
+}
+
+#[test]
+fn single_trigger_and_goal_updater() {
+    let params = "A: {ps: 0.7, mu: 1, nu: 2}\nB: {ps: 1.0, tau_s: 1}\n";
+    // outside a pipeline SingleTrigger runs its child once per execution
+    let tree = xml(
+        "<Sequence><SingleTrigger><A/></SingleTrigger><B/></Sequence>",
+        params,
+    );
+    let f = analyze(&tree, &Options::default()).unwrap().nodes[0];
+    assert!((f.ps - 0.7).abs() < 1e-12);
+    // as an earlier pipeline child it returns Failure when ticked again
+    // while B runs: the pipeline fails at the instant A succeeded
+    let tree = xml(
+        "<PipelineSequence><SingleTrigger><A/></SingleTrigger><B/></PipelineSequence>",
+        params,
+    );
+    let r = sim_root(&tree, 20_000);
+    assert_eq!(r.nodes[0].ps.mean, 0.0);
+    // failures: A's own (Exp(2), 30%) and the trigger's (A's success time, Exp(1))
+    assert_within_z(
+        "MTTF",
+        r.nodes[0].mttf.as_ref().unwrap(),
+        0.3 * 0.5 + 0.7 * 1.0,
+    );
+    assert!(analyze(&tree, &Options::default()).is_err());
+    // GoalUpdater is its child
+    let tree = xml(
+        "<GoalUpdater><A/></GoalUpdater>",
+        "A: {ps: 0.7, mu: 1, nu: 2}\n",
+    );
+    assert_eq!(tree.nodes.len(), 1);
+}
+
+#[test]
+fn attributes_are_checked_with_their_place() {
+    let body = |a: &str| format!("<RateController {a}><A/></RateController>");
+    let text = |b: &str| {
+        format!(
+            "<root BTCPP_format=\"4\">\n<BehaviorTree ID=\"T\">\n{b}\n</BehaviorTree>\n</root>\n"
+        )
+    };
+    let params = "A: {ps: 0.7, mu: 1, nu: 2}\n";
+    let e = parse_xml_str(&text(&body("hz=\"0\"")), "t.xml", params, "p.yaml").unwrap_err();
+    assert!(!is_unsupported(&e));
+    assert!(e.to_string().contains("t.xml:3:17") && e.to_string().contains("not a valid rate"));
+    let e = parse_xml_str(&text(&body("hz=\"{rate}\"")), "t.xml", params, "p.yaml").unwrap_err();
+    assert!(is_unsupported(&e), "{e}");
+    let e = parse_xml_str(
+        &text("<RoundRobin wrap_around=\"maybe\"><A/></RoundRobin>"),
+        "t.xml",
+        params,
+        "p.yaml",
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("t.xml:3:13") && e.to_string().contains("not a boolean"));
+    // the default rate is Nav2's 10 Hz
+    let tree = xml(&body(""), params);
+    assert!(matches!(
+        tree.nodes[0].kind,
+        btrel::tree::NodeKind::Decorator {
+            decorator: btrel::tree::Decorator::Rate { period },
+            ..
+        } if (period - 0.1).abs() < 1e-15
+    ));
+}
+
+#[test]
+fn the_cli_refuses_with_the_node_and_points_to_simulate() {
+    let (code, out, err) = run_btrel(&["report", "trees/nav2-replanning.xml"]);
+    assert_eq!(code, 1, "{err}");
+    assert!(out.is_empty());
+    assert!(
+        err.contains("has no exact analysis yet") && err.contains("btrel simulate"),
+        "{err}"
+    );
+    let (code, out, err) = run_btrel(&["simulate", "trees/nav2-replanning.xml", "--runs", "1000"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains("pipeline_sequence") && out.contains("round_robin"),
+        "{out}"
+    );
+}
