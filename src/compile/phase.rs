@@ -166,7 +166,7 @@ pub fn combine(
                 Decorator::Retry { attempts } => attempts,
                 Decorator::Repeat { times } => times,
                 Decorator::UntilFailure | Decorator::UntilSuccess => {
-                    let until_success = *decorator == Decorator::UntilSuccess;
+                    let until_success = decorator == Decorator::UntilSuccess;
                     return unrolled_loop(&node.name, c, until_success, max_states);
                 }
                 Decorator::Rate { .. } | Decorator::SingleTrigger => {
