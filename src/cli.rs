@@ -68,18 +68,20 @@ Examples:
   btrel fit run.btlog -o params.yaml && btrel report tree.xml --params params.yaml
   btrel report tree.xml --params params.yaml --ci     # intervals from the fit's statistics
   btrel fit day1.btlog day2.btlog --by name -o params.yaml
+  btrel fit runs.db3 -o params.yaml                   # every session of a SqliteLogger file
   btrel fit episodes.csv --tree tree.xml -o tree.params.yaml
 
-LOG is a BehaviorTree.CPP v4 FileLogger2 file (.btlog) or a CSV with the columns
-run,node,start,end,status (times in s; status success|failure|halted).
-Halted episodes are right-censored; SQLite logs are not supported yet.";
+LOG is a BehaviorTree.CPP v4 FileLogger2 file (.btlog), a BehaviorTree.CPP v4 SqliteLogger
+database (.db3/.btdb, or any file starting with `SQLite format 3`; opened read-only, each
+session one run), or a CSV with the columns run,node,start,end,status (times in s; status
+success|failure|halted). Halted episodes are right-censored.";
 
 #[derive(clap::Args)]
 struct FitArgs {
-    /// The logs: .btlog (BT.CPP FileLogger2) or CSV files; episodes of all are pooled.
+    /// The logs: .btlog (BT.CPP FileLogger2), .db3 (BT.CPP SqliteLogger) or CSV files; episodes of all are pooled.
     #[arg(required = true, value_name = "LOG")]
     logs: Vec<PathBuf>,
-    /// The XML tree the params file is for (default: the tree embedded in the first .btlog);
+    /// The XML tree the params file is for (default: the tree in the first .btlog or SQLite session);
     /// the fitted file is checked against it.
     #[arg(long, value_name = "TREE.xml")]
     tree: Option<PathBuf>,
@@ -1070,7 +1072,7 @@ fn fit(args: FitArgs) -> Result<(), Failure> {
     }
     let mut logs = Vec::new();
     for path in &args.logs {
-        logs.push(btrel::logs::read_file(path).map_err(Failure::input)?);
+        logs.extend(btrel::logs::read_logs(path).map_err(Failure::input)?);
     }
     let by = match args.by {
         FitBy::Id => btrel::fit::By::Id,

@@ -345,9 +345,9 @@ fn located_errors() {
     );
     let e = fit_err(&btlog(XML, &[(10, 2, RUN), (5, 2, OK)]), "x.btlog");
     assert!(e.contains("record 2") && e.contains("back in time"), "{e}");
-    // SQLite
+    // SQLite: the magic bytes, then no database (tests/fit_sqlite.rs has more)
     let e = fit_err(b"SQLite format 3\0rest", "x.db3");
-    assert!(e.contains("not supported yet"), "{e}");
+    assert!(e.contains("x.db3") && e.contains("SQLite"), "{e}");
     // CSV
     let e = fit_err(
         b"run,node,start,end,status\n1,a,0,1,success\n1,a,2,1,failure\n",

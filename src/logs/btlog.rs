@@ -32,7 +32,7 @@ const BUILTIN_LEAVES: &[&str] = &[
 ];
 
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
-enum Status {
+pub(super) enum Status {
     Idle,
     Running,
     Success,
@@ -41,7 +41,7 @@ enum Status {
 }
 
 impl Status {
-    fn from_byte(b: u8) -> Option<Status> {
+    pub(super) fn from_byte(b: u8) -> Option<Status> {
         Some(match b {
             0 => Status::Idle,
             1 => Status::Running,
@@ -63,13 +63,13 @@ impl Status {
 }
 
 /// A node of the logged tree.
-struct Node {
+pub(super) struct Node {
     /// Index into the leaves, for leaves that are fitted.
-    leaf: Option<usize>,
-    status: Status,
+    pub(super) leaf: Option<usize>,
+    pub(super) status: Status,
     /// Start of the running episode (µs).
-    started: u64,
-    label: String,
+    pub(super) started: u64,
+    pub(super) label: String,
 }
 
 /// Reads a FileLogger2 log.
@@ -149,7 +149,11 @@ pub fn read(bytes: &[u8], file: &str) -> Result<Log, LogError> {
             e.message.clone(),
         )
     })?;
-    let (mut nodes, mut leaves) = tree_nodes(&elems, file, xml_at)?;
+    let (mut nodes, mut leaves) = tree_nodes(
+        &elems,
+        file,
+        &format!("the tree's XML (from byte offset {xml_at})"),
+    )?;
 
     let rest = bytes.len() - pos;
     let records = rest / RECORD;
@@ -208,68 +212,8 @@ pub fn read(bytes: &[u8], file: &str) -> Result<Log, LogError> {
                 ),
             ));
         };
-        let prev = node.status;
-        use Status::*;
-        let mut episode = None;
-        match (prev, status) {
-            (a, b) if a == b => {
-                return Err(LogError::new(
-                    file,
-                    where_(),
-                    format!(
-                        "{} goes from {} to {}: the logger records changes only, \
-                         so the file is mixed up",
-                        node.label,
-                        a.text(),
-                        b.text()
-                    ),
-                ))
-            }
-            (Idle | Skipped | Success | Failure, Running) => node.started = t,
-            (Running, Success | Failure) => {
-                episode = Some(Episode {
-                    duration: (t - node.started) as f64 * 1e-6,
-                    end: if status == Success {
-                        End::Success
-                    } else {
-                        End::Failure
-                    },
-                    instant: false,
-                })
-            }
-            (Running, Idle) => {
-                episode = Some(Episode {
-                    duration: (t - node.started) as f64 * 1e-6,
-                    end: End::Halted,
-                    instant: false,
-                })
-            }
-            (Idle | Skipped | Success | Failure, Success | Failure) => {
-                episode = Some(Episode {
-                    duration: 0.0,
-                    end: if status == Success {
-                        End::Success
-                    } else {
-                        End::Failure
-                    },
-                    instant: true,
-                })
-            }
-            (Success | Failure | Skipped, Idle) | (Idle, Skipped) => {}
-            (a, b) => {
-                return Err(LogError::new(
-                    file,
-                    where_(),
-                    format!(
-                        "{} goes from {} to {}, which BT.CPP never does",
-                        node.label,
-                        a.text(),
-                        b.text()
-                    ),
-                ))
-            }
-        }
-        node.status = status;
+        let episode = step(node, status, t, |d| d as f64 * 1e-6)
+            .map_err(|m| LogError::new(file, where_(), m))?;
         if let (Some(e), Some(l)) = (episode, node.leaf) {
             leaves[l].episodes.push(e);
         }
@@ -292,11 +236,77 @@ pub fn read(bytes: &[u8], file: &str) -> Result<Log, LogError> {
     })
 }
 
+/// Applies one status change (at `t` ticks) to a node: the episode it
+/// ends, if any, or why the change cannot happen. `secs` turns ticks into
+/// seconds.
+pub(super) fn step(
+    node: &mut Node,
+    status: Status,
+    t: u64,
+    secs: impl Fn(u64) -> f64,
+) -> Result<Option<Episode>, String> {
+    let prev = node.status;
+    use Status::*;
+    let mut episode = None;
+    match (prev, status) {
+        (a, b) if a == b => {
+            return Err(format!(
+                "{} goes from {} to {}: the logger records changes only, \
+                 so the file is mixed up",
+                node.label,
+                a.text(),
+                b.text()
+            ))
+        }
+        (Idle | Skipped | Success | Failure, Running) => node.started = t,
+        (Running, Success | Failure) => {
+            episode = Some(Episode {
+                duration: secs(t.saturating_sub(node.started)),
+                end: if status == Success {
+                    End::Success
+                } else {
+                    End::Failure
+                },
+                instant: false,
+            })
+        }
+        (Running, Idle) => {
+            episode = Some(Episode {
+                duration: secs(t.saturating_sub(node.started)),
+                end: End::Halted,
+                instant: false,
+            })
+        }
+        (Idle | Skipped | Success | Failure, Success | Failure) => {
+            episode = Some(Episode {
+                duration: 0.0,
+                end: if status == Success {
+                    End::Success
+                } else {
+                    End::Failure
+                },
+                instant: true,
+            })
+        }
+        (Success | Failure | Skipped, Idle) | (Idle, Skipped) => {}
+        (a, b) => {
+            return Err(format!(
+                "{} goes from {} to {}, which BT.CPP never does",
+                node.label,
+                a.text(),
+                b.text()
+            ))
+        }
+    }
+    node.status = status;
+    Ok(episode)
+}
+
 /// The logged tree's nodes by uid, and its fitted leaves.
-fn tree_nodes(
+pub(super) fn tree_nodes(
     elems: &[XmlElement],
     file: &str,
-    xml_at: usize,
+    xml_where: &str,
 ) -> Result<(HashMap<u16, Node>, Vec<LeafLog>), LogError> {
     let mut declared: HashMap<&str, Declared> = HashMap::new();
     let mut in_tree = vec![false; elems.len()];
@@ -330,12 +340,7 @@ fn tree_nodes(
             continue;
         }
         let Some(uid) = e.attr("_uid") else { continue };
-        let loc = || {
-            Some(format!(
-                "the tree's XML (from byte offset {xml_at}), line {} column {}",
-                e.line, e.column
-            ))
-        };
+        let loc = || Some(format!("{xml_where}, line {} column {}", e.line, e.column));
         let uid: u16 = uid.trim().parse().map_err(|_| {
             LogError::new(
                 file,
@@ -395,8 +400,8 @@ fn tree_nodes(
     if nodes.is_empty() {
         return Err(LogError::new(
             file,
-            Some(format!("the tree's XML (from byte offset {xml_at})")),
-            "the tree has no node with a `_uid`: not a FileLogger2 tree",
+            Some(xml_where.to_string()),
+            "the tree has no node with a `_uid`: not a tree written by a BT.CPP logger",
         ));
     }
     Ok((nodes, leaves))

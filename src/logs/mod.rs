@@ -1,8 +1,10 @@
 //! Reading robots' execution logs into per-leaf episodes, for `btrel fit`.
 //!
-//! Two formats: BehaviorTree.CPP v4 FileLogger2 files (`.btlog`, [`btlog`])
-//! and a plain CSV of episodes (`run,node,start,end,status`, [`csv`]).
-//! SQLite logger files (`.db3`, `.sqlite`) are not supported yet.
+//! Three formats: BehaviorTree.CPP v4 FileLogger2 files (`.btlog`,
+//! [`btlog`]), BehaviorTree.CPP v4 SqliteLogger databases (`.db3`, `.btdb`,
+//! any file starting with the SQLite magic bytes, [`sqlite`]; one log per
+//! session) and a plain CSV of episodes (`run,node,start,end,status`,
+//! [`csv`]).
 //!
 //! An *episode* is one execution of a leaf: it starts when the leaf goes
 //! IDLE → RUNNING and ends at SUCCESS or FAILURE; RUNNING → IDLE is a halt:
@@ -13,6 +15,7 @@
 
 pub mod btlog;
 pub mod csv;
+pub mod sqlite;
 
 use std::fmt;
 use std::path::Path;
@@ -60,13 +63,15 @@ pub struct LeafLog {
 /// One log file, read.
 #[derive(Clone, Debug)]
 pub struct Log {
-    /// The file, as named in messages.
+    /// The file, as named in messages (`FILE (session N)` for a session of
+    /// an SQLite log).
     pub file: String,
-    /// The tree's XML embedded in a `.btlog` (None for CSV).
+    /// The tree's XML embedded in a `.btlog` or an SQLite session (None for
+    /// CSV).
     pub xml: Option<String>,
     /// The leaves, in document (or first-appearance) order.
     pub leaves: Vec<LeafLog>,
-    /// Transition records (btlog) or rows (CSV) read.
+    /// Transition records (btlog, SQLite) or rows (CSV) read.
     pub records: usize,
 }
 
@@ -103,24 +108,21 @@ impl std::error::Error for LogError {}
 /// Largest log file read, in bytes.
 pub const MAX_LOG_BYTES: u64 = 1 << 30;
 
-/// Reads a log file, choosing the format by its extension (`.btlog`,
-/// `.csv`) or, failing that, by its first bytes.
-pub fn read_file(path: &Path) -> Result<Log, LogError> {
+/// File extensions of SQLite logs (BT.CPP requires `.db3` or `.btdb`).
+const SQLITE_EXTENSIONS: &[&str] = &["db3", "btdb", "db", "sqlite", "sqlite3"];
+
+/// Reads a log file: an SQLite database (by its first bytes, whatever the
+/// extension) gives one log per session; a `.btlog` or CSV file gives one.
+pub fn read_logs(path: &Path) -> Result<Vec<Log>, LogError> {
+    use std::io::Read;
     let file = path.display().to_string();
     let ext = path
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
-    if matches!(ext.as_str(), "db3" | "sqlite" | "sqlite3" | "db") {
-        return Err(LogError::new(
-            &file,
-            None,
-            "SQLite logger files (BT.CPP's SqliteLogger) are not supported yet; \
-             log with FileLogger2 (.btlog) or convert to the CSV episode format",
-        ));
-    }
-    let meta = std::fs::metadata(path)
-        .map_err(|e| LogError::new(&file, None, format!("cannot read the file: {e}")))?;
+    let cannot =
+        |e: std::io::Error| LogError::new(&file, None, format!("cannot read the file: {e}"));
+    let meta = std::fs::metadata(path).map_err(cannot)?;
     if meta.len() > MAX_LOG_BYTES {
         return Err(LogError::new(
             &file,
@@ -132,19 +134,51 @@ pub fn read_file(path: &Path) -> Result<Log, LogError> {
             ),
         ));
     }
-    let bytes = std::fs::read(path)
-        .map_err(|e| LogError::new(&file, None, format!("cannot read the file: {e}")))?;
-    read_bytes(&bytes, &file, &ext)
+    let mut head = Vec::with_capacity(sqlite::MAGIC.len());
+    std::fs::File::open(path)
+        .and_then(|f| f.take(sqlite::MAGIC.len() as u64).read_to_end(&mut head))
+        .map_err(cannot)?;
+    if head == sqlite::MAGIC {
+        return sqlite::read(path, &file);
+    }
+    if SQLITE_EXTENSIONS.contains(&ext.as_str()) {
+        return Err(LogError::new(
+            &file,
+            Some("byte offset 0".into()),
+            format!(
+                "not an SQLite database: the file does not start with `SQLite format 3` \
+                 ({} bytes; truncated, or not written by BT.CPP's SqliteLogger?)",
+                meta.len()
+            ),
+        ));
+    }
+    let bytes = std::fs::read(path).map_err(cannot)?;
+    read_bytes(&bytes, &file, &ext).map(|l| vec![l])
 }
 
-/// Reads a log from memory; `ext` (lower case, no dot) chooses the format,
-/// else the first bytes do.
+/// Reads a log file that holds one log: a `.btlog`, a CSV, or an SQLite
+/// database of one session ([`read_logs`] reads several).
+pub fn read_file(path: &Path) -> Result<Log, LogError> {
+    let mut logs = read_logs(path)?;
+    if logs.len() != 1 {
+        return Err(LogError::new(
+            &path.display().to_string(),
+            None,
+            format!("the database holds {} sessions, not one", logs.len()),
+        ));
+    }
+    Ok(logs.remove(0))
+}
+
+/// Reads a `.btlog` or CSV log from memory; `ext` (lower case, no dot)
+/// chooses the format, else the first bytes do. SQLite databases are read
+/// from their file ([`read_logs`]).
 pub fn read_bytes(bytes: &[u8], file: &str, ext: &str) -> Result<Log, LogError> {
-    if bytes.starts_with(b"SQLite format 3\0") {
+    if bytes.starts_with(sqlite::MAGIC) {
         return Err(LogError::new(
             file,
             None,
-            "this is an SQLite database (BT.CPP's SqliteLogger?); SQLite logs are not supported yet",
+            "this is an SQLite database: SQLite logs are read from their file, not from memory",
         ));
     }
     if ext == "btlog" || bytes.starts_with(b"BTCPP4-") {
