@@ -127,6 +127,8 @@ use super::action::{sloc, validate_action, ActionParams, At, Loc};
 use super::error::{nearest, TreeError};
 use super::{Decorator, Flow, FlowNext, FlowState, Node, NodeKind, Tree};
 
+mod predicates;
+
 /// Largest XML or params file, in bytes.
 pub const MAX_BYTES: usize = 256 << 20;
 /// Deepest tree after SubTree expansion (the root is level 1).
@@ -865,28 +867,35 @@ pub fn is_unsupported(e: &TreeError) -> bool {
 /// btrel has no stochastic meaning for yet, with what they depend on.
 fn unsupported(ty: &str) -> Option<&'static str> {
     Some(match ty {
-        "ScriptCondition" | "Precondition" | "WasEntryUpdated" | "SkipUnlessUpdated"
-        | "WaitValueUpdate" | "EntryUpdated" | "BlackboardCheckInt" | "BlackboardCheckDouble"
-        | "BlackboardCheckString" | "BlackboardCheckBool" => {
-            "its outcome is computed from blackboard values"
-        }
+        "WasEntryUpdated"
+        | "SkipUnlessUpdated"
+        | "WaitValueUpdate"
+        | "EntryUpdated"
+        | "BlackboardCheckInt"
+        | "BlackboardCheckDouble"
+        | "BlackboardCheckString"
+        | "BlackboardCheckBool" => "its outcome is computed from blackboard values",
         "Switch2" | "Switch3" | "Switch4" | "Switch5" | "Switch6" | "ManualSelector" => {
             "it branches on blackboard values or user input"
         }
         "Timeout" => "its outcome depends on the clock",
-        "RunOnce" | "LoopInt" | "LoopDouble" | "LoopString"
-        | "LoopBool" | "ConsumeQueue" | "ParallelAll" | "ForEach"
-        | "RepeatUnlessFailureEachTick"
-        // BT.CPP's LoopNode<Pose2D>, registered by its t18_waypoints example
-        | "LoopPose" => {
+        "RunOnce" | "ConsumeQueue" | "ParallelAll" | "ForEach" | "RepeatUnlessFailureEachTick" => {
             "it loops until a failure, over a queue, or runs its child at most once"
         }
-        "PipelineSequence" | "RoundRobin" | "NonblockingSequence" | "PersistentSequence"
+        "PipelineSequence"
+        | "RoundRobin"
+        | "NonblockingSequence"
+        | "PersistentSequence"
         | "PauseResumeController" => {
             "Nav2 control node: it re-ticks running children or keeps state across executions"
         }
-        "RateController" | "DistanceController" | "SpeedController" | "GoalUpdater"
-        | "GoalUpdatedController" | "PathLongerOnApproach" | "SingleTrigger" => {
+        "RateController"
+        | "DistanceController"
+        | "SpeedController"
+        | "GoalUpdater"
+        | "GoalUpdatedController"
+        | "PathLongerOnApproach"
+        | "SingleTrigger" => {
             "Nav2 decorator: it ticks its child depending on time, distance, speed or goal updates"
         }
         _ => return None,
@@ -929,6 +938,12 @@ const BUILTINS: &[&str] = &[
     "Script",
     "SetBlackboard",
     "UnsetBlackboard",
+    "ScriptCondition",
+    "Precondition",
+    "LoopInt",
+    "LoopDouble",
+    "LoopString",
+    "LoopBool",
 ];
 
 /// Most states of a flow built from BT.CPP nodes (a RetryUntilSuccessful
@@ -1657,6 +1672,23 @@ impl<'a> Builder<'a> {
             "Script" | "SetBlackboard" | "UnsetBlackboard" => {
                 self.check_attrs(e, &attrs(&[]), true)?;
                 self.leaf(e, ty, LeafKind::ZeroTime, parent, depth, &path, prefix)
+            }
+            // a condition whose outcome is a script over the blackboard: its
+            // probability of success comes from the params file (any form,
+            // `<Action ID="ScriptCondition">` included)
+            "ScriptCondition" => {
+                self.check_attrs(e, &attrs(&["code"]), false)?;
+                self.leaf(e, ty, LeafKind::Condition, parent, depth, &path, prefix)
+            }
+            "Precondition" => {
+                self.check_attrs(e, &attrs(&["if", "else"]), false)?;
+                self.precondition(e, ty, parent, depth, &path, prefix, retry)
+            }
+            // BT.CPP's LoopNode<T>; LoopPose is LoopNode<Pose2D> as its
+            // t18_waypoints example registers it
+            "LoopInt" | "LoopDouble" | "LoopString" | "LoopBool" | "LoopPose" => {
+                self.check_attrs(e, &attrs(&["queue", "if_empty", "value"]), false)?;
+                self.loop_queue(e, ty, parent, depth, &path, prefix, retry)
             }
             _ => {
                 self.check_attrs(e, &attrs(&[]), true)?;
@@ -2697,7 +2729,8 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
                  Tree in btrel yet; read: Sequence, SequenceWithMemory, ReactiveSequence, \
                  Fallback, ReactiveFallback, Parallel, Inverter, ForceSuccess, ForceFailure, \
                  RetryUntilSuccessful, Repeat, RecoveryNode, SubTree, AlwaysSuccess, \
-                 AlwaysFailure, Script, SetBlackboard, UnsetBlackboard and custom leaves"
+                 AlwaysFailure, Script, SetBlackboard, UnsetBlackboard, ScriptCondition, \
+                 Precondition, LoopInt/LoopDouble/LoopString/LoopBool/LoopPose and custom leaves"
                     .to_string(),
             )
         } else {

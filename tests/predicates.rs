@@ -1,0 +1,261 @@
+//! BehaviorTree.CPP nodes whose outcome comes from blackboard predicates or
+//! queues: ScriptCondition, Precondition and LoopInt/LoopDouble/... . The
+//! expected figures are hand calculations from BT.CPP v4's semantics
+//! (`script_condition.h`, `script_precondition.h`, `loop_node.h`).
+
+use btrel::compile::{analyze, Figures, Options};
+use btrel::tree::xml::{is_unsupported, parse_xml_str};
+use btrel::tree::{NodeKind, Tree, TreeError};
+
+fn xml(body: &str, params: &str) -> Result<Tree, TreeError> {
+    let src = format!(
+        "<root BTCPP_format=\"4\">\n<BehaviorTree ID=\"Main\">\n{body}\n</BehaviorTree>\n{}</root>\n",
+        SUB
+    );
+    parse_xml_str(&src, "t.xml", params, "t.params.yaml")
+}
+
+/// A SubTree the tests may refer to.
+const SUB: &str = "<BehaviorTree ID=\"Sub\">\n<Precondition name=\"P\" if=\"x\"><A/></Precondition>\n</BehaviorTree>\n";
+
+/// Action A: ps 1/2, success time Exp(1) (mean 1 s), failure time Exp(2)
+/// (mean 1/2 s).
+const A: &str = "A: {ps: 0.5, mu: 1, nu: 2}\n";
+
+fn root(body: &str, params: &str) -> Figures {
+    let t = xml(body, params).unwrap_or_else(|e| panic!("{e}"));
+    analyze(&t, &Options::default()).unwrap().nodes[0]
+}
+
+fn err(body: &str, params: &str) -> TreeError {
+    match xml(body, params) {
+        Ok(t) => panic!("expected an error, got {t:?}"),
+        Err(e) => e,
+    }
+}
+
+fn close(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 1e-12 * a.abs().max(b.abs()).max(1.0)
+}
+
+fn check(f: Figures, ps: f64, mtts: Option<f64>, mttf: Option<f64>) {
+    assert!(close(f.ps, ps) && close(f.pf, 1.0 - ps), "{f:?} vs ps {ps}");
+    for (got, want) in [(f.mtts, mtts), (f.mttf, mttf)] {
+        match (got, want) {
+            (Some(g), Some(w)) => assert!(close(g, w), "{f:?}: {g} vs {w}"),
+            (g, w) => assert_eq!(g.is_some(), w.is_some(), "{f:?}"),
+        }
+    }
+}
+
+#[test]
+fn script_condition_is_a_condition_from_the_params_file() {
+    // Sequence(cond 0.7, A): ps 0.35; success takes A's success time (1);
+    // failure: 0.3 at time 0, 0.35 at A's failure time 1/2
+    let body = "<Sequence><ScriptCondition code=\"x == 1\"/><A/></Sequence>";
+    let f = root(body, &format!("{A}ScriptCondition: {{ps: 0.7}}"));
+    check(f, 0.35, Some(1.0), Some(0.35 * 0.5 / 0.65));
+    // keyed by name; the explicit form <Action ID="ScriptCondition"> is a
+    // condition all the same (a timing key is refused)
+    let body = "<Action ID=\"ScriptCondition\" name=\"drained\" code=\"drained\"/>";
+    let t = xml(body, "drained: {ps: 0.25}").unwrap();
+    assert_eq!(t.nodes[0].kind, NodeKind::Condition { ps: 0.25 });
+    let e = err(body, "drained: {ps: 0.25, mu: 1}");
+    assert!(e.message.contains("a condition takes only `ps`"), "{e}");
+    // listed with the other missing parameters, with its location
+    let e = err("<Sequence><ScriptCondition code=\"x\"/><B/></Sequence>", "");
+    assert!(
+        e.message.starts_with("missing parameters for 2 nodes"),
+        "{e}"
+    );
+    assert!(
+        e.message
+            .contains("t.xml:3:11: condition `ScriptCondition`"),
+        "{e}"
+    );
+    // `code` is its only port
+    let e = err("<ScriptCondition cod=\"x\"/>", "ScriptCondition: {ps: 1}");
+    assert!(e.message.contains("unknown attribute `cod`"), "{e}");
+}
+
+#[test]
+fn precondition_else_failure_is_a_sequence() {
+    // if holds with 0.8: ps 0.8·0.5 = 0.4; failures: 0.2 at time 0, 0.4 at
+    // A's failure time 1/2 → MTTF 0.2/0.6
+    let body = "<Precondition if=\"A > -B\" else=\"FAILURE\"><A/></Precondition>";
+    let params = format!("{A}\"Precondition/if\": {{ps: 0.8}}");
+    check(root(body, &params), 0.4, Some(1.0), Some(0.2 / 0.6));
+    // `else` defaults to FAILURE
+    let body = "<Precondition if=\"ok\"><A/></Precondition>";
+    check(root(body, &params), 0.4, Some(1.0), Some(0.2 / 0.6));
+    let t = xml(body, &params).unwrap();
+    assert_eq!(t.nodes[1].name, "Precondition/if");
+    assert_eq!(t.nodes[1].kind, NodeKind::Condition { ps: 0.8 });
+}
+
+#[test]
+fn precondition_else_success_skips_the_child_with_success() {
+    // false `if` (0.2) → Success at 0; true → A: ps 0.2 + 0.4 = 0.6,
+    // MTTS = 0.4·1/0.6, MTTF = A's 1/2
+    let body = "<Precondition name=\"Check\" if=\"ok\" else=\"SUCCESS\"><A/></Precondition>";
+    let params = format!("{A}\"Check/if\": {{ps: 0.8}}");
+    check(root(body, &params), 0.6, Some(0.4 / 0.6), Some(0.5));
+    // constant predicates need no entry
+    let body = "<Precondition if=\"false\" else=\"SUCCESS\"><A/></Precondition>";
+    check(root(body, A), 1.0, Some(0.0), None);
+    let body = "<Precondition if=\"true\"><A/></Precondition>";
+    check(root(body, A), 0.5, Some(1.0), Some(0.5));
+}
+
+#[test]
+fn predicate_keys_follow_leaf_keys() {
+    // inside a SubTree instance: full name, then name attribute, then ID
+    let body = "<SubTree ID=\"Sub\" name=\"S\"/>";
+    for key in ["S/P/if", "P/if", "Precondition/if"] {
+        let f = root(body, &format!("{A}\"{key}\": {{ps: 0.5}}"));
+        check(f, 0.25, Some(1.0), Some(0.25 * 0.5 / 0.75));
+    }
+    // missing: named with the keys tried
+    let e = err(body, A);
+    assert!(
+        e.message
+            .contains("keys tried: S/P/if, P/if, Precondition/if"),
+        "{e}"
+    );
+    // an entry for a predicate port that no node has is a typo
+    let e = err(
+        body,
+        &format!("{A}\"P/if\": {{ps: 0.5}}\n\"P/iff\": {{ps: 1}}"),
+    );
+    assert!(
+        e.message.contains("`P/iff` matches no action or condition"),
+        "{e}"
+    );
+}
+
+#[test]
+fn precondition_refusals_are_located() {
+    let params = format!("{A}\"Precondition/if\": {{ps: 0.5}}");
+    for (body, at, what, semantic) in [
+        (
+            "<Precondition if=\"x\" else=\"RUNNING\"><A/></Precondition>",
+            (3, 22),
+            "never finishes",
+            true,
+        ),
+        (
+            "<Precondition if=\"x\" else=\"SKIPPED\"><A/></Precondition>",
+            (3, 22),
+            "skips the node",
+            true,
+        ),
+        (
+            "<Precondition if=\"x\" else=\"{st}\"><A/></Precondition>",
+            (3, 22),
+            "blackboard reference",
+            true,
+        ),
+        (
+            "<Precondition if=\"x\" else=\"MAYBE\"><A/></Precondition>",
+            (3, 22),
+            "not a node status",
+            false,
+        ),
+        (
+            "<Precondition else=\"FAILURE\"><A/></Precondition>",
+            (3, 1),
+            "needs `if`",
+            false,
+        ),
+        (
+            "<Precondition if=\"x\"><A/><A/></Precondition>",
+            (3, 1),
+            "exactly one child",
+            false,
+        ),
+    ] {
+        let e = err(body, &params);
+        assert_eq!((e.line, e.column), at, "{body}: {e}");
+        assert!(e.message.contains(what), "{body}: {e}");
+        assert_eq!(is_unsupported(&e), semantic, "{body}: {e}");
+    }
+}
+
+#[test]
+fn loops_over_a_literal_queue_repeat_their_child() {
+    // three runs of A until a failure: ps 1/8, MTTS 3; failure at run k
+    // (probability 2^-k) after k - 1 successes: MTTF = Σ 2^-k (k - 1/2) / (7/8)
+    let mttf3 = (0.5 * 0.5 + 0.25 * 1.5 + 0.125 * 2.5) / 0.875;
+    for ty in [
+        "LoopInt",
+        "LoopDouble",
+        "LoopString",
+        "LoopBool",
+        "LoopPose",
+    ] {
+        let body = format!("<{ty} queue=\"1;2;3\" value=\"{{v}}\"><A/></{ty}>");
+        check(root(&body, A), 0.125, Some(3.0), Some(mttf3));
+    }
+    // a trailing `;` adds no element (BT.CPP's splitString)
+    let body = "<LoopDouble queue=\"1;2;\"><A/></LoopDouble>";
+    check(
+        root(body, A),
+        0.25,
+        Some(2.0),
+        Some((0.25 + 0.25 * 1.5) / 0.75),
+    );
+    // if_empty = FAILURE: the emptied queue fails (after 3 s)
+    let body = "<LoopInt queue=\"1;2;3\" if_empty=\"FAILURE\"><A/></LoopInt>";
+    check(root(body, A), 0.0, None, Some(mttf3 * 0.875 + 0.125 * 3.0));
+    // an empty queue returns if_empty at once, the child never runs
+    let body = "<LoopInt queue=\"\"><B/></LoopInt>";
+    check(root(body, ""), 1.0, Some(0.0), None);
+    let body = "<LoopInt queue=\"\" if_empty=\"FAILURE\"><B/></LoopInt>";
+    check(root(body, ""), 0.0, None, Some(0.0));
+    // a blackboard queue: its length from the params file
+    let body = "<LoopPose queue=\"{waypoints}\" value=\"{wp}\"><A/></LoopPose>";
+    let f = root(body, &format!("{A}\"{{waypoints}}\": {{value: 4}}"));
+    assert!(close(f.ps, 1.0 / 16.0), "{f:?}");
+    assert!(close(f.mtts.unwrap(), 4.0), "{f:?}");
+}
+
+#[test]
+fn loop_refusals_are_located() {
+    for (body, at, what, semantic) in [
+        (
+            "<LoopPose queue=\"{waypoints}\"><A/></LoopPose>",
+            (3, 11),
+            "give it in the params file",
+            true,
+        ),
+        (
+            "<LoopInt queue=\"1\" if_empty=\"SKIPPED\"><A/></LoopInt>",
+            (3, 20),
+            "skips the node",
+            true,
+        ),
+        (
+            "<LoopInt queue=\"1\" if_empty=\"NO\"><A/></LoopInt>",
+            (3, 20),
+            "not a valid status",
+            false,
+        ),
+        ("<LoopInt><A/></LoopInt>", (3, 1), "needs `queue`", false),
+        (
+            "<LoopInt queue=\"1\" valu=\"{v}\"><A/></LoopInt>",
+            (3, 20),
+            "unknown attribute `valu`",
+            false,
+        ),
+    ] {
+        let e = err(body, A);
+        assert_eq!((e.line, e.column), at, "{body}: {e}");
+        assert!(e.message.contains(what), "{body}: {e}");
+        assert_eq!(is_unsupported(&e), semantic, "{body}: {e}");
+    }
+    let e = err(
+        "<LoopInt queue=\"{n}\"><A/></LoopInt>",
+        &format!("{A}\"{{n}}\": {{value: -1}}"),
+    );
+    assert!(e.message.contains("queue length -1"), "{e}");
+}
