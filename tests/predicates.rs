@@ -259,3 +259,100 @@ fn loop_refusals_are_located() {
     );
     assert!(e.message.contains("queue length -1"), "{e}");
 }
+
+/// B: a condition of ps 0.9.
+const B: &str = "B: {ps: 0.9}\n";
+
+#[test]
+fn a_skipped_child_of_a_sequence_is_passed_over_as_a_success() {
+    // A is skipped with 0.3 (at time 0), else runs: A' succeeds with
+    // 0.3 + 0.7·0.5 = 0.65 (mean time 0.35·1/0.65), fails with 0.35 (1/2)
+    let params = format!("{A}{B}\"A/_skipIf\": {{ps: 0.3}}");
+    let body = "<Sequence><A _skipIf=\"s\"/><B/></Sequence>";
+    let mttf = (0.35 * 0.5 + 0.065 * (0.35 / 0.65)) / 0.415;
+    check(root(body, &params), 0.585, Some(0.35 / 0.65), Some(mttf));
+    // `_while` false skips: the same with P(while) = 0.7
+    let params = format!("{A}{B}\"A/_while\": {{ps: 0.7}}");
+    let body = "<Sequence><A _while=\"w\"/><B/></Sequence>";
+    check(root(body, &params), 0.585, Some(0.35 / 0.65), Some(mttf));
+    let t = xml(body, &params).unwrap();
+    let names: Vec<&str> = t.nodes.iter().map(|n| n.name.as_str()).collect();
+    assert_eq!(names, ["Sequence", "A/guard", "A/_while", "A", "B"]);
+}
+
+#[test]
+fn a_skipped_child_of_a_fallback_is_passed_over_as_a_failure() {
+    // A' fails with 0.65 (0.3 at 0, 0.35 at mean 1/2), then B (zero time)
+    let params = format!("{A}{B}\"A/_skipIf\": {{ps: 0.3}}");
+    let body = "<Fallback><A _skipIf=\"s\"/><B/></Fallback>";
+    let mtts = (0.35 * 1.0 + 0.9 * 0.35 * 0.5) / 0.935;
+    check(
+        root(body, &params),
+        0.935,
+        Some(mtts),
+        Some(0.35 * 0.5 / 0.65),
+    );
+    // a constant `_skipIf="true"` always skips, without an entry
+    let body = "<Fallback><A _skipIf=\"true\"/><B/></Fallback>";
+    check(root(body, &format!("{A}{B}")), 0.9, Some(0.0), Some(0.0));
+}
+
+#[test]
+fn failure_if_is_checked_before_success_if() {
+    // _failureIf (0.2) → Failure at 0; else _successIf (0.5) → Success at 0;
+    // else A: ps 0.8·0.5 + 0.4·0.5 = 0.6 (success if _successIf were first:
+    // 0.5 + 0.5·0.8·0.5 = 0.7)
+    let params = format!("{A}\"A/_failureIf\": {{ps: 0.2}}\n\"A/_successIf\": {{ps: 0.5}}");
+    let body = "<A _successIf=\"s\" _failureIf=\"f\"/>";
+    check(
+        root(body, &params),
+        0.6,
+        Some(0.2 / 0.6),
+        Some(0.2 * 0.5 / 0.4),
+    );
+}
+
+#[test]
+fn a_skipped_subtree_is_keyed_by_its_id() {
+    // as BT.CPP's ex03_sqlite_log: the SubTree is skipped with 0.5 in a
+    // Sequence; B after it
+    let body = "<Sequence><SubTree ID=\"Sub\" _skipIf=\" type!='A' \"/><B/></Sequence>";
+    let params = format!("{A}{B}\"Sub/_skipIf\": {{ps: 0.5}}\n\"Precondition/if\": {{ps: 1}}");
+    // Sub = Precondition(if ps 1, A): Sub' succeeds with 0.5 + 0.25 = 0.75
+    let ps = 0.75 * 0.9;
+    let mttf = (0.25 * 0.5 + 0.75 * 0.1 * (0.25 / 0.75)) / (1.0 - ps);
+    check(root(body, &params), ps, Some(0.25 / 0.75), Some(mttf));
+}
+
+#[test]
+fn skips_without_a_meaning_are_refused_with_their_location() {
+    let params = format!("{A}{B}\"A/_skipIf\": {{ps: 0.5}}\n\"B/_skipIf\": {{ps: 0.5}}");
+    for (body, at, what) in [
+        (
+            "<Sequence><A _skipIf=\"s\"/><B _skipIf=\"t\"/></Sequence>",
+            (3, 14),
+            "every child of its parent <Sequence> may be skipped",
+        ),
+        (
+            "<Parallel><A _skipIf=\"s\"/><B/></Parallel>",
+            (3, 14),
+            "its parent <Parallel> is not a Sequence or Fallback",
+        ),
+        (
+            "<Inverter><A _skipIf=\"s\"/></Inverter>",
+            (3, 14),
+            "its parent <Inverter>",
+        ),
+        ("<A _skipIf=\"s\"/>", (3, 4), "a BehaviorTree's root"),
+        (
+            "<Sequence><A _failureIf=\"{x}\"/><B/></Sequence>",
+            (3, 14),
+            "not a blackboard reference",
+        ),
+    ] {
+        let e = err(body, &params);
+        assert_eq!((e.line, e.column), at, "{body}: {e}");
+        assert!(e.message.contains(what), "{body}: {e}");
+        assert!(is_unsupported(&e), "{body}: {e}");
+    }
+}

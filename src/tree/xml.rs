@@ -998,6 +998,12 @@ struct Builder<'a> {
     /// Node counts of expanded trees (memo for [`Builder::tree_size`]).
     sizes: HashMap<&'a str, u64>,
     sizing: HashSet<&'a str>,
+    /// The parent element of each element (for pre-conditions that skip a
+    /// node: its parent decides what a skip means).
+    elem_parent: Vec<Option<usize>>,
+    /// Elements whose pre-condition attributes are modelled (by
+    /// [`Builder::guarded`]), by source and location.
+    pre_handled: HashSet<(usize, Loc)>,
 }
 
 impl<'a> Builder<'a> {
@@ -1038,6 +1044,9 @@ impl<'a> Builder<'a> {
                 continue;
             }
             if a.name.starts_with('_') {
+                if self.pre_handled.contains(&(e.doc, e.loc)) {
+                    continue;
+                }
                 if let Some(&(_, noop)) = PRECONDITIONS.iter().find(|(p, _)| *p == a.name) {
                     if a.value.trim() != noop {
                         self.problem(
@@ -1386,7 +1395,11 @@ impl<'a> Builder<'a> {
         retry: Option<&'static str>,
     ) -> Result<usize, TreeError> {
         let saved = self.cur.replace(self.elem(ei).doc);
-        let r = self.node_here(ei, parent, depth, path, prefix, retry);
+        let r = if self.has_preconditions(ei) {
+            self.guarded(ei, parent, depth, path, prefix, retry)
+        } else {
+            self.node_here(ei, parent, depth, path, prefix, retry)
+        };
         self.cur.set(saved);
         r
     }
@@ -2560,6 +2573,8 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
         expanding: Vec::new(),
         sizes: HashMap::new(),
         sizing: HashSet::new(),
+        elem_parent: predicates::parents(&elems),
+        pre_handled: HashSet::new(),
     };
     // (ID, BehaviorTree element) of the main file, in order
     let mut order: Vec<(&str, usize)> = Vec::new();
@@ -2730,7 +2745,9 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
                  Fallback, ReactiveFallback, Parallel, Inverter, ForceSuccess, ForceFailure, \
                  RetryUntilSuccessful, Repeat, RecoveryNode, SubTree, AlwaysSuccess, \
                  AlwaysFailure, Script, SetBlackboard, UnsetBlackboard, ScriptCondition, \
-                 Precondition, LoopInt/LoopDouble/LoopString/LoopBool/LoopPose and custom leaves"
+                 Precondition, LoopInt/LoopDouble/LoopString/LoopBool/LoopPose, pre-conditions \
+                 (_failureIf, _successIf; _skipIf, _while below a Sequence or Fallback) and \
+                 custom leaves"
                     .to_string(),
             )
         } else {

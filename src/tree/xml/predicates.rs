@@ -8,7 +8,51 @@
 //! the predicate keeps its value during the parent's run, so BT.CPP reading
 //! it once (Precondition reads `if` only before the child starts) is exact.
 
-use super::{Builder, Elem, Flow, FlowNext, FlowState, Leaf, LeafKind, NodeKind, TreeError};
+use super::{
+    canonical, Builder, Elem, Flow, FlowNext, FlowState, Leaf, LeafKind, NodeKind, TreeError,
+    PRECONDITIONS,
+};
+
+/// The parent element of each element (`None` for the roots).
+pub(super) fn parents(elems: &[Elem]) -> Vec<Option<usize>> {
+    let mut parent = vec![None; elems.len()];
+    for (i, e) in elems.iter().enumerate() {
+        for &c in &e.children {
+            if let Some(p) = parent.get_mut(c) {
+                *p = Some(i);
+            }
+        }
+    }
+    parent
+}
+
+/// The node type of an element: its ID in the explicit forms and for a
+/// SubTree, else its tag.
+fn type_of(e: &Elem) -> &str {
+    match e.name.as_str() {
+        "Action" | "Condition" | "Control" | "Decorator" | "SubTree" | "SubTreePlus" => {
+            e.attr("ID").map_or(e.name.as_str(), |a| a.value.as_str())
+        }
+        t => t,
+    }
+}
+
+/// The pre-conditions of `e` that are not the no-op constant, in the order
+/// BT.CPP checks them (`PreCond`: failure, success, skip, while).
+fn active_preconditions(e: &Elem) -> Vec<&'static str> {
+    PRECONDITIONS
+        .iter()
+        .filter(|(p, noop)| e.attr(p).is_some_and(|a| a.value.trim() != *noop))
+        .map(|&(p, _)| p)
+        .collect()
+}
+
+/// Whether a pre-condition of `e` may skip it.
+fn may_skip(e: &Elem) -> bool {
+    active_preconditions(e)
+        .iter()
+        .any(|p| matches!(*p, "_skipIf" | "_while"))
+}
 
 /// Most elements of a literal loop queue (as `num_cycles`).
 const MAX_QUEUE: usize = 1_000_000;
@@ -311,6 +355,175 @@ impl<'a> Builder<'a> {
             .collect();
         self.nodes[id].kind =
             NodeKind::Flow(Flow::new(ids, states).expect("a loop's flow is valid"));
+        Ok(id)
+    }
+
+    /// Whether element `ei` carries a pre-condition that is not a no-op.
+    pub(super) fn has_preconditions(&self, ei: usize) -> bool {
+        !active_preconditions(self.elem(ei)).is_empty()
+    }
+
+    /// What a skipped element `ei` means to its parent: `Ok(true)` Success
+    /// (a Sequence passes over it), `Ok(false)` Failure (a Fallback), or why
+    /// it has no meaning.
+    fn skip_means_success(&self, ei: usize) -> Result<bool, String> {
+        let Some(pe) = self
+            .elem_parent
+            .get(ei)
+            .copied()
+            .flatten()
+            .map(|p| self.elem(p))
+        else {
+            return Err("the tree's root is skipped: BT.CPP returns SKIPPED to the caller".into());
+        };
+        let pty = canonical(type_of(pe));
+        let success = match pty {
+            "Sequence" | "SequenceWithMemory" | "ReactiveSequence" => true,
+            "Fallback" | "ReactiveFallback" => false,
+            "BehaviorTree" => {
+                return Err(
+                    "it is a BehaviorTree's root: a skipped tree is SKIPPED for the \
+                            SubTree's parent"
+                        .into(),
+                )
+            }
+            other => {
+                return Err(format!(
+                    "its parent <{other}> is not a Sequence or Fallback (which pass over a \
+                     skipped child as a Success / Failure)"
+                ))
+            }
+        };
+        if pe.children.iter().all(|&c| may_skip(self.elem(c))) {
+            return Err(format!(
+                "every child of its parent <{pty}> may be skipped, and BT.CPP returns SKIPPED \
+                 when all are"
+            ));
+        }
+        Ok(success)
+    }
+
+    /// Element `ei` with BT.CPP v4 pre-conditions (`TreeNode::checkPreConditions`,
+    /// checked before the node starts, in this order): `_failureIf` true →
+    /// Failure, `_successIf` true → Success, `_skipIf` true or `_while` false
+    /// → SKIPPED, else the node runs (`_while` is checked again while it
+    /// runs, which changes nothing while the predicate keeps its value).
+    /// One flow `<node>/guard` over the predicates `<node>/<attribute>`
+    /// (conditions from the params file, *Predicates*) and the node; a skip
+    /// is the parent's: Success below a Sequence, Failure below a Fallback
+    /// (exact while some child cannot be skipped), refused elsewhere.
+    pub(super) fn guarded(
+        &mut self,
+        ei: usize,
+        parent: Option<usize>,
+        depth: usize,
+        path: String,
+        prefix: &str,
+        retry: Option<&'static str>,
+    ) -> Result<usize, TreeError> {
+        let e = self.elem(ei);
+        self.pre_handled.insert((e.doc, e.loc));
+        let pres = active_preconditions(e);
+        let skip = if pres.iter().any(|p| matches!(*p, "_skipIf" | "_while")) {
+            match self.skip_means_success(ei) {
+                Ok(s) => Some(s),
+                Err(why) => {
+                    let p = pres
+                        .iter()
+                        .find(|p| matches!(**p, "_skipIf" | "_while"))
+                        .and_then(|p| e.attr(p));
+                    let at = p.map_or(e.loc, |a| a.loc);
+                    let name = p.map_or("_skipIf", |a| a.name.as_str());
+                    self.problem(
+                        e.doc,
+                        at,
+                        format!("`{name}` attribute on <{}>: {why}", e.name),
+                        true,
+                    );
+                    return self.node_here(ei, parent, depth, path, prefix, retry);
+                }
+            }
+        } else {
+            None
+        };
+        if let Some(a) = pres
+            .iter()
+            .filter_map(|p| e.attr(p))
+            .find(|a| a.value.trim().starts_with('{'))
+        {
+            self.problem(
+                e.doc,
+                a.loc,
+                format!(
+                    "`{}` attribute on <{}> = \"{}\": a pre-condition is a script, not a \
+                     blackboard reference",
+                    a.name,
+                    e.name,
+                    a.value.trim()
+                ),
+                true,
+            );
+            return self.node_here(ei, parent, depth, path, prefix, retry);
+        }
+        let ty = type_of(e).to_string();
+        let base = match self.name_attr(e)? {
+            Some(n) => n,
+            None => ty.clone(),
+        };
+        let kind = NodeKind::Flow(Flow {
+            children: Vec::new(),
+            states: Vec::new(),
+        });
+        let id = self.push(
+            e,
+            &format!("{base}/guard"),
+            prefix,
+            parent,
+            depth,
+            &path,
+            kind,
+        )?;
+        let mut children = Vec::with_capacity(pres.len() + 1);
+        let mut states = Vec::with_capacity(pres.len() + 1);
+        let skipped = if skip == Some(true) {
+            FlowNext::Success
+        } else {
+            FlowNext::Failure
+        };
+        for (k, p) in pres.iter().enumerate() {
+            let c = self.predicate(e, &ty, p, id, depth + 1, &format!("{path}.{k}"), prefix)?;
+            children.push(c);
+            let next = FlowNext::State(k + 1);
+            let (on_success, on_failure) = match *p {
+                "_failureIf" => (FlowNext::Failure, next),
+                "_successIf" => (FlowNext::Success, next),
+                "_skipIf" => (skipped, next),
+                _ => (next, skipped),
+            };
+            states.push(FlowState {
+                child: k,
+                on_success,
+                on_failure,
+            });
+        }
+        let k = pres.len();
+        let x = self.node_here(
+            ei,
+            Some(id),
+            depth + 1,
+            format!("{path}.{k}"),
+            prefix,
+            retry,
+        )?;
+        children.push(x);
+        states.push(FlowState {
+            child: k,
+            on_success: FlowNext::Success,
+            on_failure: FlowNext::Failure,
+        });
+        self.nodes[id].kind = NodeKind::Flow(
+            Flow::new(children, states).expect("the flow of a node's pre-conditions is valid"),
+        );
         Ok(id)
     }
 }
