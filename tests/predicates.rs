@@ -356,3 +356,36 @@ fn skips_without_a_meaning_are_refused_with_their_location() {
         assert!(is_unsupported(&e), "{body}: {e}");
     }
 }
+
+#[test]
+fn a_switch_runs_the_child_of_the_first_matching_case() {
+    // case_1 matches with 0.5 → A; else case_2 with 0.4 → AlwaysSuccess;
+    // else the default AlwaysFailure: ps 0.25 + 0.2, failures 0.25 at A's
+    // mean 1/2 and 0.3 at 0
+    let body = "<Switch2 variable=\"{v}\" case_1=\"1\" case_2=\"true\"><A/><AlwaysSuccess/><AlwaysFailure/></Switch2>";
+    let params = format!("{A}\"Switch2/case_1\": {{ps: 0.5}}\n\"Switch2/case_2\": {{ps: 0.4}}");
+    check(
+        root(body, &params),
+        0.45,
+        Some(0.25 / 0.45),
+        Some(0.125 / 0.55),
+    );
+    // a missing case never matches (BT.CPP skips a case it cannot read);
+    // `true` is a case value, not a constant predicate: it needs an entry
+    let body = "<Switch2 name=\"S\" variable=\"{v}\" case_1=\"1\"><A/><AlwaysSuccess/><AlwaysFailure/></Switch2>";
+    let params = format!("{A}\"S/case_1\": {{ps: 0.5}}");
+    check(root(body, &params), 0.25, Some(1.0), Some(0.125 / 0.75));
+    let body = "<Switch2 variable=\"{v}\" case_1=\"true\" case_2=\"2\"><A/><A/><A/></Switch2>";
+    let e = err(body, A);
+    assert!(e.message.contains("missing parameters for 2 nodes"), "{e}");
+    assert!(e.message.contains("`Switch2/case_1`"), "{e}");
+    // N + 1 children, as BT.CPP requires
+    let body = "<Switch3 variable=\"{v}\" case_1=\"1\"><A/><A/></Switch3>";
+    let e = err(body, A);
+    assert_eq!((e.line, e.column), (3, 1), "{e}");
+    assert!(e.message.contains("<Switch3> has 2 children"), "{e}");
+    assert!(!is_unsupported(&e));
+    let body = "<Switch2 variable=\"{v}\" case_3=\"1\"><A/><A/><A/></Switch2>";
+    let e = err(body, A);
+    assert!(e.message.contains("unknown attribute `case_3`"), "{e}");
+}

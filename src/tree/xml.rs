@@ -875,9 +875,7 @@ fn unsupported(ty: &str) -> Option<&'static str> {
         | "BlackboardCheckDouble"
         | "BlackboardCheckString"
         | "BlackboardCheckBool" => "its outcome is computed from blackboard values",
-        "Switch2" | "Switch3" | "Switch4" | "Switch5" | "Switch6" | "ManualSelector" => {
-            "it branches on blackboard values or user input"
-        }
+        "ManualSelector" => "it branches on blackboard values or user input",
         "Timeout" => "its outcome depends on the clock",
         "RunOnce" | "ConsumeQueue" | "ParallelAll" | "ForEach" | "RepeatUnlessFailureEachTick" => {
             "it loops until a failure, over a queue, or runs its child at most once"
@@ -944,6 +942,8 @@ const BUILTINS: &[&str] = &[
     "LoopDouble",
     "LoopString",
     "LoopBool",
+    "Switch2",
+    "Switch3",
 ];
 
 /// Most states of a flow built from BT.CPP nodes (a RetryUntilSuccessful
@@ -1696,6 +1696,14 @@ impl<'a> Builder<'a> {
             "Precondition" => {
                 self.check_attrs(e, &attrs(&["if", "else"]), false)?;
                 self.precondition(e, ty, parent, depth, &path, prefix, retry)
+            }
+            "Switch2" | "Switch3" | "Switch4" | "Switch5" | "Switch6" => {
+                let cases = usize::from(canon.as_bytes()[6] - b'0');
+                let keys: Vec<String> = (1..=cases).map(|k| format!("case_{k}")).collect();
+                let mut allowed = attrs(&["variable"]);
+                allowed.extend(keys.iter().map(String::as_str));
+                self.check_attrs(e, &allowed, false)?;
+                self.switch(e, ty, cases, parent, depth, &path, prefix, retry)
             }
             // BT.CPP's LoopNode<T>; LoopPose is LoopNode<Pose2D> as its
             // t18_waypoints example registers it
@@ -2745,7 +2753,8 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
                  Fallback, ReactiveFallback, Parallel, Inverter, ForceSuccess, ForceFailure, \
                  RetryUntilSuccessful, Repeat, RecoveryNode, SubTree, AlwaysSuccess, \
                  AlwaysFailure, Script, SetBlackboard, UnsetBlackboard, ScriptCondition, \
-                 Precondition, LoopInt/LoopDouble/LoopString/LoopBool/LoopPose, pre-conditions \
+                 Precondition, Switch2..Switch6, LoopInt/LoopDouble/LoopString/LoopBool/LoopPose, \
+                 pre-conditions \
                  (_failureIf, _successIf; _skipIf, _while below a Sequence or Fallback) and \
                  custom leaves"
                     .to_string(),

@@ -72,16 +72,36 @@ impl<'a> Builder<'a> {
         path: &str,
         prefix: &str,
     ) -> Result<usize, TreeError> {
+        self.predicate_leaf(e, ty, port, parent, depth, path, prefix, true)
+    }
+
+    /// [`Builder::predicate`]; `constants`: whether `true` / `false` are
+    /// read as constant predicates (not for a Switch's case values).
+    #[allow(clippy::too_many_arguments)]
+    fn predicate_leaf(
+        &mut self,
+        e: &Elem,
+        ty: &str,
+        port: &str,
+        parent: usize,
+        depth: usize,
+        path: &str,
+        prefix: &str,
+        constants: bool,
+    ) -> Result<usize, TreeError> {
         let name_attr = self.name_attr(e)?;
         let base = format!(
             "{}/{port}",
             name_attr.clone().unwrap_or_else(|| ty.to_string())
         );
-        let constant = e.attr(port).and_then(|a| match a.value.trim() {
-            "true" => Some(1.0),
-            "false" => Some(0.0),
-            _ => None,
-        });
+        let constant = e
+            .attr(port)
+            .filter(|_| constants)
+            .and_then(|a| match a.value.trim() {
+                "true" => Some(1.0),
+                "false" => Some(0.0),
+                _ => None,
+            });
         if let Some(ps) = constant {
             let kind = NodeKind::Condition { ps };
             return self.push(e, &base, prefix, Some(parent), depth, path, kind);
@@ -524,6 +544,83 @@ impl<'a> Builder<'a> {
         self.nodes[id].kind = NodeKind::Flow(
             Flow::new(children, states).expect("the flow of a node's pre-conditions is valid"),
         );
+        Ok(id)
+    }
+
+    /// BT.CPP v4 `SwitchN` (`switch_node.h`): N cases and N + 1 children;
+    /// it runs the child of the first `case_k` equal to `variable` (the last
+    /// child if none) and returns its status. Under the SBT assumption the
+    /// variable keeps its value while the chosen child runs (BT.CPP would
+    /// halt it and switch otherwise). Case k is a predicate `<node>/case_k`
+    /// whose `ps` is the probability that it matches given that no earlier
+    /// case did; a missing `case_k` never matches (ps 0). One flow over the
+    /// predicates and the children: predicate k → (S: child k, F: predicate
+    /// k + 1, or the default child after the last).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn switch(
+        &mut self,
+        e: &'a Elem,
+        ty: &str,
+        cases: usize,
+        parent: Option<usize>,
+        depth: usize,
+        path: &str,
+        prefix: &str,
+        retry: Option<&'static str>,
+    ) -> Result<usize, TreeError> {
+        if e.children.len() != cases + 1 {
+            return Err(self
+                .err(e.loc, format!("<{ty}> has {} children", e.children.len()))
+                .with_help(format!(
+                    "<{ty}> takes {} children: one per case_1..case_{cases}, then the default",
+                    cases + 1
+                )));
+        }
+        if e.attr("variable").is_none() {
+            return Err(self
+                .err(e.loc, format!("<{ty}> needs `variable`"))
+                .with_help(format!("write <{ty} variable=\"{{name}}\" case_1=\"...\">")));
+        }
+        let base = self.name_attr(e)?.unwrap_or_else(|| ty.to_string());
+        let kind = NodeKind::Flow(Flow {
+            children: Vec::new(),
+            states: Vec::new(),
+        });
+        let id = self.push(e, &base, prefix, parent, depth, path, kind)?;
+        let mut ids = Vec::with_capacity(2 * cases + 1);
+        for k in 1..=cases {
+            let port = format!("case_{k}");
+            let at = format!("{path}.{}", k - 1);
+            let c = if e.attr(&port).is_some() {
+                self.predicate_leaf(e, ty, &port, id, depth + 1, &at, prefix, false)?
+            } else {
+                let name = format!("{base}/{port}");
+                let kind = NodeKind::Condition { ps: 0.0 };
+                self.push(e, &name, prefix, Some(id), depth + 1, &at, kind)?
+            };
+            ids.push(c);
+        }
+        for (i, &c) in e.children.iter().enumerate() {
+            let at = format!("{path}.{}", cases + i);
+            ids.push(self.node(c, Some(id), depth + 1, at, prefix, retry)?);
+        }
+        let mut states = Vec::with_capacity(2 * cases + 1);
+        for k in 0..cases {
+            states.push(FlowState {
+                child: k,
+                on_success: FlowNext::State(cases + k),
+                on_failure: FlowNext::State(if k + 1 < cases { k + 1 } else { 2 * cases }),
+            });
+        }
+        for k in 0..=cases {
+            states.push(FlowState {
+                child: cases + k,
+                on_success: FlowNext::Success,
+                on_failure: FlowNext::Failure,
+            });
+        }
+        self.nodes[id].kind =
+            NodeKind::Flow(Flow::new(ids, states).expect("a Switch's flow is valid"));
         Ok(id)
     }
 }
