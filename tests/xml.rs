@@ -266,7 +266,7 @@ fn short_form_leaves_are_inferred_or_taken_from_the_model() {
 #[test]
 fn refusals_have_locations() {
     let cases: &[(&str, (usize, usize), &str)] = &[
-        ("<ScriptCondition code=\"x==1\"/>", (3, 1), "<ScriptCondition>: its outcome is computed from blackboard values"),
+        ("<BlackboardCheckInt value_A=\"{x}\" value_B=\"1\" return_on_mismatch=\"FAILURE\"><AlwaysSuccess/></BlackboardCheckInt>", (3, 1), "<BlackboardCheckInt>: its outcome is computed from blackboard values"),
         ("<Sequence>\n <Switch2 variable=\"{v}\"><AlwaysSuccess/></Switch2></Sequence>", (4, 2), "<Switch2>"),
         ("<RunOnce><AlwaysSuccess/></RunOnce>", (3, 1), "<RunOnce>"),
         ("<Delay delay_msec=\"{d}\"><AlwaysSuccess/></Delay>", (3, 8), "blackboard"),

@@ -127,6 +127,8 @@ use super::action::{sloc, validate_action, ActionParams, At, Loc};
 use super::error::{nearest, TreeError};
 use super::{Decorator, Flow, FlowNext, FlowState, Node, NodeKind, Tree};
 
+mod predicates;
+
 /// Largest XML or params file, in bytes.
 pub const MAX_BYTES: usize = 256 << 20;
 /// Deepest tree after SubTree expansion (the root is level 1).
@@ -865,19 +867,13 @@ pub fn is_unsupported(e: &TreeError) -> bool {
 /// btrel has no stochastic meaning for yet, with what they depend on.
 fn unsupported(ty: &str) -> Option<&'static str> {
     Some(match ty {
-        "ScriptCondition" | "Precondition" | "WasEntryUpdated" | "SkipUnlessUpdated"
-        | "WaitValueUpdate" | "EntryUpdated" | "BlackboardCheckInt" | "BlackboardCheckDouble"
-        | "BlackboardCheckString" | "BlackboardCheckBool" => {
+        "WasEntryUpdated" | "SkipUnlessUpdated" | "WaitValueUpdate" | "EntryUpdated"
+        | "BlackboardCheckInt" | "BlackboardCheckDouble" | "BlackboardCheckString"
+        | "BlackboardCheckBool" => {
             "its outcome is computed from blackboard values"
         }
-        "Switch2" | "Switch3" | "Switch4" | "Switch5" | "Switch6" | "ManualSelector" => {
-            "it branches on blackboard values or user input"
-        }
-        "RunOnce" | "LoopInt" | "LoopDouble" | "LoopString"
-        | "LoopBool" | "ConsumeQueue" | "ParallelAll" | "ForEach"
-        | "RepeatUnlessFailureEachTick"
-        // BT.CPP's LoopNode<Pose2D>, registered by its t18_waypoints example
-        | "LoopPose" => {
+        "ManualSelector" => "it branches on blackboard values or user input",
+        "RunOnce" | "ConsumeQueue" | "ParallelAll" | "ForEach" | "RepeatUnlessFailureEachTick" => {
             "it loops until a failure, over a queue, or runs its child at most once"
         }
         "NonblockingSequence" | "PersistentSequence" | "PauseResumeController" => {
@@ -938,6 +934,14 @@ const BUILTINS: &[&str] = &[
     "Script",
     "SetBlackboard",
     "UnsetBlackboard",
+    "ScriptCondition",
+    "Precondition",
+    "LoopInt",
+    "LoopDouble",
+    "LoopString",
+    "LoopBool",
+    "Switch2",
+    "Switch3",
 ];
 
 /// Most states of a flow built from BT.CPP nodes (a RetryUntilSuccessful
@@ -995,6 +999,12 @@ struct Builder<'a> {
     /// RoundRobin index slots by element and SubTree instance: the copies
     /// of one element made by a RecoveryNode share their index.
     slots: HashMap<String, usize>,
+    /// The parent element of each element (for pre-conditions that skip a
+    /// node: its parent decides what a skip means).
+    elem_parent: Vec<Option<usize>>,
+    /// Elements whose pre-condition attributes are modelled (by
+    /// [`Builder::guarded`]), by source and location.
+    pre_handled: HashSet<(usize, Loc)>,
 }
 
 impl<'a> Builder<'a> {
@@ -1035,6 +1045,9 @@ impl<'a> Builder<'a> {
                 continue;
             }
             if a.name.starts_with('_') {
+                if self.pre_handled.contains(&(e.doc, e.loc)) {
+                    continue;
+                }
                 if let Some(&(_, noop)) = PRECONDITIONS.iter().find(|(p, _)| *p == a.name) {
                     if a.value.trim() != noop {
                         self.problem(
@@ -1437,7 +1450,11 @@ impl<'a> Builder<'a> {
         retry: Option<&'static str>,
     ) -> Result<usize, TreeError> {
         let saved = self.cur.replace(self.elem(ei).doc);
-        let r = self.node_here(ei, parent, depth, path, prefix, retry);
+        let r = if self.has_preconditions(ei) {
+            self.guarded(ei, parent, depth, path, prefix, retry)
+        } else {
+            self.node_here(ei, parent, depth, path, prefix, retry)
+        };
         self.cur.set(saved);
         r
     }
@@ -1841,6 +1858,31 @@ impl<'a> Builder<'a> {
             "Script" | "SetBlackboard" | "UnsetBlackboard" => {
                 self.check_attrs(e, &attrs(&[]), true)?;
                 self.leaf(e, ty, LeafKind::ZeroTime, parent, depth, &path, prefix)
+            }
+            // a condition whose outcome is a script over the blackboard: its
+            // probability of success comes from the params file (any form,
+            // `<Action ID="ScriptCondition">` included)
+            "ScriptCondition" => {
+                self.check_attrs(e, &attrs(&["code"]), false)?;
+                self.leaf(e, ty, LeafKind::Condition, parent, depth, &path, prefix)
+            }
+            "Precondition" => {
+                self.check_attrs(e, &attrs(&["if", "else"]), false)?;
+                self.precondition(e, ty, parent, depth, &path, prefix, retry)
+            }
+            "Switch2" | "Switch3" | "Switch4" | "Switch5" | "Switch6" => {
+                let cases = usize::from(canon.as_bytes()[6] - b'0');
+                let keys: Vec<String> = (1..=cases).map(|k| format!("case_{k}")).collect();
+                let mut allowed = attrs(&["variable"]);
+                allowed.extend(keys.iter().map(String::as_str));
+                self.check_attrs(e, &allowed, false)?;
+                self.switch(e, ty, cases, parent, depth, &path, prefix, retry)
+            }
+            // BT.CPP's LoopNode<T>; LoopPose is LoopNode<Pose2D> as its
+            // t18_waypoints example registers it
+            "LoopInt" | "LoopDouble" | "LoopString" | "LoopBool" | "LoopPose" => {
+                self.check_attrs(e, &attrs(&["queue", "if_empty", "value"]), false)?;
+                self.loop_queue(e, ty, parent, depth, &path, prefix, retry)
             }
             _ => {
                 self.check_attrs(e, &attrs(&[]), true)?;
@@ -2713,6 +2755,8 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
         sizes: HashMap::new(),
         sizing: HashSet::new(),
         slots: HashMap::new(),
+        elem_parent: predicates::parents(&elems),
+        pre_handled: HashSet::new(),
     };
     // (ID, BehaviorTree element) of the main file, in order
     let mut order: Vec<(&str, usize)> = Vec::new();
@@ -2882,7 +2926,11 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
                  Tree in btrel yet; read: Sequence, SequenceWithMemory, ReactiveSequence, \
                  Fallback, ReactiveFallback, Parallel, Inverter, ForceSuccess, ForceFailure, \
                  RetryUntilSuccessful, Repeat, RecoveryNode, SubTree, AlwaysSuccess, \
-                 AlwaysFailure, Script, SetBlackboard, UnsetBlackboard and custom leaves"
+                 AlwaysFailure, Script, SetBlackboard, UnsetBlackboard, ScriptCondition, \
+                 Precondition, Switch2..Switch6, LoopInt/LoopDouble/LoopString/LoopBool/LoopPose, \
+                 pre-conditions \
+                 (_failureIf, _successIf; _skipIf, _while below a Sequence or Fallback) and \
+                 custom leaves"
                     .to_string(),
             )
         } else {
