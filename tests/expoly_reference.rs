@@ -70,7 +70,7 @@ fn duration(d: Option<Duration>) -> Value {
 }
 
 /// The reference's JSON form of the subtree at `id` (`None` for node kinds
-/// the reference does not model: loops without a bound).
+/// the reference does not model: loops without a bound, Nav2's nodes).
 fn to_json(t: &Tree, id: NodeId) -> Option<Value> {
     let kids = |c: &[NodeId]| c.iter().map(|&c| to_json(t, c)).collect::<Option<Vec<_>>>();
     Some(match &t.node(id).kind {
@@ -87,6 +87,7 @@ fn to_json(t: &Tree, id: NodeId) -> Option<Value> {
         } => json!({"parallel": {
             "m": success_threshold, "f": failure_threshold, "children": kids(children)?
         }}),
+        NodeKind::Pipeline { .. } | NodeKind::RoundRobin { .. } => return None,
         NodeKind::Flow(f) => {
             let next = |n: FlowNext| match n {
                 FlowNext::State(i) => json!(i),
@@ -108,7 +109,10 @@ fn to_json(t: &Tree, id: NodeId) -> Option<Value> {
                 Decorator::ForceFailure => json!({ "force_failure": c }),
                 Decorator::Retry { attempts } => json!({"retry": [attempts, c]}),
                 Decorator::Repeat { times } => json!({"repeat": [times, c]}),
-                Decorator::UntilFailure | Decorator::UntilSuccess => return None,
+                Decorator::UntilFailure
+                | Decorator::UntilSuccess
+                | Decorator::Rate { .. }
+                | Decorator::SingleTrigger => return None,
             }
         }
     })

@@ -1163,7 +1163,6 @@ impl<'a> Builder<'a> {
         }
     }
 
-
     /// Whether `value` is a blackboard reference (`{name}`) without a value
     /// in the params file.
     fn unresolved(&self, value: &str) -> bool {
