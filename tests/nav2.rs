@@ -93,6 +93,22 @@ fn rate_controller_replanning_races_the_follower() {
     // below the Sequence's 0.9·0.8 = 0.72
     assert!(exact.0 < 0.72 && exact.0 > 0.2, "{exact:?}");
     check_race(&tree, exact, 200_000);
+    // a re-plan that succeeds with probability 0.9 needs a series of 306
+    // re-runs (0.9^306 ≤ 1e-14), more than the analysis takes on: refused,
+    // naming the node, its place and the size
+    let e = analyze(&tree, &Options::default()).unwrap_err();
+    let msg = e.to_string();
+    assert!(
+        msg.contains("'pipe'") && msg.contains("line 3, column 1") && msg.contains("306 re-runs"),
+        "{msg}"
+    );
+    // with ps 0.7 (91 re-runs) the lowering is analysed, exactly
+    let tree = xml(
+        "<PipelineSequence name=\"pipe\">\n<Sel/>\n<RateController hz=\"0.5\"><Plan/></RateController>\n<Follow/>\n</PipelineSequence>",
+        &RACE_PARAMS.replace("ps: 0.9", "ps: 0.7"),
+    );
+    let exact = race(100.0, 0.7, 2.0, 4.0, 2.0, 0.8, 0.05, 0.1);
+    check_race(&tree, exact, 100_000);
     check_exact(&tree, exact);
     // the curve of a Sequence around a race with a fixed wait needs the
     // convolution of a race's law, which the engine does not have: refused

@@ -428,6 +428,18 @@ impl Lowering<'_> {
                     })
                 }
             };
+            if let Some(terms) = long_series(tree, rerun, wait.is_some()) {
+                return Err(NotPrimitive {
+                    node: pipe,
+                    reason: format!(
+                        "its child '{cname}' runs again while the later children run and fails \
+                         the pipeline when a re-run fails; the exact lowering races that loop \
+                         with the rest, and its law here is a series of about {terms:.0} \
+                         re-runs, more than the {MAX_RERUN_TERMS} the analysis computes in \
+                         about a second"
+                    ),
+                });
+            }
             // Parallel{1, 1}(process, rest)
             let race_name = format!("{pipe_name}/after {cname}");
             let race_path = format!("{}/after {cname}", self.out[seq].path);
@@ -509,6 +521,68 @@ impl Lowering<'_> {
         }
         Ok(kids)
     }
+}
+
+/// Most re-runs in the series of a re-run process with mixed timing (a
+/// RateController's fixed wait, or a leaf with fixed times): the truncated
+/// series of the loop's law costs about K³ (K = 100: about 1 s, K = 300:
+/// about 12 s for a one-phase planner).
+pub const MAX_RERUN_TERMS: usize = 100;
+
+/// The number of terms of the re-run process's series (re-runs until
+/// `p_again^K ≤ 1e-14`) when its timing is mixed and it exceeds
+/// [`MAX_RERUN_TERMS`]; `None` when the process is fast to analyse (all
+/// exponential without a wait: one phase chain) or its ps is unknown (the
+/// analysis then reports its own error).
+fn long_series(tree: &Tree, rerun: NodeId, waits: bool) -> Option<f64> {
+    let markovian = tree.subtree(rerun).all(|n| match &tree.nodes[n].kind {
+        NodeKind::Action(a) => a.is_markovian(),
+        _ => true,
+    });
+    if markovian && !waits {
+        return None;
+    }
+    let sub = extract(tree, rerun);
+    let f = crate::compile::analyze(&sub, &crate::compile::Options::default()).ok()?;
+    let ps = f.nodes[0].ps;
+    if ps <= 0.0 {
+        return None;
+    }
+    let terms = (1e-14f64.ln() / ps.min(1.0 - 1e-16).ln()).ceil();
+    (terms > MAX_RERUN_TERMS as f64).then_some(terms)
+}
+
+/// The subtree rooted at `id` as a tree of its own.
+fn extract(tree: &Tree, id: NodeId) -> Tree {
+    let range = tree.subtree(id);
+    let base = tree.nodes[id].depth;
+    let nodes = tree.nodes[range]
+        .iter()
+        .enumerate()
+        .map(|(k, n)| {
+            let mut n = n.clone();
+            n.depth -= base;
+            n.parent = if k == 0 {
+                None
+            } else {
+                n.parent.map(|p| p - id)
+            };
+            match &mut n.kind {
+                NodeKind::Sequence { children }
+                | NodeKind::Fallback { children }
+                | NodeKind::Pipeline { children }
+                | NodeKind::RoundRobin { children, .. }
+                | NodeKind::Parallel { children, .. }
+                | NodeKind::Flow(super::Flow { children, .. }) => {
+                    children.iter_mut().for_each(|c| *c -= id)
+                }
+                NodeKind::Decorator { child, .. } => *child -= id,
+                NodeKind::Action(_) | NodeKind::Condition { .. } => {}
+            }
+            n
+        })
+        .collect();
+    Tree { title: None, nodes }
 }
 
 /// Why the RoundRobin `id` may run more than once per run of the root, if it
