@@ -506,7 +506,28 @@ pub fn compare_with_progress(
         max_states: options.max_states,
     };
     let view = compile::primitive_view(tree)?;
-    let tree = view.as_ref().unwrap_or(tree);
+    if let Some(v) = &view {
+        // the Fallbacks as nodes of the lowered tree; one that a pipeline
+        // re-runs has copies there, which an ordering would have to follow
+        for n in &mut nodes {
+            if v.copied[*n] {
+                let node = tree.node(*n);
+                return Err(CompareError::Analysis(AnalysisError::Nav2 {
+                    node: node.name.clone(),
+                    at: node
+                        .location
+                        .map_or(String::new(), |(l, c)| format!(", line {l}, column {c}")),
+                    kind: node.kind.keyword(),
+                    path: node.path.clone(),
+                    reason: "it lies in a PipelineSequence child that runs again while the \
+                             later children run; reordering its re-runs is not supported"
+                        .into(),
+                }));
+            }
+            *n = v.image[*n];
+        }
+    }
+    let tree = view.as_ref().map_or(tree, |v| &v.tree);
     let analysis = analyze(tree, &compile_options)?;
     let mut ev = Evaluator {
         tree: tree.clone(),

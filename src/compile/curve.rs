@@ -99,7 +99,7 @@ pub fn curve(
     options: &CurveOptions,
 ) -> Result<Vec<CurvePoint>, AnalysisError> {
     match super::primitive_view(tree)? {
-        Some(view) => curve_of(&view, id, times, options),
+        Some(view) => curve_of(&view.tree, view.image[id], times, options),
         None => curve_of(tree, id, times, options),
     }
 }

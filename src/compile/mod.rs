@@ -30,6 +30,7 @@ pub mod shifted;
 
 use crate::solve::chain::{AbsorbingChain, Edge, Target};
 use crate::solve::{solve_absorbing, Absorption};
+use crate::tree::nav2::View;
 use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
 use mrg::{Mrg, Outcome, Policy, Status};
 
@@ -219,9 +220,9 @@ pub struct Analysis {
     pub nodes: Vec<Figures>,
 }
 
-/// The tree with its Nav2 nodes replaced by their exact primitive
-/// equivalents (`None`: the tree has none), or the refusal naming the node.
-pub fn primitive_view(tree: &Tree) -> Result<Option<Tree>, AnalysisError> {
+/// The tree with its Nav2 nodes lowered to exactly equivalent primitives
+/// (`None`: the tree has none), or the refusal naming the node.
+pub fn primitive_view(tree: &Tree) -> Result<Option<View>, AnalysisError> {
     crate::tree::nav2::primitive_view(tree).map_err(|e| {
         let n = tree.node(e.node);
         AnalysisError::Nav2 {
@@ -239,7 +240,10 @@ pub fn primitive_view(tree: &Tree) -> Result<Option<Tree>, AnalysisError> {
 /// Analyses every node of the tree, bottom-up.
 pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError> {
     let view = primitive_view(tree)?;
-    let tree = view.as_ref().unwrap_or(tree);
+    let (tree, image) = match &view {
+        Some(v) => (&v.tree, Some(&v.image)),
+        None => (tree, None),
+    };
     let mut figures: Vec<Option<Figures>> = vec![None; tree.nodes.len()];
     let memo = law::LawMemo::default();
     // pre-order: children come after their parent, so reverse order is bottom-up
@@ -254,9 +258,14 @@ pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError
         check(&f, &tree.node(id).name)?;
         figures[id] = Some(f);
     }
+    let mut nodes: Vec<Figures> = figures.into_iter().flatten().collect();
+    // the original tree's nodes, each as the node standing for it
+    if let Some(image) = image {
+        nodes = image.iter().map(|&i| nodes[i]).collect();
+    }
     Ok(Analysis {
         method: options.method,
-        nodes: figures.into_iter().flatten().collect(),
+        nodes,
     })
 }
 
@@ -264,7 +273,8 @@ pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError
 /// reordered: recomputes those nodes and their ancestors, bottom-up, and
 /// reuses every other node's figures. `analysis` must be of the same tree
 /// shape (same node ids) and `options.method` must match; a tree with Nav2
-/// nodes must be passed as its [`primitive_view`] (as [`analyze`] does).
+/// nodes must be passed as its [`primitive_view`]'s tree, with the analysis
+/// of that tree.
 pub fn reanalyze(
     tree: &Tree,
     analysis: &mut Analysis,

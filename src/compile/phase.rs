@@ -44,7 +44,7 @@ pub fn phase_chain(
     max_states: usize,
 ) -> Result<PhaseChain, AnalysisError> {
     match super::primitive_view(tree)? {
-        Some(view) => chain_of(&view, id, max_states),
+        Some(view) => chain_of(&view.tree, view.image[id], max_states),
         None => chain_of(tree, id, max_states),
     }
 }

@@ -151,15 +151,50 @@ pub struct NotPrimitive {
     pub reason: String,
 }
 
-/// The tree with every Nav2 node replaced by the primitive it is exactly
-/// equivalent to, node ids unchanged (`None` when the tree has no Nav2
-/// node): a PipelineSequence whose earlier children are [`Retick::Inert`] is
-/// a Sequence (re-ticks change nothing and the later children are not
-/// delayed by them); a RoundRobin with `wrap_around` executed at most once
-/// per run of the tree starts at index 0 and is a Fallback; RateController
-/// and SingleTrigger outside those positions run their child once (`repeat`
-/// 1, the identity). Anything else is refused, naming the node.
-pub fn primitive_view(tree: &Tree) -> Result<Option<Tree>, NotPrimitive> {
+/// A tree with its Nav2 nodes lowered to primitives ([`primitive_view`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct View {
+    /// The lowered tree (pre-order, like every tree).
+    pub tree: Tree,
+    /// `image[id]`: the node of [`View::tree`] that stands for node `id` of
+    /// the original tree (its first run, for a node the lowering copies).
+    pub image: Vec<NodeId>,
+    /// `copied[id]`: node `id` of the original tree also has re-run copies
+    /// in the lowered tree (it lies below a pipeline child that re-runs).
+    pub copied: Vec<bool>,
+}
+
+/// The tree with every Nav2 node replaced by primitives that are exactly
+/// equivalent (`None` when the tree has no Nav2 node).
+///
+/// * A PipelineSequence `(c_0, …, c_{n−1})` whose earlier children are
+///   [`Retick::Inert`] is a Sequence (re-ticks change nothing and the later
+///   children are not delayed by them).
+/// * An earlier child `c_k` that re-runs ([`Retick::Rate`] or
+///   [`Retick::Restart`]) starts, at the instant its first run succeeds, a
+///   re-run process that never succeeds and fails when a re-run fails:
+///   `until_failure(Sequence(wait T, c_k′))` for a RateController of period
+///   `T` (`wait`: an action with ps 1 and tau_s `T`; `c_k′` a fresh copy of
+///   the RateController's child), `until_failure(c_k′)` for a control node
+///   or decorator re-run back to back (`c_k′` a fresh copy of `c_k`). The
+///   process lives until the pipeline ends, so it races the whole rest of
+///   the pipeline, not each later phase on its own (it is memoryless only at
+///   its own renewals): the pipeline is
+///   `Sequence(c_0, …, c_k, Parallel{M = 1, F = 1}(process_k, rest))` with
+///   `rest` the lowering of `(c_{k+1}, …, c_{n−1})`, so several re-running
+///   children nest, each process raced with everything after its child.
+///   The processes are independent (each re-run is a fresh execution). The
+///   process comes first in the Parallel: when the rest ends at the instant
+///   a re-run fails, the pipeline's next tick reaches the earlier child
+///   first and fails, as BT.CPP's Parallel gives the tie to the child ticked
+///   first.
+/// * A RoundRobin with `wrap_around` executed at most once per run of the
+///   tree starts at index 0 and is a Fallback.
+/// * RateController and SingleTrigger outside those positions run their
+///   child once (`repeat` 1, the identity).
+///
+/// Anything else is refused, naming the node.
+pub fn primitive_view(tree: &Tree) -> Result<Option<View>, NotPrimitive> {
     let nav2 = |k: &NodeKind| {
         matches!(
             k,
@@ -174,43 +209,130 @@ pub fn primitive_view(tree: &Tree) -> Result<Option<Tree>, NotPrimitive> {
     if !tree.nodes.iter().any(|n| nav2(&n.kind)) {
         return Ok(None);
     }
-    let mut out = tree.clone();
-    for (id, node) in tree.nodes.iter().enumerate() {
+    let mut lower = Lowering {
+        tree,
+        out: Vec::with_capacity(tree.nodes.len()),
+        image: vec![usize::MAX; tree.nodes.len()],
+        copied: vec![false; tree.nodes.len()],
+    };
+    lower.node(Tree::ROOT, None, 0, None)?;
+    Ok(Some(View {
+        tree: Tree {
+            title: tree.title.clone(),
+            nodes: lower.out,
+        },
+        image: lower.image,
+        copied: lower.copied,
+    }))
+}
+
+/// The most nodes a lowered tree may have (re-run copies included).
+const MAX_LOWERED_NODES: usize = 1 << 20;
+
+struct Lowering<'a> {
+    tree: &'a Tree,
+    out: Vec<super::Node>,
+    image: Vec<NodeId>,
+    copied: Vec<bool>,
+}
+
+impl Lowering<'_> {
+    /// Appends a node (children set later) and returns its id.
+    fn push(
+        &mut self,
+        name: String,
+        path: String,
+        parent: Option<NodeId>,
+        depth: usize,
+        kind: NodeKind,
+        from: NodeId,
+    ) -> Result<NodeId, NotPrimitive> {
+        if self.out.len() >= MAX_LOWERED_NODES {
+            return Err(NotPrimitive {
+                node: from,
+                reason: format!(
+                    "its re-run copies would make the lowered tree exceed \
+                     {MAX_LOWERED_NODES} nodes"
+                ),
+            });
+        }
+        self.out.push(super::Node {
+            name,
+            path,
+            depth,
+            parent,
+            kind,
+            location: self.tree.nodes[from].location,
+        });
+        Ok(self.out.len() - 1)
+    }
+
+    fn set_children(&mut self, id: NodeId, ids: Vec<NodeId>) {
+        match &mut self.out[id].kind {
+            NodeKind::Sequence { children } | NodeKind::Parallel { children, .. } => {
+                *children = ids
+            }
+            NodeKind::Fallback { children } => *children = ids,
+            NodeKind::Pipeline { children } | NodeKind::RoundRobin { children, .. } => {
+                *children = ids
+            }
+            NodeKind::Flow(flow) => flow.children = ids,
+            NodeKind::Decorator { child, .. } => *child = ids[0],
+            NodeKind::Action(_) | NodeKind::Condition { .. } => {}
+        }
+    }
+
+    /// Lowers the subtree of original node `id` below `parent`; `copy`:
+    /// the name prefix of a re-run copy (`None`: the first run).
+    fn node(
+        &mut self,
+        id: NodeId,
+        parent: Option<NodeId>,
+        depth: usize,
+        copy: Option<&str>,
+    ) -> Result<NodeId, NotPrimitive> {
+        let tree = self.tree;
+        let node = &tree.nodes[id];
+        let (name, path) = match copy {
+            None => (node.name.clone(), node.path.clone()),
+            Some(prefix) => (
+                format!("{prefix}/{}", node.name),
+                format!("{prefix}/{}", node.path),
+            ),
+        };
         let kind = match &node.kind {
             NodeKind::Pipeline { children } => {
-                for &c in &children[..children.len() - 1] {
-                    let name = &tree.nodes[c].name;
-                    let reason = match retick(tree, c) {
-                        Retick::Inert => continue,
-                        Retick::Rate(p) => format!(
-                            "its child '{name}' runs again {p} s after each of its successes \
-                             while the later children run (Nav2's re-planning), and fails the \
-                             pipeline when a re-run fails: that loop races the later children \
-                             (a Parallel with M = 1, F = 1 over a loop with a fixed wait), \
-                             which the analysis cannot compute yet"
-                        ),
-                        Retick::Restart => format!(
-                            "its child '{name}' (a control node or decorator that can fail) \
-                             runs again from the start after every success while the later \
-                             children run, and fails the pipeline when a run fails: that loop \
-                             races the later children, which the analysis cannot compute yet"
-                        ),
-                        Retick::Fail => format!(
-                            "its child '{name}' (SingleTrigger) returns Failure when ticked \
-                             again while a later child runs, which the analysis does not model"
-                        ),
-                    };
-                    return Err(NotPrimitive { node: id, reason });
-                }
-                NodeKind::Sequence {
-                    children: children.clone(),
-                }
+                let seq = self.push(
+                    name.clone(),
+                    path,
+                    parent,
+                    depth,
+                    NodeKind::Sequence {
+                        children: Vec::new(),
+                    },
+                    id,
+                )?;
+                self.note(id, seq, copy);
+                let kids = self.pipeline(id, children, seq, depth + 1, &name, copy)?;
+                self.set_children(seq, kids);
+                return Ok(seq);
             }
             NodeKind::RoundRobin {
                 children,
                 wrap,
                 slot,
             } => {
+                if copy.is_some() && children.len() > 1 {
+                    return Err(NotPrimitive {
+                        node: id,
+                        reason: "it lies in a PipelineSequence child that runs again while the \
+                                 later children run, so it is executed several times per run \
+                                 and starts each time after the child that last succeeded: its \
+                                 start index depends on the earlier executions, which the \
+                                 analysis cannot follow yet"
+                            .into(),
+                    });
+                }
                 if !wrap && children.len() > 1 {
                     return Err(NotPrimitive {
                         node: id,
@@ -242,11 +364,225 @@ pub fn primitive_view(tree: &Tree) -> Result<Option<Tree>, NotPrimitive> {
                 decorator: Decorator::Repeat { times: 1 },
                 child: *child,
             },
-            _ => continue,
+            other => other.clone(),
         };
-        out.nodes[id].kind = kind;
+        let me = self.push(name, path, parent, depth, kind, id)?;
+        self.note(id, me, copy);
+        let kids = node
+            .kind
+            .children()
+            .iter()
+            .map(|&c| self.node(c, Some(me), depth + 1, copy))
+            .collect::<Result<Vec<_>, _>>()?;
+        if !kids.is_empty() {
+            self.set_children(me, kids);
+        }
+        Ok(me)
     }
-    Ok(Some(out))
+
+    fn note(&mut self, id: NodeId, at: NodeId, copy: Option<&str>) {
+        if copy.is_some() {
+            self.copied[id] = true;
+        } else {
+            self.image[id] = at;
+        }
+    }
+
+    /// The children of the Sequence `seq` that a pipeline `(children…)`
+    /// becomes (see [`primitive_view`]).
+    fn pipeline(
+        &mut self,
+        pipe: NodeId,
+        children: &[NodeId],
+        seq: NodeId,
+        depth: usize,
+        pipe_name: &str,
+        copy: Option<&str>,
+    ) -> Result<Vec<NodeId>, NotPrimitive> {
+        let tree = self.tree;
+        let mut kids = Vec::new();
+        for (k, &c) in children.iter().enumerate() {
+            let first = self.node(c, Some(seq), depth, copy)?;
+            kids.push(first);
+            if k + 1 == children.len() {
+                break;
+            }
+            let cname = &tree.nodes[c].name;
+            // what re-runs, and after which wait
+            let (rerun, wait) = match retick(tree, c) {
+                Retick::Inert => continue,
+                Retick::Restart => (c, None),
+                Retick::Rate(period) => {
+                    let NodeKind::Decorator { child, .. } = tree.nodes[c].kind else {
+                        unreachable!("Rate is a decorator")
+                    };
+                    (child, Some(period))
+                }
+                Retick::Fail => {
+                    return Err(NotPrimitive {
+                        node: pipe,
+                        reason: format!(
+                            "its child '{cname}' (SingleTrigger) returns Failure when ticked \
+                             again while a later child runs, which the analysis does not model"
+                        ),
+                    })
+                }
+            };
+            if let Some(terms) = long_series(tree, rerun, wait.is_some()) {
+                return Err(NotPrimitive {
+                    node: pipe,
+                    reason: format!(
+                        "its child '{cname}' runs again while the later children run and fails \
+                         the pipeline when a re-run fails; the exact lowering races that loop \
+                         with the rest, and its law here is a series of about {terms:.0} \
+                         re-runs, more than the {MAX_RERUN_TERMS} the analysis computes in \
+                         about a second"
+                    ),
+                });
+            }
+            // Parallel{1, 1}(process, rest)
+            let race_name = format!("{pipe_name}/after {cname}");
+            let race_path = format!("{}/after {cname}", self.out[seq].path);
+            let race = self.push(
+                race_name.clone(),
+                race_path.clone(),
+                Some(seq),
+                depth,
+                NodeKind::Parallel {
+                    success_threshold: 1,
+                    failure_threshold: 1,
+                    children: Vec::new(),
+                },
+                c,
+            )?;
+            kids.push(race);
+            let pname = match copy {
+                None => format!("{cname}/re-run"),
+                Some(prefix) => format!("{prefix}/{cname}/re-run"),
+            };
+            let process = self.push(
+                pname.clone(),
+                format!("{race_path}/re-run"),
+                Some(race),
+                depth + 1,
+                NodeKind::Decorator {
+                    decorator: Decorator::UntilFailure,
+                    child: usize::MAX,
+                },
+                c,
+            )?;
+            let body = match wait {
+                None => self.node(rerun, Some(process), depth + 2, Some(&pname))?,
+                Some(period) => {
+                    let cycle = self.push(
+                        format!("{pname}/cycle"),
+                        format!("{race_path}/re-run/cycle"),
+                        Some(process),
+                        depth + 2,
+                        NodeKind::Sequence {
+                            children: Vec::new(),
+                        },
+                        c,
+                    )?;
+                    let w = self.push(
+                        format!("{pname}/wait"),
+                        format!("{race_path}/re-run/wait"),
+                        Some(cycle),
+                        depth + 3,
+                        NodeKind::Action(super::Action {
+                            ps: 1.0,
+                            pf: 0.0,
+                            success: Some(super::Duration::Fixed { time: period }),
+                            failure: None,
+                        }),
+                        c,
+                    )?;
+                    let again = self.node(rerun, Some(cycle), depth + 3, Some(&pname))?;
+                    self.set_children(cycle, vec![w, again]);
+                    cycle
+                }
+            };
+            self.set_children(process, vec![body]);
+            let rest = self.push(
+                format!("{race_name}/rest"),
+                format!("{race_path}/rest"),
+                Some(race),
+                depth + 1,
+                NodeKind::Sequence {
+                    children: Vec::new(),
+                },
+                c,
+            )?;
+            self.set_children(race, vec![process, rest]);
+            let rest_kids =
+                self.pipeline(pipe, &children[k + 1..], rest, depth + 2, pipe_name, copy)?;
+            self.set_children(rest, rest_kids);
+            return Ok(kids);
+        }
+        Ok(kids)
+    }
+}
+
+/// Most re-runs in the series of a re-run process with mixed timing (a
+/// RateController's fixed wait, or a leaf with fixed times): the truncated
+/// series of the loop's law costs about K³ (K = 100: about 1 s, K = 300:
+/// about 12 s for a one-phase planner).
+pub const MAX_RERUN_TERMS: usize = 100;
+
+/// The number of terms of the re-run process's series (re-runs until
+/// `p_again^K ≤ 1e-14`) when its timing is mixed and it exceeds
+/// [`MAX_RERUN_TERMS`]; `None` when the process is fast to analyse (all
+/// exponential without a wait: one phase chain) or its ps is unknown (the
+/// analysis then reports its own error).
+fn long_series(tree: &Tree, rerun: NodeId, waits: bool) -> Option<f64> {
+    let markovian = tree.subtree(rerun).all(|n| match &tree.nodes[n].kind {
+        NodeKind::Action(a) => a.is_markovian(),
+        _ => true,
+    });
+    if markovian && !waits {
+        return None;
+    }
+    let sub = extract(tree, rerun);
+    let f = crate::compile::analyze(&sub, &crate::compile::Options::default()).ok()?;
+    let ps = f.nodes[0].ps;
+    if ps <= 0.0 {
+        return None;
+    }
+    let terms = (1e-14f64.ln() / ps.min(1.0 - 1e-16).ln()).ceil();
+    (terms > MAX_RERUN_TERMS as f64).then_some(terms)
+}
+
+/// The subtree rooted at `id` as a tree of its own.
+fn extract(tree: &Tree, id: NodeId) -> Tree {
+    let range = tree.subtree(id);
+    let base = tree.nodes[id].depth;
+    let nodes = tree.nodes[range]
+        .iter()
+        .enumerate()
+        .map(|(k, n)| {
+            let mut n = n.clone();
+            n.depth -= base;
+            n.parent = if k == 0 {
+                None
+            } else {
+                n.parent.map(|p| p - id)
+            };
+            match &mut n.kind {
+                NodeKind::Sequence { children }
+                | NodeKind::Fallback { children }
+                | NodeKind::Pipeline { children }
+                | NodeKind::RoundRobin { children, .. }
+                | NodeKind::Parallel { children, .. }
+                | NodeKind::Flow(super::Flow { children, .. }) => {
+                    children.iter_mut().for_each(|c| *c -= id)
+                }
+                NodeKind::Decorator { child, .. } => *child -= id,
+                NodeKind::Action(_) | NodeKind::Condition { .. } => {}
+            }
+            n
+        })
+        .collect();
+    Tree { title: None, nodes }
 }
 
 /// Why the RoundRobin `id` may run more than once per run of the root, if it
