@@ -867,11 +867,14 @@ pub fn is_unsupported(e: &TreeError) -> bool {
 /// btrel has no stochastic meaning for yet, with what they depend on.
 fn unsupported(ty: &str) -> Option<&'static str> {
     Some(match ty {
-        "WasEntryUpdated" | "SkipUnlessUpdated" | "WaitValueUpdate" | "EntryUpdated"
-        | "BlackboardCheckInt" | "BlackboardCheckDouble" | "BlackboardCheckString"
-        | "BlackboardCheckBool" => {
-            "its outcome is computed from blackboard values"
-        }
+        "WasEntryUpdated"
+        | "SkipUnlessUpdated"
+        | "WaitValueUpdate"
+        | "EntryUpdated"
+        | "BlackboardCheckInt"
+        | "BlackboardCheckDouble"
+        | "BlackboardCheckString"
+        | "BlackboardCheckBool" => "its outcome is computed from blackboard values",
         "ManualSelector" => "it branches on blackboard values or user input",
         "RunOnce" | "ConsumeQueue" | "ParallelAll" | "ForEach" | "RepeatUnlessFailureEachTick" => {
             "it loops until a failure, over a queue, or runs its child at most once"
