@@ -2582,6 +2582,17 @@ pub fn parse_xml_str_with(
     params: &str,
     params_file: &str,
 ) -> Result<Tree, TreeError> {
+    parse_xml_str_with_keyed(xml, file, includes, params, params_file).map(|k| k.tree)
+}
+
+/// [`parse_xml_str_with`], also giving each node's params-file key.
+fn parse_xml_str_with_keyed(
+    xml: &str,
+    file: &str,
+    includes: &[(&str, &str)],
+    params: &str,
+    params_file: &str,
+) -> Result<Keyed, TreeError> {
     for (src, name) in [(xml, file), (params, params_file)]
         .into_iter()
         .chain(includes.iter().map(|&(n, t)| (t, n)))
@@ -2596,7 +2607,7 @@ pub fn parse_xml_str_with(
         for &(name, text) in includes {
             files.add(name.to_string(), text.to_string(), None)?;
         }
-        build(files, params, params_file)
+        build_keyed(files, params, params_file)
     })
 }
 
@@ -2614,17 +2625,7 @@ pub fn parse_xml_files(
     params: &Path,
     includes: &[std::path::PathBuf],
 ) -> Result<Tree, TreeError> {
-    let xml_name = xml.display().to_string();
-    let params_name = params.display().to_string();
-    let params_src = read_text(params, &params_name)?;
-    on_parser_thread(&xml_name, || {
-        let mut files = Files::new();
-        files.add_file(xml)?;
-        for inc in includes {
-            files.add_include(inc)?;
-        }
-        build(files, &params_src, &params_name)
-    })
+    parse_xml_files_keyed(xml, params, includes).map(|k| k.tree)
 }
 
 /// Like [`parse_xml_str`], also giving each node's params-file key.
@@ -2634,16 +2635,7 @@ pub fn parse_xml_str_keyed(
     params: &str,
     params_file: &str,
 ) -> Result<Keyed, TreeError> {
-    for (src, name) in [(xml, file), (params, params_file)] {
-        if src.len() > MAX_BYTES {
-            return Err(too_large(name, src.len()));
-        }
-    }
-    on_parser_thread(file, || {
-        let mut files = Files::new();
-        files.add(file.to_string(), xml.to_string(), None)?;
-        build_keyed(files, params, params_file)
-    })
+    parse_xml_str_with_keyed(xml, file, &[], params, params_file)
 }
 
 /// Like [`parse_xml_files`], also giving each node's params-file key.
@@ -2714,10 +2706,6 @@ fn problem_lines(sources: &[Source], ps: &[&Problem]) -> String {
         })
         .collect::<Vec<_>>()
         .join("\n")
-}
-
-fn build(files: Files, params: &str, params_file: &str) -> Result<Tree, TreeError> {
-    build_keyed(files, params, params_file).map(|k| k.tree)
 }
 
 /// A tree read from XML with, for every node, the params-file key its
