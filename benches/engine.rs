@@ -1,7 +1,9 @@
 //! The engine issue's cases: the book's Example 9.2 (deterministic ∥
 //! stochastic), a mixed-timing Sequence/Fallback tree, 16 stiff subtree
-//! children (rates 1e6 and 1e-3), and D nested wide Parallels over 1,000
-//! actions.
+//! children (rates 1e6 and 1e-3), D nested wide Parallels over 1,000
+//! actions, and two races (Parallel M = 1, F = 1): BT.CPP's Timeout shape
+//! (a deadline against a hybrid action) and Nav2's re-planning (a loop of
+//! a 1 s wait and a planner against the follower).
 //!
 //! Run: `cargo bench --bench engine`
 
@@ -28,6 +30,15 @@ fn mixed(k: usize) -> String {
         vec![unit; k].join(", ")
     )
 }
+
+/// Timeout(1.2 s) over a hybrid action, as the XML front end lowers it.
+const TIMEOUT_RACE: &str = "tree: {parallel: {success_threshold: 1, failure_threshold: 1, \
+    children: [{action: {ps: 0, tau_f: 1.2}}, {action: {ps: 0.6, tau_s: 0.9, nu: 1.7}}]}}";
+
+/// Re-planning every 1 s (planner ps 0.7) raced against the follower.
+const REPLANNING_RACE: &str = "tree: {parallel: {success_threshold: 1, failure_threshold: 1, \
+    children: [{until_failure: {child: {sequence: {children: [{action: {ps: 1, tau_s: 1}}, \
+    {action: {ps: 0.7, mu: 4, nu: 2}}]}}}}, {action: {ps: 0.9, mu: 0.2, nu: 0.1}}]}}";
 
 fn stiff16() -> String {
     let sub = "{sequence: {children: [{action: {ps: 0.99, mu: 1e6, nu: 1e6}}, \
@@ -72,6 +83,8 @@ fn engine(c: &mut Criterion) {
         ("example_9_2".to_string(), EXAMPLE_9_2.to_string()),
         ("mixed_fallback_of_4".to_string(), mixed(4)),
         ("stiff_16_subtrees".to_string(), stiff16()),
+        ("timeout_race".to_string(), TIMEOUT_RACE.to_string()),
+        ("replanning_race".to_string(), REPLANNING_RACE.to_string()),
     ];
     for d in [25, 50, 100] {
         cases.push((format!("nested_{d}_levels"), nested(d)));
