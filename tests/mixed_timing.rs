@@ -260,19 +260,7 @@ fn random_mixed_trees_agree_with_simulation() {
         };
         checked += 1;
         let sim = simulate_root(&t, 100_000, &times);
-        let r = &sim.nodes[0];
-        let f = a.nodes[0];
-        assert_within_z(&format!("seed {seed} ps"), &r.ps, f.ps);
-        if let (Some(e), Some(m)) = (&r.mtts, f.mtts) {
-            assert_within_z(&format!("seed {seed} MTTS"), e, m);
-        }
-        if let (Some(e), Some(m)) = (&r.mttf, f.mttf) {
-            assert_within_z(&format!("seed {seed} MTTF"), e, m);
-        }
-        for (p, e) in pts.iter().zip(&sim.curve) {
-            assert_within_z(&format!("seed {seed} S({})", p.t), &e.success, p.success);
-            assert_within_z(&format!("seed {seed} F({})", p.t), &e.failure, p.failure);
-        }
+        assert_root_and_curve_within_z(&format!("seed {seed}"), a.nodes[0], &pts, &sim);
     }
     assert!(checked >= 40, "only {checked} of 60 random trees answered");
 }

@@ -347,19 +347,7 @@ fn random_races_report_is_the_limit_of_the_curve_and_agrees_with_simulation() {
             let times = [0.5, 1.2, 3.0];
             let pts = btrel::curve::curve(&t, 0, &times, &Default::default()).unwrap();
             let sim = simulate_root(&t, 40_000, &times);
-            let r = &sim.nodes[0];
-            let f = a.nodes[0];
-            assert_within_z(&format!("seed {seed} ps"), &r.ps, f.ps);
-            if let (Some(e), Some(m)) = (&r.mtts, f.mtts) {
-                assert_within_z(&format!("seed {seed} MTTS"), e, m);
-            }
-            if let (Some(e), Some(m)) = (&r.mttf, f.mttf) {
-                assert_within_z(&format!("seed {seed} MTTF"), e, m);
-            }
-            for (p, e) in pts.iter().zip(&sim.curve) {
-                assert_within_z(&format!("seed {seed} S({})", p.t), &e.success, p.success);
-                assert_within_z(&format!("seed {seed} F({})", p.t), &e.failure, p.failure);
-            }
+            assert_root_and_curve_within_z(&format!("seed {seed}"), a.nodes[0], &pts, &sim);
         }
     }
     assert_eq!(simulated, 4);

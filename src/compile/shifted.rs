@@ -313,14 +313,7 @@ fn in_turn(
         };
         stopped.extend(convolve(&going, &stop));
         going = tidy(convolve(&going, &cont));
-        let phases: usize = going
-            .iter()
-            .chain(&stopped)
-            .map(|c| c.chain.len().max(1))
-            .sum();
-        if phases > max_states {
-            return Err(budget(tree, id, phases as f64, max_states));
-        }
+        within_budget(&going, &stopped, tree, id, max_states)?;
     }
     let stopped = tidy(stopped);
     Ok(if sequence {
@@ -349,6 +342,26 @@ fn counted_probability(c: &Component) -> f64 {
         .map(|&(i, p)| p * a.to_success[i])
         .sum();
     c.weight * (chain.initial_success + from_start)
+}
+
+/// Refuses (a budget error) once the components of a fold, still going
+/// and stopped, hold more than `max_states` phases in all.
+fn within_budget(
+    going: &[Component],
+    stopped: &[Component],
+    tree: &Tree,
+    id: NodeId,
+    max_states: usize,
+) -> Result<(), AnalysisError> {
+    let phases: usize = going
+        .iter()
+        .chain(stopped)
+        .map(|c| c.chain.len().max(1))
+        .sum();
+    if phases > max_states {
+        return Err(budget(tree, id, phases as f64, max_states));
+    }
+    Ok(())
 }
 
 /// Most repetitions a loop's series may take ([`loop_series`]).
@@ -399,14 +412,7 @@ fn loop_series(
     for _ in 0..terms as usize {
         stopped.extend(convolve(&going, &end));
         going = tidy(convolve(&going, &again));
-        let phases: usize = going
-            .iter()
-            .chain(&stopped)
-            .map(|c| c.chain.len().max(1))
-            .sum();
-        if phases > max_states {
-            return Err(budget(tree, id, phases as f64, max_states));
-        }
+        within_budget(&going, &stopped, tree, id, max_states)?;
     }
     // the mass still repeating after K rounds ends the loop there (as the
     // unrolled chain of a Markovian child does): P(end) stays 1

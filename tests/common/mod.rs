@@ -147,6 +147,29 @@ pub fn assert_root_matches_simulation(tree: &Tree, runs: u64) {
     }
 }
 
+/// Asserts that a simulation of the root (with `pts`' times) agrees with
+/// the exact figures `f` and curve points `pts`, |z| < [`Z`]; `label`
+/// names the case in messages.
+pub fn assert_root_and_curve_within_z(
+    label: &str,
+    f: Figures,
+    pts: &[btrel::curve::CurvePoint],
+    sim: &SimResult,
+) {
+    let r = &sim.nodes[0];
+    assert_within_z(&format!("{label} ps"), &r.ps, f.ps);
+    if let (Some(e), Some(m)) = (&r.mtts, f.mtts) {
+        assert_within_z(&format!("{label} MTTS"), e, m);
+    }
+    if let (Some(e), Some(m)) = (&r.mttf, f.mttf) {
+        assert_within_z(&format!("{label} MTTF"), e, m);
+    }
+    for (p, e) in pts.iter().zip(&sim.curve) {
+        assert_within_z(&format!("{label} S({})", p.t), &e.success, p.success);
+        assert_within_z(&format!("{label} F({})", p.t), &e.failure, p.failure);
+    }
+}
+
 /// Runs the built binary with `args` (from the crate root): exit code,
 /// standard output, standard error.
 pub fn run_btrel(args: &[&str]) -> (i32, String, String) {
