@@ -16,10 +16,7 @@
 //! * **`Timing::Deterministic`**: every exponential time becomes a fixed
 //!   time `τ = 1/rate` first (the book's Figs. 9.20–9.21 comparison).
 
-use crate::compile::mrg::{Mrg, Policy};
-use crate::compile::{
-    self, analyze, atoms, book_ctmc, counts, phase, shifted, AnalysisError, Method,
-};
+use crate::compile::{self, atoms, counts, phase, shifted, AnalysisError, Method, Plan};
 use crate::solve::chain::PhaseChain;
 use crate::solve::transient::{self, uniformization_work};
 use crate::solve::{expm, quadrature};
@@ -91,7 +88,8 @@ pub fn deterministic_version(tree: &Tree) -> Tree {
     t
 }
 
-/// `π(t)` of node `id` at `times` (finite, ≥ 0; any order), in the order given.
+/// `π(t)` of node `id` at `times` (finite, ≥ 0; any order), in the order
+/// given: the query on the node's planned representation ([`super::plan`]).
 pub fn curve(
     tree: &Tree,
     id: NodeId,
@@ -110,183 +108,15 @@ fn curve_of(
     times: &[f64],
     options: &CurveOptions,
 ) -> Result<Vec<CurvePoint>, AnalysisError> {
+    let opts = CurveOptions {
+        timing: Timing::AsGiven,
+        ..*options
+    };
     if options.timing == Timing::Deterministic {
         let det = deterministic_version(tree);
-        let opts = CurveOptions {
-            timing: Timing::AsGiven,
-            ..*options
-        };
-        return curve_of(&det, id, times, &opts);
+        return Plan::new(&det, options.method, options.max_states).curve(id, times, &opts);
     }
-    let node = tree.node(id);
-    let is_control = !node.kind.children().is_empty();
-    // a leaf in closed form (any timing: exponential, fixed or hybrid)
-    if let NodeKind::Action(a) = &node.kind {
-        return Ok(times
-            .iter()
-            .map(|&t| {
-                // an outcome without a duration has probability 0
-                let cdf = |d: Option<Duration>| d.map_or(0.0, |d| d.cdf(t));
-                let (success, failure) = (a.ps * cdf(a.success), a.pf * cdf(a.failure));
-                CurvePoint {
-                    t,
-                    success,
-                    failure,
-                    running: (1.0 - success - failure).max(0.0),
-                }
-            })
-            .collect());
-    }
-    if let NodeKind::Decorator {
-        decorator: d @ (Decorator::UntilFailure | Decorator::UntilSuccess),
-        child,
-    } = &node.kind
-    {
-        return loop_curve(tree, id, *child, *d, times, options);
-    }
-    if options.method == Method::Exact {
-        if let NodeKind::Parallel {
-            success_threshold,
-            failure_threshold,
-            children,
-        } = &node.kind
-        {
-            if *failure_threshold > children.len() - success_threshold {
-                return parallel_by_counts(tree, children, *success_threshold, times, options);
-            }
-        }
-    }
-    // deterministic subtrees: exact atoms (both methods agree on a leaf)
-    if options.method == Method::Exact || !is_control {
-        if let Some(a) = atoms::atoms(tree, id, options.max_states)? {
-            return Ok(times
-                .iter()
-                .map(|&t| {
-                    let (s, f) = atoms::cumulative(&a, t);
-                    CurvePoint {
-                        t,
-                        success: s,
-                        failure: f,
-                        running: (1.0 - s - f).max(0.0),
-                    }
-                })
-                .collect());
-        }
-    }
-    let chain = match (options.method, is_control) {
-        (Method::Book, true) => {
-            let analysis = analyze(
-                tree,
-                &compile::Options {
-                    method: Method::Book,
-                    max_states: options.max_states,
-                },
-            )?;
-            let children = node.kind.children();
-            let figs: Vec<_> = children.iter().map(|&c| analysis.nodes[c]).collect();
-            if let NodeKind::Decorator { decorator, .. } = node.kind {
-                book_ctmc::book_decorator(decorator, figs[0])
-            } else if let NodeKind::Flow(flow) = &node.kind {
-                compile::flow::book_chain(flow, &figs)
-            } else {
-                let policy = Policy::of(&node.kind).expect("control node");
-                if let Policy::Parallel {
-                    success_threshold,
-                    failure_threshold,
-                } = policy
-                {
-                    let est = compile::mrg::parallel_marking_count(
-                        children.len(),
-                        success_threshold,
-                        failure_threshold,
-                    );
-                    if est > options.max_states as f64 {
-                        return Err(AnalysisError::StateBudget {
-                            node: node.name.clone(),
-                            states: est,
-                            budget: options.max_states,
-                        });
-                    }
-                }
-                book_ctmc::book_ctmc(&Mrg::build(policy, children.len()), &figs)
-            }
-        }
-        _ => match phase::chain_of(tree, id, options.max_states) {
-            Ok(c) => c,
-            Err(AnalysisError::NotMarkovian { .. } | AnalysisError::StateBudget { .. })
-                if options.method == Method::Exact && is_race_node(&node.kind) =>
-            {
-                return super::race::curve(tree, id, times, options.max_states);
-            }
-            Err(AnalysisError::NotMarkovian { leaf }) => {
-                return match shifted::shifted_law(tree, id, options.max_states)? {
-                    Some(law) => curve_by_shifted(&law, times, options, &node.name),
-                    None => Err(AnalysisError::MixedTiming {
-                        node: node.name.clone(),
-                        leaf,
-                    }),
-                };
-            }
-            Err(e @ AnalysisError::StateBudget { .. }) if options.method == Method::Exact => {
-                return super::law::curve_by_laws(tree, id, times, options, e);
-            }
-            Err(e) => return Err(e),
-        },
-    };
-    solve_chain(&chain, times, options, &node.name)
-}
-
-/// Whether `kind` is a Parallel whose two thresholds can both be met
-/// ([`super::race`]).
-fn is_race_node(kind: &NodeKind) -> bool {
-    matches!(kind, NodeKind::Parallel { success_threshold, failure_threshold, children }
-        if super::race::is_race(children.len(), *success_threshold, *failure_threshold))
-}
-
-/// `π(t)` of a Parallel node with the book's thresholds (F = N − M + 1),
-/// exactly, from its children's own curves.
-///
-/// Before the node returns its children run independently, and its two
-/// thresholds cannot both be met (M + (N − M + 1) > N). So the node has
-/// succeeded by t iff at least M children have succeeded by t — had it
-/// failed first, N − M + 1 children would have failed, leaving fewer than M
-/// to succeed — and likewise for Failure. With `S_h(t)`, `F_h(t)` the
-/// children's curves (independent), the counts of children that have
-/// succeeded and failed by t follow a trinomial Poisson-binomial law,
-/// computed by a dynamic programme over the children with both counts capped
-/// at their thresholds ([`counts::status_by_counts`]): O(N·M·(N−M+1)) per time point instead of a product
-/// chain of up to 4^N states. Children are analysed on their own (any kind,
-/// including deterministic ones).
-fn parallel_by_counts(
-    tree: &Tree,
-    children: &[NodeId],
-    m: usize,
-    times: &[f64],
-    options: &CurveOptions,
-) -> Result<Vec<CurvePoint>, AnalysisError> {
-    let n = children.len();
-    let f_cap = n - m + 1;
-    let curves = children
-        .iter()
-        .map(|&c| curve_of(tree, c, times, options))
-        .collect::<Result<Vec<_>, _>>()?;
-    Ok(times
-        .iter()
-        .enumerate()
-        .map(|(k, &t)| {
-            let points: Vec<(f64, f64)> = curves
-                .iter()
-                .map(|c| (c[k].success, c[k].failure))
-                .collect();
-            let (success, failure) = counts::status_by_counts(&points, m, f_cap);
-            CurvePoint {
-                t,
-                success: success.clamp(0.0, 1.0),
-                failure: failure.clamp(0.0, 1.0),
-                running: (1.0 - success - failure).max(0.0),
-            }
-        })
-        .collect())
+    Plan::new(tree, options.method, options.max_states).curve(id, times, &opts)
 }
 
 /// `π(t)` of a loop without a bound over a child with a phase chain: the
@@ -296,7 +126,7 @@ fn parallel_by_counts(
 /// instantaneous "again" at entry is folded in by renormalising the entry:
 /// the entry is `initial / (1 − p₀)`, `p₀` the child's instantaneous
 /// probability of "again".
-fn loop_curve(
+pub(super) fn loop_curve(
     tree: &Tree,
     id: NodeId,
     child: NodeId,
@@ -364,7 +194,7 @@ fn loop_curve(
 
 /// `π(t)` from a shifted phase-type law ([`shifted`]): each outcome's
 /// `Σ w · A(t − τ)`, every component's chain solved like any chain.
-fn curve_by_shifted(
+pub(super) fn curve_by_shifted(
     law: &shifted::ShiftedLaw,
     times: &[f64],
     options: &CurveOptions,
@@ -414,7 +244,7 @@ fn atoms_same_time(a: f64, b: f64) -> bool {
     (a - b).abs() <= atoms::TIME_TOLERANCE * a.abs().max(b.abs()).max(1.0)
 }
 
-fn solve_chain(
+pub(super) fn solve_chain(
     chain: &PhaseChain,
     times: &[f64],
     options: &CurveOptions,
@@ -487,12 +317,13 @@ const MAX_REFINEMENTS: usize = 40;
 /// with the half-order rule to 1e-13 of the integral (panels are halved
 /// otherwise). The result is an error *estimate*, not a bound.
 pub(crate) fn parallel_times_by_quadrature(
-    tree: &Tree,
+    plan: &Plan,
     id: NodeId,
     m: usize,
     child_figures: &[compile::Figures],
-    max_states: usize,
 ) -> Result<[f64; 2], AnalysisError> {
+    let tree = plan.tree();
+    let max_states = plan.max_states();
     let node = tree.node(id);
     let children = node.kind.children();
     let f_cap = children.len() + 1 - m;
@@ -511,7 +342,7 @@ pub(crate) fn parallel_times_by_quadrature(
     };
     // P(S) − S(t) and P(F) − F(t) at `times`
     let gaps = |times: &[f64]| -> Result<Vec<[f64; 2]>, AnalysisError> {
-        let points = parallel_by_counts(tree, children, m, times, &options)?;
+        let points = plan.counted_curve(id, m, times, &options)?;
         Ok(points
             .iter()
             .map(|p| [(ps - p.success).max(0.0), (pf - p.failure).max(0.0)])
@@ -525,7 +356,7 @@ pub(crate) fn parallel_times_by_quadrature(
     // too, geometrically up to the longest mean
     let fastest = children
         .iter()
-        .filter_map(|&c| phase::chain_of(tree, c, max_states).ok())
+        .filter_map(|&c| plan.chain(c).ok())
         .flat_map(|c| (0..c.len()).map(move |i| c.total_rate(i)))
         .fold(0.0, f64::max);
     if fastest > 0.0 {

@@ -25,6 +25,7 @@ pub mod flow;
 pub(crate) mod law;
 pub mod mrg;
 pub mod phase;
+pub mod plan;
 pub mod race;
 pub mod shifted;
 
@@ -33,6 +34,7 @@ use crate::solve::{solve_absorbing, Absorption};
 use crate::tree::nav2::View;
 use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
 use mrg::{Mrg, Outcome, Policy, Status};
+pub use plan::{Plan, Representation};
 
 /// Which analysis to run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -237,24 +239,26 @@ pub fn primitive_view(tree: &Tree) -> Result<Option<View>, AnalysisError> {
     })
 }
 
-/// Analyses every node of the tree, bottom-up.
+/// Analyses every node of the tree, bottom-up, each from its planned
+/// representation ([`plan`]).
 pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError> {
     let view = primitive_view(tree)?;
     let (tree, image) = match &view {
         Some(v) => (&v.tree, Some(&v.image)),
         None => (tree, None),
     };
+    let plan = Plan::new(tree, options.method, options.max_states);
     let mut figures: Vec<Option<Figures>> = vec![None; tree.nodes.len()];
-    let memo = law::LawMemo::default();
     // pre-order: children come after their parent, so reverse order is bottom-up
     for id in (0..tree.nodes.len()).rev() {
-        let f = node_figures(
-            tree,
-            id,
-            &|c| figures[c].expect("children are analysed first"),
-            options,
-            &memo,
-        )?;
+        let child_figs: Vec<Figures> = tree
+            .node(id)
+            .kind
+            .children()
+            .iter()
+            .map(|&c| figures[c].expect("children are analysed first"))
+            .collect();
+        let f = plan.figures(id, &child_figs)?;
         check(&f, &tree.node(id).name)?;
         figures[id] = Some(f);
     }
@@ -291,9 +295,16 @@ pub fn reanalyze(
     }
     dirty.sort_unstable();
     dirty.dedup();
-    let memo = law::LawMemo::default();
+    let plan = Plan::new(tree, options.method, options.max_states);
     for &id in dirty.iter().rev() {
-        let f = node_figures(tree, id, &|c| analysis.nodes[c], options, &memo)?;
+        let child_figs: Vec<Figures> = tree
+            .node(id)
+            .kind
+            .children()
+            .iter()
+            .map(|&c| analysis.nodes[c])
+            .collect();
+        let f = plan.figures(id, &child_figs)?;
         check(&f, &tree.node(id).name)?;
         analysis.nodes[id] = f;
     }
@@ -319,141 +330,6 @@ pub fn leaf_figures(kind: &NodeKind) -> Option<Figures> {
     }
 }
 
-fn node_figures(
-    tree: &Tree,
-    id: NodeId,
-    done: &dyn Fn(NodeId) -> Figures,
-    options: &Options,
-    memo: &law::LawMemo,
-) -> Result<Figures, AnalysisError> {
-    let node = tree.node(id);
-    if let Some(f) = leaf_figures(&node.kind) {
-        return Ok(f);
-    }
-    let children = node.kind.children();
-    let child_figs: Vec<Figures> = children.iter().map(|&c| done(c)).collect();
-    let numerical = |what: String| AnalysisError::Numerical {
-        node: node.name.clone(),
-        what,
-    };
-    if let NodeKind::Decorator { decorator, .. } = node.kind {
-        if let Some(f) = loop_figures(decorator, child_figs[0], &node.name)? {
-            return Ok(f);
-        }
-        return decorator_figures(decorator, child_figs[0]).map_err(numerical);
-    }
-    if let NodeKind::Flow(flow) = &node.kind {
-        let a = solve_absorbing(&flow::figures_chain(flow, &child_figs)).map_err(numerical)?;
-        return Ok(Figures::from_absorption(&a));
-    }
-    let policy = Policy::of(&node.kind).expect("control node");
-    let numerical = |what: String| AnalysisError::Numerical {
-        node: node.name.clone(),
-        what,
-    };
-    let chain = match (policy, options.method) {
-        (Policy::Sequence | Policy::Fallback, _) => {
-            mrg_chain(&Mrg::build(policy, children.len()), &child_figs, false)
-        }
-        (
-            Policy::Parallel {
-                success_threshold,
-                failure_threshold,
-            },
-            Method::Book,
-        ) => {
-            let est =
-                mrg::parallel_marking_count(children.len(), success_threshold, failure_threshold);
-            if est > options.max_states as f64 {
-                return Err(AnalysisError::StateBudget {
-                    node: node.name.clone(),
-                    states: est,
-                    budget: options.max_states,
-                });
-            }
-            mrg_chain(&Mrg::build(policy, children.len()), &child_figs, true)
-        }
-        (
-            Policy::Parallel {
-                success_threshold,
-                failure_threshold,
-            },
-            Method::Exact,
-        ) => {
-            if failure_threshold >= children.len() + 1 - success_threshold {
-                if let Some(f) =
-                    parallel_by_counts(tree, id, success_threshold, &child_figs, options, memo)?
-                {
-                    return Ok(f);
-                }
-            }
-            match phase::chain_of(tree, id, options.max_states) {
-                Ok(chain) => chain.jump_chain(),
-                Err(AnalysisError::NotMarkovian { leaf }) => {
-                    // all-deterministic subtrees have finitely many atoms
-                    if let Some(a) = atoms::atoms(tree, id, options.max_states)? {
-                        return Ok(atoms::figures(&a));
-                    }
-                    // mixed timing with the book's thresholds: ps, pf by
-                    // counting, mean times by quadrature of the curve
-                    // (a loop below: its law is a long series, built once
-                    // by the race's counting rather than at every
-                    // quadrature pass)
-                    let looped = tree.subtree(id).any(|d| {
-                        matches!(
-                            tree.node(d).kind,
-                            NodeKind::Decorator {
-                                decorator: Decorator::UntilFailure | Decorator::UntilSuccess,
-                                ..
-                            }
-                        )
-                    });
-                    if looped {
-                        return race::figures(tree, id, &child_figs, options.max_states);
-                    }
-                    if failure_threshold >= children.len() + 1 - success_threshold {
-                        let outcomes: Vec<(f64, f64)> =
-                            child_figs.iter().map(|f| (f.ps, f.pf)).collect();
-                        let (ps, pf) = counts::status_by_counts(
-                            &outcomes,
-                            success_threshold,
-                            children.len() + 1 - success_threshold,
-                        );
-                        let [ts, tf] = curve::parallel_times_by_quadrature(
-                            tree,
-                            id,
-                            success_threshold,
-                            &child_figs,
-                            options.max_states,
-                        )?;
-                        return Ok(Figures {
-                            ps,
-                            pf,
-                            mtts: (ps > 0.0).then(|| ts / ps),
-                            mttf: (pf > 0.0).then(|| tf / pf),
-                        });
-                    }
-                    if race::is_race(children.len(), success_threshold, failure_threshold) {
-                        return race::figures(tree, id, &child_figs, options.max_states);
-                    }
-                    return Err(AnalysisError::MixedTiming {
-                        node: node.name.clone(),
-                        leaf,
-                    });
-                }
-                Err(AnalysisError::StateBudget { .. })
-                    if race::is_race(children.len(), success_threshold, failure_threshold) =>
-                {
-                    return race::figures(tree, id, &child_figs, options.max_states);
-                }
-                Err(e) => return Err(e),
-            }
-        }
-    };
-    let a = solve_absorbing(&chain).map_err(numerical)?;
-    Ok(Figures::from_absorption(&a))
-}
-
 /// Largest product (upper bound `Π (phases_h + 2)`) for which a Parallel
 /// node with the book's thresholds is solved through its product chain;
 /// wider ones are counted ([`counts`]).
@@ -464,24 +340,28 @@ pub const PRODUCT_LIMIT: f64 = 20_000.0;
 /// [`PRODUCT_LIMIT`] (or than the budget's Parallel share). `Ok(None)` when
 /// the product is small enough, or when a
 /// child has no phase chain (deterministic times: the atoms path applies).
-fn parallel_by_counts(
-    tree: &Tree,
+pub(crate) fn parallel_by_counts(
+    plan: &Plan,
     id: NodeId,
     m: usize,
     child_figs: &[Figures],
-    options: &Options,
-    memo: &law::LawMemo,
 ) -> Result<Option<Figures>, AnalysisError> {
+    let tree = plan.tree();
+    let options = Options {
+        method: Method::Exact,
+        max_states: plan.max_states(),
+    };
+    let memo = &plan.laws;
     let node = tree.node(id);
     let children = node.kind.children();
     let mut chains = Vec::with_capacity(children.len());
     for &c in children {
-        match phase::chain_of(tree, c, options.max_states) {
+        match plan.chain(c) {
             Ok(chain) => chains.push(chain),
             Err(AnalysisError::NotMarkovian { .. }) => return Ok(None),
             // a child holds a wide Parallel itself
             Err(AnalysisError::StateBudget { .. }) => {
-                return means_from_laws(tree, id, m, child_figs, options, memo).map(Some)
+                return means_from_laws(tree, id, m, child_figs, &options, memo).map(Some)
             }
             Err(e) => return Err(e),
         }
@@ -510,8 +390,7 @@ fn parallel_by_counts(
             m,
             children.len() + 1 - m,
         );
-        let [ts, tf] =
-            curve::parallel_times_by_quadrature(tree, id, m, child_figs, options.max_states)?;
+        let [ts, tf] = curve::parallel_times_by_quadrature(plan, id, m, child_figs)?;
         return Ok(Some(Figures {
             ps,
             pf,
@@ -658,7 +537,7 @@ pub fn decorator_figures(decorator: Decorator, child: Figures) -> Result<Figures
 /// feasible child (as in Lemma 9.2) and the marking's mean sojourn (9.40)
 /// otherwise. Children of zero mean duration (conditions) return first,
 /// in order, in zero time.
-fn mrg_chain(g: &Mrg, children: &[Figures], competing: bool) -> AbsorbingChain {
+pub(crate) fn mrg_chain(g: &Mrg, children: &[Figures], competing: bool) -> AbsorbingChain {
     // transient markings are renumbered densely, keeping their order
     let mut dense = vec![usize::MAX; g.len()];
     let mut n = 0;

@@ -1,0 +1,580 @@
+//! The planner: one table that picks, for every node, how the engine
+//! represents the law of its return — the time and outcome of its Success
+//! or Failure — and the two queries every command asks of it, the node's
+//! figures (P(S), P(F), MTTS, MTTF) and its curve `π(t)`.
+//!
+//! A [`Plan`] is made once per tree (its primitive view: Nav2 nodes already
+//! lowered) and strategy. It first records each node's *shape* bottom-up in
+//! one pass — whether every leaf below is exponential (the subtree has a
+//! phase chain), deterministic (finitely many return instants), or loops
+//! without a bound — and then decides a node's [`Representation`] the first
+//! time it is asked, by the first rule of the table below that applies,
+//! and keeps it (and the phase chains of Parallel nodes, which ancestors
+//! reuse instead of rebuilding). `report` (figures), `curve`, `compare`,
+//! `plot`, `sensitivity` and `--ci` all query the same plan, so every
+//! command answers a node from the same representation, with the same tie
+//! rule (BehaviorTree.CPP's child order, [`super::race`]).
+//!
+//! | # | rule (first match wins) | representation |
+//! |---|---|---|
+//! | 1 | an action or condition | [`Representation::Closed`]: its parameters, its CDFs in closed form |
+//! | 2 | strategy `book`, a control node | [`Representation::Book`]: the book's CTMC over the node's MRG, children as exponential actions |
+//! | 3 | `until_failure` / `until_success` | [`Representation::Loop`]: the cyclic chain over the child's phase chain, or the shifted law's truncated series |
+//! | 4 | every leaf below deterministic (or a condition), no loop | [`Representation::Atoms`]: the finitely many return instants |
+//! | 5 | every leaf below exponential, the chain within the budget (a Parallel with the book's thresholds: its product ≤ [`super::PRODUCT_LIMIT`]) | [`Representation::Chain`]: the exact phase chain |
+//! | 6 | a Parallel with the book's thresholds (`F ≥ N − M + 1`) | [`Representation::Counted`]: the count programme over the children's own laws |
+//! | 7 | a Parallel whose two thresholds can both be met | [`Representation::Race`]: the race of the children's laws |
+//! | 8 | a leaf below is deterministic or hybrid | [`Representation::Shifted`]: the shifted phase-type mixture |
+//! | 9 | otherwise (a chain over the budget: a wide Parallel below) | [`Representation::Composed`]: the composed outcome laws (interpolated densities) |
+//!
+//! The figures of a Sequence, Fallback, decorator or flow come from its
+//! children's figures over the DTMC of its MRG whatever its representation:
+//! mean times add along paths for any distributions, so this is exact and
+//! linear in the number of children. A Parallel's figures come from its
+//! representation.
+
+use std::cell::{OnceCell, RefCell};
+use std::collections::HashMap;
+
+use super::curve::{self as curve_query, CurveOptions, CurvePoint, Timing};
+use super::mrg::{self, Mrg, Policy};
+use super::{atoms, book_ctmc, counts, flow, law, phase, race, AnalysisError, Figures, Method};
+use crate::solve::chain::PhaseChain;
+use crate::solve::solve_absorbing;
+use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
+
+/// How the engine represents one node's outcome law (the planner's table,
+/// module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Representation {
+    /// A leaf: its parameters and closed-form CDFs.
+    Closed,
+    /// The book's CTMC over the node's MRG (strategy `book`).
+    Book,
+    /// A loop without a bound: a cyclic chain or a truncated series.
+    Loop,
+    /// Finitely many return instants (deterministic subtree).
+    Atoms,
+    /// An exact phase chain (exponential subtree within the budget).
+    Chain,
+    /// A Parallel with the book's thresholds, by counting its children.
+    Counted,
+    /// A Parallel whose thresholds can both be met: a race of its children.
+    Race,
+    /// A shifted phase-type mixture (mixed timing).
+    Shifted,
+    /// Composed outcome laws (interpolated densities; a wide Parallel below).
+    Composed,
+}
+
+impl Representation {
+    /// A short name, as in the README's method section.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Representation::Closed => "closed form",
+            Representation::Book => "book CTMC",
+            Representation::Loop => "loop",
+            Representation::Atoms => "atoms",
+            Representation::Chain => "phase chain",
+            Representation::Counted => "counted",
+            Representation::Race => "race",
+            Representation::Shifted => "shifted mixture",
+            Representation::Composed => "composed laws",
+        }
+    }
+}
+
+/// What the planner knows of a subtree before building anything.
+#[derive(Debug, Clone, Copy)]
+struct Shape {
+    /// Every leaf has exponential times (or is a condition).
+    exponential: bool,
+    /// Every leaf has fixed times (or is a condition).
+    deterministic: bool,
+    /// A loop without a bound below (or here).
+    looped: bool,
+}
+
+/// `(exponential, deterministic)` of one outcome's time of an action.
+fn side(p: f64, d: Option<Duration>) -> (bool, bool) {
+    if p <= 0.0 {
+        return (true, true);
+    }
+    match d {
+        Some(Duration::Exponential { .. }) => (true, false),
+        Some(Duration::Fixed { .. }) => (false, true),
+        _ => (false, false),
+    }
+}
+
+fn shapes(tree: &Tree) -> Vec<Shape> {
+    let mut out = vec![
+        Shape {
+            exponential: true,
+            deterministic: true,
+            looped: false,
+        };
+        tree.nodes.len()
+    ];
+    // pre-order: reverse order is bottom-up
+    for id in (0..tree.nodes.len()).rev() {
+        out[id] = match &tree.node(id).kind {
+            NodeKind::Action(a) => {
+                let (es, ds) = side(a.ps, a.success);
+                let (ef, df) = side(a.pf, a.failure);
+                Shape {
+                    exponential: es && ef,
+                    deterministic: ds && df,
+                    looped: false,
+                }
+            }
+            NodeKind::Condition { .. } => out[id],
+            kind => {
+                let mut s = out[id];
+                for &c in kind.children() {
+                    s.exponential &= out[c].exponential;
+                    s.deterministic &= out[c].deterministic;
+                    s.looped |= out[c].looped;
+                }
+                s.looped |= is_loop(kind);
+                s
+            }
+        };
+    }
+    out
+}
+
+fn is_loop(kind: &NodeKind) -> bool {
+    matches!(
+        kind,
+        NodeKind::Decorator {
+            decorator: Decorator::UntilFailure | Decorator::UntilSuccess,
+            ..
+        }
+    )
+}
+
+/// `(M, F capped at N − M + 1, N)` of a Parallel.
+fn thresholds(kind: &NodeKind) -> Option<(usize, usize, usize)> {
+    match kind {
+        NodeKind::Parallel {
+            success_threshold,
+            failure_threshold,
+            children,
+        } => Some((*success_threshold, *failure_threshold, children.len())),
+        _ => None,
+    }
+}
+
+/// Whether a Parallel has the book's thresholds (`F ≥ N − M + 1`): it
+/// returns Success iff ≥ M children have succeeded.
+fn book_thresholds(kind: &NodeKind) -> bool {
+    thresholds(kind).is_some_and(|(m, f, n)| f > n - m)
+}
+
+/// The planned model of one tree under one strategy: every node's
+/// representation, decided once, and the queries on it.
+pub struct Plan<'t> {
+    tree: &'t Tree,
+    method: Method,
+    max_states: usize,
+    shapes: Vec<Shape>,
+    representations: Vec<OnceCell<Representation>>,
+    /// Phase chains of Parallel nodes (products), reused by ancestors.
+    chains: RefCell<HashMap<NodeId, PhaseChain>>,
+    /// Why a node has no chain within the budget (for the composed laws).
+    over_budget: RefCell<HashMap<NodeId, AnalysisError>>,
+    /// Laws of counted Parallels by node and horizon (mean times).
+    pub(crate) laws: law::LawMemo,
+    /// The book's figures of every node (strategy `book`, curves).
+    book: OnceCell<Vec<Figures>>,
+}
+
+impl<'t> Plan<'t> {
+    /// The plan of `tree` (a primitive tree: no Nav2 nodes left, see
+    /// [`super::primitive_view`]) under `method`, with at most `max_states`
+    /// states in any chain.
+    pub fn new(tree: &'t Tree, method: Method, max_states: usize) -> Plan<'t> {
+        Plan {
+            tree,
+            method,
+            max_states,
+            shapes: shapes(tree),
+            representations: (0..tree.nodes.len()).map(|_| OnceCell::new()).collect(),
+            chains: RefCell::default(),
+            over_budget: RefCell::default(),
+            laws: law::LawMemo::default(),
+            book: OnceCell::new(),
+        }
+    }
+
+    /// The tree planned.
+    pub fn tree(&self) -> &'t Tree {
+        self.tree
+    }
+
+    /// The largest chain (or number of atoms) the plan builds.
+    pub fn max_states(&self) -> usize {
+        self.max_states
+    }
+
+    /// The representation of node `id` (decided on first use).
+    pub fn representation(&self, id: NodeId) -> Result<Representation, AnalysisError> {
+        if let Some(r) = self.representations[id].get() {
+            return Ok(*r);
+        }
+        let r = self.decide(id)?;
+        Ok(*self.representations[id].get_or_init(|| r))
+    }
+
+    /// The planner's table (module docs).
+    fn decide(&self, id: NodeId) -> Result<Representation, AnalysisError> {
+        let kind = &self.tree.node(id).kind;
+        let shape = self.shapes[id];
+        if kind.children().is_empty() {
+            return Ok(Representation::Closed);
+        }
+        if self.method == Method::Book {
+            return Ok(Representation::Book);
+        }
+        if is_loop(kind) {
+            return Ok(Representation::Loop);
+        }
+        if shape.deterministic && !shape.looped {
+            return Ok(Representation::Atoms);
+        }
+        if shape.exponential && self.chain_fits(id)? {
+            return Ok(Representation::Chain);
+        }
+        if book_thresholds(kind) {
+            return Ok(Representation::Counted);
+        }
+        if thresholds(kind).is_some() {
+            return Ok(Representation::Race);
+        }
+        if !shape.exponential {
+            return Ok(Representation::Shifted);
+        }
+        Ok(Representation::Composed)
+    }
+
+    /// Whether `id` (exponential) has a phase chain within the budget; a
+    /// Parallel with the book's thresholds only if its product is small
+    /// (larger ones are counted).
+    fn chain_fits(&self, id: NodeId) -> Result<bool, AnalysisError> {
+        let kind = &self.tree.node(id).kind;
+        if book_thresholds(kind) {
+            let mut product = 1.0;
+            for &c in kind.children() {
+                match self.chain(c) {
+                    Ok(chain) => product *= (chain.len() + 2) as f64,
+                    Err(e @ AnalysisError::StateBudget { .. }) => {
+                        self.over_budget.borrow_mut().insert(id, e);
+                        return Ok(false);
+                    }
+                    Err(e) => return Err(e),
+                }
+            }
+            let share = (self.max_states / phase::BOOK_PARALLEL_SHARE) as f64;
+            if product > super::PRODUCT_LIMIT.min(share) {
+                return Ok(false);
+            }
+        }
+        match self.chain(id) {
+            Ok(_) => Ok(true),
+            Err(e @ AnalysisError::StateBudget { .. }) => {
+                self.over_budget.borrow_mut().insert(id, e);
+                Ok(false)
+            }
+            Err(e) => Err(e),
+        }
+    }
+
+    /// The exact phase chain of `id` (Parallel nodes' chains are kept).
+    pub fn chain(&self, id: NodeId) -> Result<PhaseChain, AnalysisError> {
+        if let Some(c) = self.chains.borrow().get(&id) {
+            return Ok(c.clone());
+        }
+        let node = self.tree.node(id);
+        if node.kind.children().is_empty() {
+            return phase::chain_of(self.tree, id, self.max_states);
+        }
+        let children = node
+            .kind
+            .children()
+            .iter()
+            .map(|&c| self.chain(c))
+            .collect::<Result<Vec<_>, _>>()?;
+        let chain = phase::combine(self.tree, id, children, self.max_states)?;
+        if thresholds(&node.kind).is_some() {
+            self.chains.borrow_mut().insert(id, chain.clone());
+        }
+        Ok(chain)
+    }
+
+    /// Figures of control node `id` from its children's `child_figs` (in
+    /// child order).
+    pub fn figures(&self, id: NodeId, child_figs: &[Figures]) -> Result<Figures, AnalysisError> {
+        let node = self.tree.node(id);
+        if let Some(f) = super::leaf_figures(&node.kind) {
+            return Ok(f);
+        }
+        let numerical = |what: String| AnalysisError::Numerical {
+            node: node.name.clone(),
+            what,
+        };
+        if let NodeKind::Decorator { decorator, .. } = node.kind {
+            if let Some(f) = super::loop_figures(decorator, child_figs[0], &node.name)? {
+                return Ok(f);
+            }
+            return super::decorator_figures(decorator, child_figs[0]).map_err(numerical);
+        }
+        if let NodeKind::Flow(flow) = &node.kind {
+            let a = solve_absorbing(&flow::figures_chain(flow, child_figs)).map_err(numerical)?;
+            return Ok(Figures::from_absorption(&a));
+        }
+        let policy = Policy::of(&node.kind).expect("control node");
+        let n = child_figs.len();
+        let Some((m, f, _)) = thresholds(&node.kind) else {
+            let chain = super::mrg_chain(&Mrg::build(policy, n), child_figs, false);
+            let a = solve_absorbing(&chain).map_err(numerical)?;
+            return Ok(Figures::from_absorption(&a));
+        };
+        let chain = match self.representation(id)? {
+            Representation::Book => {
+                let est = mrg::parallel_marking_count(n, m, f);
+                if est > self.max_states as f64 {
+                    return Err(AnalysisError::StateBudget {
+                        node: node.name.clone(),
+                        states: est,
+                        budget: self.max_states,
+                    });
+                }
+                super::mrg_chain(&Mrg::build(policy, n), child_figs, true)
+            }
+            Representation::Chain => self.chain(id)?.jump_chain(),
+            Representation::Atoms => {
+                let a = atoms::atoms(self.tree, id, self.max_states)?
+                    .expect("a deterministic subtree has atoms");
+                return Ok(atoms::figures(&a));
+            }
+            Representation::Counted => return self.counted_figures(id, m, child_figs),
+            Representation::Race => {
+                return race::figures(self.tree, id, child_figs, self.max_states)
+            }
+            r => unreachable!("a Parallel is never planned as {}", r.name()),
+        };
+        let a = solve_absorbing(&chain).map_err(numerical)?;
+        Ok(Figures::from_absorption(&a))
+    }
+
+    /// Figures of a counted Parallel (success threshold `m`): P(S), P(F) by
+    /// the count programme over the children's figures; the mean times by
+    /// the certified quadrature when every child has a chain, from the
+    /// composed laws when a child is itself over the budget, by the race's
+    /// counting when a loop is below, and by quadrature of the counted curve
+    /// otherwise (mixed timing).
+    fn counted_figures(
+        &self,
+        id: NodeId,
+        m: usize,
+        child_figs: &[Figures],
+    ) -> Result<Figures, AnalysisError> {
+        if let Some(f) = super::parallel_by_counts(self, id, m, child_figs)? {
+            return Ok(f);
+        }
+        if self.shapes[id].looped {
+            // a loop's law is a long series: built once by the race's
+            // counting rather than at every quadrature pass
+            return race::figures(self.tree, id, child_figs, self.max_states);
+        }
+        let n = child_figs.len();
+        let outcomes: Vec<(f64, f64)> = child_figs.iter().map(|f| (f.ps, f.pf)).collect();
+        let (ps, pf) = counts::status_by_counts(&outcomes, m, n + 1 - m);
+        let [ts, tf] = curve_query::parallel_times_by_quadrature(self, id, m, child_figs)?;
+        Ok(Figures {
+            ps,
+            pf,
+            mtts: (ps > 0.0).then(|| ts / ps),
+            mttf: (pf > 0.0).then(|| tf / pf),
+        })
+    }
+
+    /// `π(t)` of node `id` at `times` (finite, ≥ 0, any order), in the
+    /// order given. `options.timing` must be [`Timing::AsGiven`] (the
+    /// deterministic version of a tree is another tree, with its own plan).
+    pub fn curve(
+        &self,
+        id: NodeId,
+        times: &[f64],
+        options: &CurveOptions,
+    ) -> Result<Vec<CurvePoint>, AnalysisError> {
+        debug_assert_eq!(options.timing, Timing::AsGiven);
+        let node = self.tree.node(id);
+        let points = |f: &dyn Fn(f64) -> (f64, f64)| -> Vec<CurvePoint> {
+            times
+                .iter()
+                .map(|&t| {
+                    let (success, failure) = f(t);
+                    CurvePoint {
+                        t,
+                        success,
+                        failure,
+                        running: (1.0 - success - failure).max(0.0),
+                    }
+                })
+                .collect()
+        };
+        match self.representation(id)? {
+            Representation::Closed => Ok(match &node.kind {
+                // an outcome without a duration has probability 0
+                NodeKind::Action(a) => points(&|t| {
+                    let cdf = |d: Option<Duration>| d.map_or(0.0, |d| d.cdf(t));
+                    (a.ps * cdf(a.success), a.pf * cdf(a.failure))
+                }),
+                NodeKind::Condition { ps } => points(&|_| (*ps, 1.0 - ps)),
+                _ => unreachable!("closed form is for leaves"),
+            }),
+            Representation::Loop => {
+                let NodeKind::Decorator { decorator, child } = node.kind else {
+                    unreachable!("a loop is a decorator")
+                };
+                curve_query::loop_curve(self.tree, id, child, decorator, times, options)
+            }
+            Representation::Atoms => {
+                let a = atoms::atoms(self.tree, id, self.max_states)?
+                    .expect("a deterministic subtree has atoms");
+                Ok(points(&|t| atoms::cumulative(&a, t)))
+            }
+            Representation::Chain => {
+                curve_query::solve_chain(&self.chain(id)?, times, options, &node.name)
+            }
+            Representation::Counted => {
+                let (m, _, _) = thresholds(&node.kind).expect("a counted node is a Parallel");
+                self.counted_curve(id, m, times, options)
+            }
+            Representation::Race => race::curve(self.tree, id, times, self.max_states),
+            Representation::Shifted => {
+                match super::shifted::shifted_law(self.tree, id, self.max_states)? {
+                    Some(law) => curve_query::curve_by_shifted(&law, times, options, &node.name),
+                    None => Err(AnalysisError::MixedTiming {
+                        node: node.name.clone(),
+                        leaf: self.mixed_leaf(id),
+                    }),
+                }
+            }
+            Representation::Composed => {
+                let budget = self.over_budget.borrow().get(&id).cloned();
+                let budget = match budget {
+                    Some(e) => e,
+                    None => match self.chain(id) {
+                        Err(e) => e,
+                        Ok(_) => unreachable!("a node with a chain is planned as a chain"),
+                    },
+                };
+                law::curve_by_laws(self.tree, id, times, options, budget)
+            }
+            Representation::Book => {
+                let figs = self.book_figures()?;
+                let children = node.kind.children();
+                let child_figs: Vec<Figures> = children.iter().map(|&c| figs[c]).collect();
+                let chain = if let NodeKind::Decorator { decorator, .. } = node.kind {
+                    book_ctmc::book_decorator(decorator, child_figs[0])
+                } else if let NodeKind::Flow(flow) = &node.kind {
+                    flow::book_chain(flow, &child_figs)
+                } else {
+                    let policy = Policy::of(&node.kind).expect("control node");
+                    if let Some((m, f, n)) = thresholds(&node.kind) {
+                        let est = mrg::parallel_marking_count(n, m, f);
+                        if est > self.max_states as f64 {
+                            return Err(AnalysisError::StateBudget {
+                                node: node.name.clone(),
+                                states: est,
+                                budget: self.max_states,
+                            });
+                        }
+                    }
+                    book_ctmc::book_ctmc(&Mrg::build(policy, children.len()), &child_figs)
+                };
+                curve_query::solve_chain(&chain, times, options, &node.name)
+            }
+        }
+    }
+
+    /// `π(t)` of a counted Parallel (success threshold `m`) from its
+    /// children's curves: before the node returns its children run
+    /// independently and its two thresholds cannot both be met, so it has
+    /// succeeded by t iff at least M children have ([`counts`]).
+    pub(crate) fn counted_curve(
+        &self,
+        id: NodeId,
+        m: usize,
+        times: &[f64],
+        options: &CurveOptions,
+    ) -> Result<Vec<CurvePoint>, AnalysisError> {
+        let children = self.tree.node(id).kind.children();
+        let f_cap = children.len() + 1 - m;
+        let curves = children
+            .iter()
+            .map(|&c| self.curve(c, times, options))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(times
+            .iter()
+            .enumerate()
+            .map(|(k, &t)| {
+                let points: Vec<(f64, f64)> = curves
+                    .iter()
+                    .map(|c| (c[k].success, c[k].failure))
+                    .collect();
+                let (success, failure) = counts::status_by_counts(&points, m, f_cap);
+                CurvePoint {
+                    t,
+                    success: success.clamp(0.0, 1.0),
+                    failure: failure.clamp(0.0, 1.0),
+                    running: (1.0 - success - failure).max(0.0),
+                }
+            })
+            .collect())
+    }
+
+    /// The book's figures of every node (computed once).
+    fn book_figures(&self) -> Result<&[Figures], AnalysisError> {
+        if let Some(f) = self.book.get() {
+            return Ok(f);
+        }
+        let mut figs = vec![
+            Figures {
+                ps: 0.0,
+                pf: 0.0,
+                mtts: None,
+                mttf: None,
+            };
+            self.tree.nodes.len()
+        ];
+        for id in (0..self.tree.nodes.len()).rev() {
+            let child_figs: Vec<Figures> = self
+                .tree
+                .node(id)
+                .kind
+                .children()
+                .iter()
+                .map(|&c| figs[c])
+                .collect();
+            figs[id] = self.figures(id, &child_figs)?;
+        }
+        Ok(self.book.get_or_init(|| figs))
+    }
+
+    /// A leaf below `id` that is neither exponential nor a condition.
+    fn mixed_leaf(&self, id: NodeId) -> String {
+        self.tree
+            .subtree(id)
+            .find(|&d| {
+                matches!(self.tree.node(d).kind, NodeKind::Action(_)) && !self.shapes[d].exponential
+            })
+            .map_or_else(
+                || self.tree.node(id).name.clone(),
+                |d| self.tree.node(d).name.clone(),
+            )
+    }
+}
