@@ -17,17 +17,17 @@
 //!   over the MRG has probabilities (9.38)–(9.39) and the marking's mean
 //!   sojourn (9.40) as the duration of each transition.
 
-pub mod atoms;
-pub mod book_ctmc;
+pub(crate) mod atoms;
+pub(crate) mod book_ctmc;
 pub mod counts;
 pub mod curve;
-pub mod flow;
+pub(crate) mod flow;
 pub(crate) mod law;
 pub mod mrg;
 pub mod phase;
 pub mod plan;
-pub mod race;
-pub mod shifted;
+pub(crate) mod race;
+pub(crate) mod shifted;
 
 use crate::solve::chain::{AbsorbingChain, Edge, Target};
 use crate::solve::{solve_absorbing, Absorption};

@@ -1,0 +1,159 @@
+//! The library's front door: a tree planned once, and the queries every
+//! command asks of it.
+//!
+//! ```
+//! use btrel::{Model, Tree};
+//!
+//! let tree: Tree = btrel::parse_str(
+//!     "tree:\n  sequence:\n    children:\n      - action: {ps: 0.9, mu: 1.0, nu: 2.0}\n      - action: {ps: 0.8, tau_s: 3.0, nu: 1.0}\n",
+//!     "example.yaml",
+//! )?;
+//! let model = Model::new(&tree)?;
+//! let root = model.figures(Tree::ROOT);
+//! assert!((root.ps - 0.72).abs() < 1e-12);
+//! // MTTS of a Sequence: the sum of its children's (1/mu + tau_s)
+//! assert!((root.mtts.unwrap() - 4.0).abs() < 1e-12);
+//! let pi = model.curve(Tree::ROOT, &[1.0, 10.0])?;
+//! assert_eq!(pi[0].success, 0.0); // the second action needs 3 s at least
+//! # Ok::<(), btrel::Error>(())
+//! ```
+
+use crate::compile::{self, Analysis, AnalysisError, Figures, Method, Options, Representation};
+use crate::curve::{CurveOptions, CurvePoint, Timing};
+use crate::sim::SimError;
+use crate::tree::{NodeId, Tree, TreeError};
+
+/// Everything that can go wrong in the library, by stage.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Error {
+    /// The tree file is invalid (located: file, line, column).
+    #[error(transparent)]
+    Tree(#[from] TreeError),
+    /// The tree is valid but the analysis cannot answer (too large, never
+    /// returns, no exact meaning, ...).
+    #[error(transparent)]
+    Analysis(#[from] AnalysisError),
+    /// Invalid simulation options.
+    #[error(transparent)]
+    Simulation(#[from] SimError),
+    /// A node id outside the tree.
+    #[error("node {node} does not exist: the tree has {len} nodes")]
+    NoSuchNode {
+        /// The id asked for.
+        node: NodeId,
+        /// Number of nodes of the tree.
+        len: usize,
+    },
+    /// A time point that is negative, infinite or NaN.
+    #[error("time point #{index} is {value}: time points must be finite and >= 0")]
+    BadTime {
+        /// Its position.
+        index: usize,
+        /// The value.
+        value: f64,
+    },
+}
+
+/// A tree analysed once: every node's figures, and its curves on demand.
+///
+/// The engine plans each node's representation once ([`crate::compile::plan`]:
+/// one table of rules, bottom-up) and answers every query from it, so
+/// figures and curves of a node always come from the same law.
+#[derive(Debug, Clone)]
+pub struct Model {
+    tree: Tree,
+    options: Options,
+    analysis: Analysis,
+}
+
+impl Model {
+    /// Analyses `tree` exactly, with the default budget.
+    pub fn new(tree: &Tree) -> Result<Model, Error> {
+        Model::with_options(tree, Options::default())
+    }
+
+    /// Analyses `tree` under `options` (strategy: exact or the book's; the
+    /// state budget).
+    pub fn with_options(tree: &Tree, options: Options) -> Result<Model, Error> {
+        let analysis = compile::analyze(tree, &options)?;
+        Ok(Model {
+            tree: tree.clone(),
+            options,
+            analysis,
+        })
+    }
+
+    /// The tree analysed.
+    pub fn tree(&self) -> &Tree {
+        &self.tree
+    }
+
+    /// The strategy used.
+    pub fn method(&self) -> Method {
+        self.options.method
+    }
+
+    /// Figures of node `id` (panics if `id` is not a node of the tree: ids
+    /// come from the tree).
+    pub fn figures(&self, id: NodeId) -> Figures {
+        self.analysis.nodes[id]
+    }
+
+    /// Figures of every node, indexed by node id.
+    pub fn all_figures(&self) -> &[Figures] {
+        &self.analysis.nodes
+    }
+
+    /// `π(t)` of node `id` at `times` (finite, ≥ 0, any order), exactly.
+    pub fn curve(&self, id: NodeId, times: &[f64]) -> Result<Vec<CurvePoint>, Error> {
+        self.curve_with(id, times, Timing::AsGiven)
+    }
+
+    /// `π(t)` with actions' times as given or made deterministic (`1/rate`,
+    /// the book's Figs. 9.20–9.21 comparison).
+    pub fn curve_with(
+        &self,
+        id: NodeId,
+        times: &[f64],
+        timing: Timing,
+    ) -> Result<Vec<CurvePoint>, Error> {
+        self.check_node(id)?;
+        if let Some((index, &value)) = times
+            .iter()
+            .enumerate()
+            .find(|(_, t)| !(t.is_finite() && **t >= 0.0))
+        {
+            return Err(Error::BadTime { index, value });
+        }
+        let options = CurveOptions {
+            method: self.options.method,
+            timing,
+            max_states: self.options.max_states,
+            ..CurveOptions::default()
+        };
+        Ok(crate::curve::curve(&self.tree, id, times, &options)?)
+    }
+
+    /// How the engine represents node `id`'s outcome law (for Nav2 nodes:
+    /// the node standing for it in the lowered tree).
+    pub fn representation(&self, id: NodeId) -> Result<Representation, Error> {
+        self.check_node(id)?;
+        let view = compile::primitive_view(&self.tree)?;
+        let (tree, id) = match &view {
+            Some(v) => (&v.tree, v.image[id]),
+            None => (&self.tree, id),
+        };
+        Ok(compile::Plan::new(tree, self.options.method, self.options.max_states)
+            .representation(id)?)
+    }
+
+    fn check_node(&self, id: NodeId) -> Result<(), Error> {
+        if id >= self.tree.nodes.len() {
+            return Err(Error::NoSuchNode {
+                node: id,
+                len: self.tree.nodes.len(),
+            });
+        }
+        Ok(())
+    }
+}

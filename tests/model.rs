@@ -1,0 +1,117 @@
+//! The library facade (`btrel::Model`) and the planner's table
+//! (`compile::plan`): one representation per node, decided by the first
+//! rule that applies, and figures and curves that agree with closed forms.
+
+use btrel::{Error, Method, Model, Options, Representation, Tree};
+
+fn tree(yaml: &str) -> Tree {
+    btrel::parse_str(yaml, "t.yaml").expect("valid tree")
+}
+
+fn rep(model: &Model, id: usize) -> Representation {
+    model.representation(id).expect("planned")
+}
+
+/// Sequence(exponential action, hybrid action: Success at exactly 3 s,
+/// Failure at min(X, 3) with X ~ Exp(0.5), Def. 9.9): the figures and the
+/// curve in closed form.
+#[test]
+fn figures_and_curve_of_a_mixed_sequence_in_closed_form() {
+    let t = tree(
+        "tree: {sequence: {children: [{action: {ps: 0.9, mu: 1.0, nu: 2.0}}, \
+         {action: {ps: 0.8, tau_s: 3.0, nu: 0.5}}]}}",
+    );
+    let m = Model::new(&t).unwrap();
+    let root = m.figures(Tree::ROOT);
+    // P(S) = 0.9 · 0.8; MTTS = 1/mu + tau_s
+    assert!((root.ps - 0.72).abs() < 1e-15);
+    assert!((root.mtts.unwrap() - 4.0).abs() < 1e-12);
+    // P(F) = 0.1 + 0.9 · 0.2; E[T·1{F}] = 0.1/nu1 + 0.18 (1/mu1 + E[min(X, 3)]),
+    // E[min(X, c)] = (1 − e^{−nu c}) / nu
+    assert!((root.pf - 0.28).abs() < 1e-15);
+    let truncated = (1.0 - (-1.5f64).exp()) / 0.5;
+    let mttf = (0.1 * 0.5 + 0.18 * (1.0 + truncated)) / 0.28;
+    assert!((root.mttf.unwrap() - mttf).abs() < 1e-12);
+    // S(t) = 0.72 (1 − e^{−(t − 3)}) for t ≥ 3, 0 before
+    let pi = m.curve(Tree::ROOT, &[2.5, 3.0, 4.0, 10.0]).unwrap();
+    for p in &pi {
+        let s = if p.t >= 3.0 {
+            0.72 * (1.0 - (-(p.t - 3.0)).exp())
+        } else {
+            0.0
+        };
+        assert!((p.success - s).abs() < 1e-12, "S({}) = {} vs {s}", p.t, p.success);
+        assert!((p.success + p.failure + p.running - 1.0).abs() < 1e-12);
+    }
+}
+
+/// Each row of the planner's table, on the smallest tree it applies to.
+#[test]
+fn the_planner_table_row_by_row() {
+    let det = "{action: {ps: 0.7, tau_s: 1.0, tau_f: 2.0}}";
+    let exp = "{action: {ps: 0.7, mu: 1.0, nu: 2.0}}";
+    let hyb = "{action: {ps: 0.7, tau_s: 1.0, nu: 2.0}}";
+    let cases: Vec<(String, Representation)> = vec![
+        (format!("tree: {exp}"), Representation::Closed),
+        (format!("tree: {{sequence: {{children: [{det}, {det}]}}}}"), Representation::Atoms),
+        (format!("tree: {{sequence: {{children: [{exp}, {exp}]}}}}"), Representation::Chain),
+        (format!("tree: {{until_failure: {{child: {exp}}}}}"), Representation::Loop),
+        (format!("tree: {{parallel: {{children: [{exp}, {exp}]}}}}"), Representation::Chain),
+        (format!("tree: {{parallel: {{children: [{det}, {exp}]}}}}"), Representation::Counted),
+        (
+            format!(
+                "tree: {{parallel: {{success_threshold: 1, failure_threshold: 1, children: [{det}, {exp}]}}}}"
+            ),
+            Representation::Race,
+        ),
+        (format!("tree: {{fallback: {{children: [{hyb}, {exp}]}}}}"), Representation::Shifted),
+    ];
+    for (yaml, expected) in &cases {
+        let m = Model::new(&tree(yaml)).unwrap();
+        assert_eq!(rep(&m, Tree::ROOT), *expected, "{yaml}");
+        // whatever the representation, the curve's limit is the figures
+        let root = m.figures(Tree::ROOT);
+        let far = m.curve(Tree::ROOT, &[200.0]).unwrap()[0];
+        assert!((far.success - root.ps).abs() < 1e-9, "{yaml}: {far:?} vs {root:?}");
+        assert!((far.failure - root.pf).abs() < 1e-9, "{yaml}: {far:?} vs {root:?}");
+    }
+    // a Parallel of 16 two-action subtrees: its product (4^16 states) is
+    // counted, and the Sequence above it gets composed laws
+    let sub = format!("{{sequence: {{children: [{exp}, {exp}]}}}}");
+    let wide = format!(
+        "tree: {{sequence: {{children: [{exp}, {{parallel: {{success_threshold: 8, children: [{}]}}}}]}}}}",
+        vec![sub; 16].join(", ")
+    );
+    let m = Model::new(&tree(&wide)).unwrap();
+    assert_eq!(rep(&m, Tree::ROOT), Representation::Composed);
+    assert_eq!(rep(&m, 2), Representation::Counted);
+    // the book's strategy plans every control node as its CTMC
+    let m = Model::with_options(
+        &tree(&format!("tree: {{sequence: {{children: [{exp}, {exp}]}}}}")),
+        Options {
+            method: Method::Book,
+            ..Options::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(rep(&m, Tree::ROOT), Representation::Book);
+    assert_eq!(rep(&m, 1), Representation::Closed);
+}
+
+#[test]
+fn typed_errors_for_bad_queries() {
+    let m = Model::new(&tree("tree: {action: {ps: 0.5, mu: 1.0, nu: 1.0}}")).unwrap();
+    assert!(matches!(
+        m.curve(7, &[1.0]),
+        Err(Error::NoSuchNode { node: 7, len: 1 })
+    ));
+    assert!(matches!(
+        m.curve(0, &[1.0, f64::NAN]),
+        Err(Error::BadTime { index: 1, .. })
+    ));
+    let e = btrel::parse_str("tree: {action: {ps: 1.5}}", "bad.yaml")
+        .map_err(Error::from)
+        .unwrap_err();
+    assert!(matches!(e, Error::Tree(_)), "{e}");
+    assert!(e.to_string().contains("bad.yaml"), "{e}");
+}
