@@ -23,6 +23,11 @@ pub struct Shape {
     pub parallel_fraction: f64,
     /// Largest Parallel node generated.
     pub max_parallel_children: usize,
+    /// Fraction of actions with fixed times (`tau_s`, `tau_f`, Def. 9.8).
+    pub deterministic_fraction: f64,
+    /// Fraction of actions with hybrid times (`tau_s` + `nu` or `mu` +
+    /// `tau_f`, Def. 9.9); the rest are exponential.
+    pub hybrid_fraction: f64,
 }
 
 impl Shape {
@@ -35,6 +40,18 @@ impl Shape {
             condition_fraction: 0.1,
             parallel_fraction: 0.0,
             max_parallel_children: 3,
+            deterministic_fraction: 0.0,
+            hybrid_fraction: 0.0,
+        }
+    }
+
+    /// [`Shape::sequence_fallback`] with mixed timing (Def. 9.11): a third
+    /// of the actions deterministic, a third hybrid, a third exponential.
+    pub fn mixed_timing(leaves: usize) -> Shape {
+        Shape {
+            deterministic_fraction: 1.0 / 3.0,
+            hybrid_fraction: 1.0 / 3.0,
+            ..Shape::sequence_fallback(leaves)
         }
     }
 }
@@ -85,10 +102,21 @@ fn node(
             let ps: f64 = rng.random_range(0.05..0.95);
             let mu: f64 = 10f64.powf(rng.random_range(-2.0..1.0));
             let nu: f64 = 10f64.powf(rng.random_range(-2.0..1.0));
-            let _ = writeln!(
-                out,
-                "action: {{name: a{id}, ps: {ps:.4}, mu: {mu:.5}, nu: {nu:.5}}}"
-            );
+            // (no draw without mixed timing: seeds keep their trees)
+            let mixed = shape.deterministic_fraction + shape.hybrid_fraction > 0.0;
+            let u: f64 = if mixed { rng.random() } else { 1.0 };
+            let timing = if u < shape.deterministic_fraction {
+                format!("tau_s: {:.5}, tau_f: {:.5}", 1.0 / mu, 1.0 / nu)
+            } else if u < shape.deterministic_fraction + shape.hybrid_fraction {
+                if rng.random::<bool>() {
+                    format!("tau_s: {:.5}, nu: {nu:.5}", 1.0 / mu)
+                } else {
+                    format!("mu: {mu:.5}, tau_f: {:.5}", 1.0 / nu)
+                }
+            } else {
+                format!("mu: {mu:.5}, nu: {nu:.5}")
+            };
+            let _ = writeln!(out, "action: {{name: a{id}, ps: {ps:.4}, {timing}}}");
         }
         return;
     }

@@ -143,8 +143,10 @@ impl Model {
             Some(v) => (&v.tree, v.image[id]),
             None => (&self.tree, id),
         };
-        Ok(compile::Plan::new(tree, self.options.method, self.options.max_states)
-            .representation(id)?)
+        Ok(
+            compile::Plan::new(tree, self.options.method, self.options.max_states)
+                .representation(id)?,
+        )
     }
 
     fn check_node(&self, id: NodeId) -> Result<(), Error> {

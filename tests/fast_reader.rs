@@ -49,6 +49,7 @@ fn generated_trees_take_the_fast_path_and_agree() {
             condition_fraction: 0.2,
             parallel_fraction: 0.2,
             max_parallel_children: 4,
+            ..Shape::sequence_fallback(300)
         };
         let source = random_tree_yaml(&shape, seed);
         assert!(fast_reader_accepts(&source));

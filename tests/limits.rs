@@ -43,3 +43,33 @@ fn sixteen_stiff_subtrees_are_reported() {
     let t = tree(&format!("tree: {}\n", wide(sub, 16, 8)));
     assert_root_matches_simulation(&t, 100_000);
 }
+
+#[test]
+fn a_mixed_timing_tree_too_large_for_its_shifted_mixture_is_refused_within_the_budget() {
+    // a 300-leaf random Sequence/Fallback tree, a third each deterministic,
+    // hybrid and exponential actions: its shifted phase-type mixture would
+    // hold ~4e7 phases. The convolutions were built before the budget was
+    // checked: 24 s and 4.5 GB, and under a 2 GB address-space limit the
+    // process aborted ("memory allocation failed"). Now the size is checked
+    // before each convolution: a refusal (exit 1) naming the budget, under
+    // the same limit.
+    use btrel::generate::{random_tree_yaml, Shape};
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("mixed300.yaml");
+    std::fs::write(&file, random_tree_yaml(&Shape::mixed_timing(300), 1)).unwrap();
+    let out = dir.path().join("c.csv");
+    let script = format!(
+        "ulimit -v 2000000; exec '{}' curve '{}' --t-end 100 --points 1000 -o '{}'",
+        env!("CARGO_BIN_EXE_btrel"),
+        file.display(),
+        out.display()
+    );
+    let o = std::process::Command::new("sh")
+        .args(["-c", &script])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("more than the budget"), "{stderr}");
+    assert!(!out.exists(), "nothing half-written");
+}

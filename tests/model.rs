@@ -40,7 +40,12 @@ fn figures_and_curve_of_a_mixed_sequence_in_closed_form() {
         } else {
             0.0
         };
-        assert!((p.success - s).abs() < 1e-12, "S({}) = {} vs {s}", p.t, p.success);
+        assert!(
+            (p.success - s).abs() < 1e-12,
+            "S({}) = {} vs {s}",
+            p.t,
+            p.success
+        );
         assert!((p.success + p.failure + p.running - 1.0).abs() < 1e-12);
     }
 }
@@ -72,8 +77,14 @@ fn the_planner_table_row_by_row() {
         // whatever the representation, the curve's limit is the figures
         let root = m.figures(Tree::ROOT);
         let far = m.curve(Tree::ROOT, &[200.0]).unwrap()[0];
-        assert!((far.success - root.ps).abs() < 1e-9, "{yaml}: {far:?} vs {root:?}");
-        assert!((far.failure - root.pf).abs() < 1e-9, "{yaml}: {far:?} vs {root:?}");
+        assert!(
+            (far.success - root.ps).abs() < 1e-9,
+            "{yaml}: {far:?} vs {root:?}"
+        );
+        assert!(
+            (far.failure - root.pf).abs() < 1e-9,
+            "{yaml}: {far:?} vs {root:?}"
+        );
     }
     // a Parallel of 16 two-action subtrees: its product (4^16 states) is
     // counted, and the Sequence above it gets composed laws

@@ -561,6 +561,7 @@ fn random_trees_with_wide_parallels_agree_with_simulation() {
         condition_fraction: 0.15,
         parallel_fraction: 0.6,
         max_parallel_children: 12,
+        ..Shape::sequence_fallback(36)
     };
     let times = [0.5, 2.0, 8.0];
     let runs = 200_000u64;

@@ -160,8 +160,16 @@ fn tidy(mut comps: Vec<Component>) -> Vec<Component> {
     rest
 }
 
-/// `a ⊛ b` for every pair.
-fn convolve(a: &[Component], b: &[Component]) -> Vec<Component> {
+/// `a ⊛ b` for every pair, or `Err(size)` — before allocating anything —
+/// when the result would hold more than `room` phases (each component
+/// counted as at least one), `size` an upper bound of what it would hold.
+fn convolve(a: &[Component], b: &[Component], room: usize) -> Result<Vec<Component>, f64> {
+    let phases = |v: &[Component]| v.iter().map(|c| c.chain.len()).sum::<usize>() as f64;
+    let (na, nb) = (a.len() as f64, b.len() as f64);
+    let size = na * nb + nb * phases(a) + na * phases(b);
+    if size > room as f64 {
+        return Err(size);
+    }
     let mut out = Vec::with_capacity(a.len() * b.len());
     for x in a {
         for y in b {
@@ -172,7 +180,16 @@ fn convolve(a: &[Component], b: &[Component]) -> Vec<Component> {
             });
         }
     }
-    out
+    Ok(out)
+}
+
+/// Phases held by `parts` (each component counted as at least one).
+fn held(parts: &[&[Component]]) -> usize {
+    parts
+        .iter()
+        .flat_map(|p| p.iter())
+        .map(|c| c.chain.len().max(1))
+        .sum()
 }
 
 /// The shifted phase-type law of the subtree at `id`, or `None` when it
@@ -311,8 +328,16 @@ fn in_turn(
         } else {
             (l.failure, l.success)
         };
-        stopped.extend(convolve(&going, &stop));
-        going = tidy(convolve(&going, &cont));
+        let over = |size: f64, now: usize| budget(tree, id, size + now as f64, max_states);
+        let now = held(&[&going, &stopped]);
+        let s = convolve(&going, &stop, max_states.saturating_sub(now))
+            .map_err(|size| over(size, now))?;
+        stopped.extend(s);
+        let now = held(&[&stopped]);
+        going = tidy(
+            convolve(&going, &cont, max_states.saturating_sub(now))
+                .map_err(|size| over(size, now))?,
+        );
         within_budget(&going, &stopped, tree, id, max_states)?;
     }
     let stopped = tidy(stopped);
@@ -410,8 +435,16 @@ fn loop_series(
     let mut going = vec![atom(0.0, 1.0)];
     let mut stopped = Vec::new();
     for _ in 0..terms as usize {
-        stopped.extend(convolve(&going, &end));
-        going = tidy(convolve(&going, &again));
+        let over = |size: f64, now: usize| budget(tree, id, size + now as f64, max_states);
+        let now = held(&[&going, &stopped]);
+        let s = convolve(&going, &end, max_states.saturating_sub(now))
+            .map_err(|size| over(size, now))?;
+        stopped.extend(s);
+        let now = held(&[&stopped]);
+        going = tidy(
+            convolve(&going, &again, max_states.saturating_sub(now))
+                .map_err(|size| over(size, now))?,
+        );
         within_budget(&going, &stopped, tree, id, max_states)?;
     }
     // the mass still repeating after K rounds ends the loop there (as the
@@ -452,7 +485,10 @@ fn through_flow(
         }
         let l = &laws[s.child];
         for (side, next) in [(&l.success, s.on_success), (&l.failure, s.on_failure)] {
-            let comps = convolve(&here, side);
+            let now = held(&[&here, &out.success, &out.failure])
+                + entered.iter().map(|e| held(&[e])).sum::<usize>();
+            let comps = convolve(&here, side, max_states.saturating_sub(now))
+                .map_err(|size| budget(tree, id, size + now as f64, max_states))?;
             match next {
                 FlowNext::State(j) => entered[j].extend(comps),
                 FlowNext::Success => out.success.extend(comps),
