@@ -1971,13 +1971,7 @@ fn export(args: ExportArgs) -> Result<(), Failure> {
                             f.message
                         ))
                     })?;
-                    let figs: Vec<_> = tree
-                        .node(id)
-                        .kind
-                        .children()
-                        .iter()
-                        .map(|&c| analysis.nodes[c])
-                        .collect();
+                    let figs = analysis.children(&tree, id);
                     btrel::export::dot_mrg(&tree, id, &figs).map_err(Failure::input)?
                 }
             }

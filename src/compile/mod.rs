@@ -239,6 +239,18 @@ pub fn primitive_view(tree: &Tree) -> Result<Option<View>, AnalysisError> {
     })
 }
 
+impl Analysis {
+    /// The figures of node `id`'s children, in child order.
+    pub fn children(&self, tree: &Tree, id: NodeId) -> Vec<Figures> {
+        tree.node(id)
+            .kind
+            .children()
+            .iter()
+            .map(|&c| self.nodes[c])
+            .collect()
+    }
+}
+
 /// Analyses every node of the tree, bottom-up, each from its planned
 /// representation ([`plan`]).
 pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError> {
@@ -297,14 +309,7 @@ pub fn reanalyze(
     dirty.dedup();
     let plan = Plan::new(tree, options.method, options.max_states);
     for &id in dirty.iter().rev() {
-        let child_figs: Vec<Figures> = tree
-            .node(id)
-            .kind
-            .children()
-            .iter()
-            .map(|&c| analysis.nodes[c])
-            .collect();
-        let f = plan.figures(id, &child_figs)?;
+        let f = plan.figures(id, &analysis.children(tree, id))?;
         check(&f, &tree.node(id).name)?;
         analysis.nodes[id] = f;
     }

@@ -342,14 +342,7 @@ impl<'t> Plan<'t> {
         };
         let chain = match self.representation(id)? {
             Representation::Book => {
-                let est = mrg::parallel_marking_count(n, m, f);
-                if est > self.max_states as f64 {
-                    return Err(AnalysisError::StateBudget {
-                        node: node.name.clone(),
-                        states: est,
-                        budget: self.max_states,
-                    });
-                }
+                self.check_markings(id, m, f, n)?;
                 super::mrg_chain(&Mrg::build(policy, n), child_figs, true)
             }
             Representation::Chain => self.chain(id)?.jump_chain(),
@@ -485,14 +478,7 @@ impl<'t> Plan<'t> {
                 } else {
                     let policy = Policy::of(&node.kind).expect("control node");
                     if let Some((m, f, n)) = thresholds(&node.kind) {
-                        let est = mrg::parallel_marking_count(n, m, f);
-                        if est > self.max_states as f64 {
-                            return Err(AnalysisError::StateBudget {
-                                node: node.name.clone(),
-                                states: est,
-                                budget: self.max_states,
-                            });
-                        }
+                        self.check_markings(id, m, f, n)?;
                     }
                     book_ctmc::book_ctmc(&Mrg::build(policy, children.len()), &child_figs)
                 };
@@ -535,6 +521,26 @@ impl<'t> Plan<'t> {
                 }
             })
             .collect())
+    }
+
+    /// Refuses a Parallel whose MRG (the book's CTMC) would have more
+    /// markings than the budget.
+    fn check_markings(
+        &self,
+        id: NodeId,
+        m: usize,
+        f: usize,
+        n: usize,
+    ) -> Result<(), AnalysisError> {
+        let est = mrg::parallel_marking_count(n, m, f);
+        if est > self.max_states as f64 {
+            return Err(AnalysisError::StateBudget {
+                node: self.tree.node(id).name.clone(),
+                states: est,
+                budget: self.max_states,
+            });
+        }
+        Ok(())
     }
 
     /// The book's figures of every node (computed once).
