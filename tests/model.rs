@@ -126,3 +126,89 @@ fn typed_errors_for_bad_queries() {
     assert!(matches!(e, Error::Tree(_)), "{e}");
     assert!(e.to_string().contains("bad.yaml"), "{e}");
 }
+
+/// A Timeout-shaped race (Parallel{1, 1}: a deadline failing at τ against
+/// an exponential action) inside a Sequence: the race is a signed shifted
+/// mixture, so the Sequence has a curve. Closed form with A ~ Exp(a) then
+/// B ~ Exp(b) before the deadline τ, m = min(t, τ):
+/// S(t) = (1 − e^{−bm}) − b e^{−at} (e^{(a−b)m} − 1)/(a − b),
+/// F(t) = e^{−bτ} (1 − e^{−a(t−τ)}) for t ≥ τ, 0 before.
+#[test]
+fn a_timeout_inside_a_sequence_has_an_exact_curve() {
+    let (a, b, tau) = (1.5f64, 0.4f64, 2.0f64);
+    let t = tree(&format!(
+        "tree: {{sequence: {{children: [{{action: {{ps: 1, mu: {a}}}}}, \
+         {{parallel: {{success_threshold: 1, failure_threshold: 1, children: [\
+         {{action: {{ps: 0, tau_f: {tau}}}}}, {{action: {{ps: 1, mu: {b}}}}}]}}}}]}}}}"
+    ));
+    let m = Model::new(&t).unwrap();
+    assert_eq!(rep(&m, Tree::ROOT), Representation::Shifted);
+    let times = [0.5, 1.0, 1.999, 2.0, 2.5, 4.0, 9.0, 60.0];
+    let pi = m.curve(Tree::ROOT, &times).unwrap();
+    for p in &pi {
+        let t = p.t;
+        let mm = t.min(tau);
+        let s =
+            (1.0 - (-b * mm).exp()) - b * (-a * t).exp() * (((a - b) * mm).exp() - 1.0) / (a - b);
+        let f = if t >= tau {
+            (-b * tau).exp() * (1.0 - (-a * (t - tau)).exp())
+        } else {
+            0.0
+        };
+        assert!(
+            (p.success - s).abs() < 1e-10,
+            "S({t}) = {} vs {s}",
+            p.success
+        );
+        assert!(
+            (p.failure - f).abs() < 1e-10,
+            "F({t}) = {} vs {f}",
+            p.failure
+        );
+    }
+    // the limit is the report's
+    let root = m.figures(Tree::ROOT);
+    assert!((pi[7].success - root.ps).abs() < 1e-10);
+}
+
+/// Sequence(action, Timeout(deadline, hybrid-free action with both
+/// outcomes), action) and a second deadline child: π(t) against the
+/// simulator, |z| < 5, and the report's figures at the limit.
+#[test]
+fn first_return_races_inside_sequences_agree_with_simulation() {
+    let yaml = "tree: {sequence: {children: [{action: {ps: 0.9, mu: 1.0, nu: 2.0}}, \
+        {parallel: {success_threshold: 1, failure_threshold: 1, children: [\
+        {action: {ps: 0, tau_f: 3.0}}, {action: {ps: 0.8, mu: 0.5, nu: 1.0}}, \
+        {sequence: {children: [{action: {ps: 0.5, tau_s: 1.0, tau_f: 2.0}}, {action: {ps: 0.6, tau_s: 1.5, tau_f: 0.5}}]}}]}}, \
+        {action: {ps: 0.9, mu: 1.0, nu: 2.0}}]}}";
+    let t = tree(yaml);
+    let m = Model::new(&t).unwrap();
+    let times = [1.0, 2.5, 3.0, 4.0, 6.0, 12.0];
+    let pi = m.curve(Tree::ROOT, &times).unwrap();
+    let sim = btrel::simulate(
+        &t,
+        &btrel::SimOptions {
+            runs: 400_000,
+            times: times.to_vec(),
+            seed: 11,
+            ..Default::default()
+        },
+        None,
+    )
+    .unwrap();
+    for (p, e) in pi.iter().zip(&sim.curve) {
+        for (what, est, exact) in [("S", &e.success, p.success), ("F", &e.failure, p.failure)] {
+            let se = est.se.max(1e-9);
+            let z = (est.mean - exact) / se;
+            assert!(
+                z.abs() < 5.0,
+                "{what}({}) = {exact}, simulated {} ± {se}",
+                p.t,
+                est.mean
+            );
+        }
+    }
+    let root = m.figures(Tree::ROOT);
+    let far = m.curve(Tree::ROOT, &[200.0]).unwrap()[0];
+    assert!((far.success - root.ps).abs() < 1e-9 && (far.failure - root.pf).abs() < 1e-9);
+}

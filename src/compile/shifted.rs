@@ -24,9 +24,13 @@
 //!   one's counted exit enters the second, its lost exit stays lost);
 //! * inverter: outcomes exchanged; force: both lists become one outcome;
 //!   Retry N / Repeat N: a Fallback / Sequence of N copies;
-//! * a Parallel is a component only when its whole subtree is Markovian (its
-//!   product chain) or deterministic (atoms); a mixed Parallel has no such
-//!   form and is answered where it is, by counting (see `crate::compile::curve`).
+//! * a Parallel is a component when its whole subtree is Markovian (its
+//!   product chain) or deterministic (atoms), and when it returns with its
+//!   first child (M = 1, F = 1: BT.CPP's `Timeout`) over Markovian and
+//!   deterministic children ([`first_return`]: its product chain restarted
+//!   at each deterministic instant, with negative weights); any other mixed
+//!   Parallel has no such form and is answered where it is, by counting or
+//!   as a race (`crate::compile::plan`).
 //!
 //! Every operation is exact; the only approximations are the transient
 //! solutions of the chains (with their own bounds) and the rounding of the
@@ -292,7 +296,12 @@ pub fn shifted_law(
                 }
             }
         }
-        // a mixed Parallel: counted where it is, not a component
+        // a first-return race (a Timeout) over Markovian and deterministic
+        // children; any other mixed Parallel is answered where it is
+        NodeKind::Parallel { .. } => match first_return(tree, id, max_states)? {
+            Some(law) => law,
+            None => return Ok(None),
+        },
         _ => return Ok(None),
     };
     check(law).map(Some)
@@ -510,4 +519,198 @@ fn through_flow(
         success: tidy(out.success),
         failure: tidy(out.failure),
     })
+}
+
+/// Most phases of the product chain of a first-return race
+/// ([`first_return`]): its phase distribution is taken at every instant,
+/// one weight vector per phase.
+const MAX_FIRST_RETURN_PHASES: usize = 2_000;
+
+/// The law of a Parallel with thresholds M = 1, F = 1 — it returns with its
+/// first child to return, e.g. BT.CPP's `Timeout` (a deadline racing its
+/// child) — whose children are each Markovian (a phase chain without
+/// instantaneous outcomes) or deterministic (atoms after 0), as a signed
+/// shifted mixture; `None` for any other node.
+///
+/// The Markovian children run jointly in their product chain `P` (α, T),
+/// which exits with the first of them to return. The deterministic ones
+/// return only at instants `τ_1 < … < τ_K`; with `u_i` the probability that
+/// none has returned before `τ_i` (`u_1 = 1`), the node's law is
+///
+/// * continuous part: `P`'s exits while no deterministic child has returned,
+///   `u_1·PH(α) + Σ_i (u_{i+1} − u_i)·δ_{τ_i} ⊛ PH(π(τ_i))` — the chain
+///   restarted at `τ_i` from its phase distribution `π(τ_i) = α e^{T τ_i}`
+///   (memorylessness), with the weight the deterministic children lost at
+///   `τ_i` (negative);
+/// * an atom at each `τ_i`: `|π(τ_i)|`·`u_i`·P(a deterministic child returns
+///   at `τ_i` | none before), its outcome the first such child's **in child
+///   order** (BT.CPP's tie rule; a Markovian child never returns exactly at
+///   `τ_i`).
+///
+/// Exact up to the transient solution of `P` at the instants (uniformization
+/// with its truncation bound).
+fn first_return(
+    tree: &Tree,
+    id: NodeId,
+    max_states: usize,
+) -> Result<Option<ShiftedLaw>, AnalysisError> {
+    let NodeKind::Parallel {
+        success_threshold: 1,
+        failure_threshold: 1,
+        children,
+    } = &tree.node(id).kind
+    else {
+        return Ok(None);
+    };
+    let mut chains: Vec<PhaseChain> = Vec::new();
+    let mut fixed: Vec<Vec<Atom>> = Vec::new();
+    for &c in children {
+        if let Some(list) = atoms::atoms(tree, c, max_states)? {
+            if list.iter().any(|a| a.time <= 0.0) {
+                return Ok(None);
+            }
+            fixed.push(list);
+            continue;
+        }
+        match phase::phase_chain(tree, c, max_states) {
+            Ok(ch) if ch.initial_success == 0.0 && ch.initial_failure == 0.0 => chains.push(ch),
+            Ok(_) => return Ok(None),
+            Err(AnalysisError::NotMarkovian { .. } | AnalysisError::StateBudget { .. }) => {
+                return Ok(None)
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    if chains.is_empty() || fixed.is_empty() {
+        return Ok(None);
+    }
+    let size: f64 = chains.iter().map(|c| c.len() as f64).product();
+    if size > MAX_FIRST_RETURN_PHASES.min(max_states) as f64 {
+        return Ok(None);
+    }
+    let p = first_exit_product(&chains);
+    // the instants, merged across children
+    let mut instants: Vec<f64> = fixed.iter().flatten().map(|a| a.time).collect();
+    instants.sort_by(f64::total_cmp);
+    instants.dedup_by(|a, b| same_time(*a, *b));
+    // per instant: u_i and the atoms' outcome masses (given none before)
+    let mut returned = vec![0.0f64; fixed.len()]; // each child's mass before τ_i
+    let mut u = Vec::with_capacity(instants.len() + 1);
+    let mut outcomes = Vec::with_capacity(instants.len());
+    for &tau in &instants {
+        let none_before: f64 = returned.iter().map(|r| (1.0 - r).max(0.0)).product();
+        u.push(none_before);
+        // child order: the first deterministic child returning decides
+        let (mut s, mut f, mut quiet) = (0.0, 0.0, 1.0);
+        for (h, list) in fixed.iter().enumerate() {
+            let alive = (1.0 - returned[h]).max(0.0);
+            let (mut qs, mut qf) = (0.0, 0.0);
+            for a in list.iter().filter(|a| same_time(a.time, tau)) {
+                match a.outcome {
+                    Outcome::Success => qs += a.prob,
+                    Outcome::Failure => qf += a.prob,
+                }
+            }
+            if alive > 0.0 {
+                s += quiet * qs / alive;
+                f += quiet * qf / alive;
+                quiet *= (1.0 - (qs + qf) / alive).max(0.0);
+            }
+            returned[h] += qs + qf;
+        }
+        outcomes.push((s * none_before, f * none_before));
+    }
+    u.push(returned.iter().map(|r| (1.0 - r).max(0.0)).product());
+    // π(τ_i): the product chain's phase distribution at each instant
+    let n = p.len();
+    let unit: Vec<Vec<f64>> = (0..n)
+        .map(|j| {
+            let mut e = vec![0.0; n];
+            e[j] = 1.0;
+            e
+        })
+        .collect();
+    let weights: Vec<&[f64]> = unit.iter().map(Vec::as_slice).collect();
+    let Some(rows) = crate::solve::transient::transient_weighted(
+        &p,
+        &instants,
+        crate::solve::transient::DEFAULT_TOLERANCE,
+        &weights,
+    ) else {
+        return Ok(None);
+    };
+    let mut law = ShiftedLaw::default();
+    let restarted = |pi: &[f64]| -> (f64, PhaseChain) {
+        let mass: f64 = pi.iter().sum();
+        let mut c = p.clone();
+        c.initial = pi
+            .iter()
+            .enumerate()
+            .filter(|(_, &x)| x > 0.0)
+            .map(|(j, &x)| (j, x / mass))
+            .collect();
+        (mass, c)
+    };
+    let push = |law: &mut ShiftedLaw, shift: f64, weight: f64, chain: &PhaseChain| {
+        law.success.push(Component {
+            shift,
+            weight,
+            chain: chain.clone(),
+        });
+        law.failure.push(Component {
+            shift,
+            weight,
+            chain: count_failure(chain.clone()),
+        });
+    };
+    push(&mut law, 0.0, u[0], &p);
+    for (i, &tau) in instants.iter().enumerate() {
+        let (mass, chain) = restarted(&rows[i][2..]);
+        if mass > 0.0 {
+            push(&mut law, tau, (u[i + 1] - u[i]) * mass, &chain);
+        }
+        let (s, f) = outcomes[i];
+        law.success.push(atom(tau, mass * s));
+        law.failure.push(atom(tau, mass * f));
+    }
+    law.success = tidy(law.success);
+    law.failure = tidy(law.failure);
+    Ok(Some(law))
+}
+
+/// The product of independent chains (no instantaneous outcomes) that exits
+/// with the first of them to return, with that child's outcome.
+fn first_exit_product(chains: &[PhaseChain]) -> PhaseChain {
+    let dims: Vec<usize> = chains.iter().map(PhaseChain::len).collect();
+    let n: usize = dims.iter().product();
+    let mut p = PhaseChain::default();
+    for _ in 0..n {
+        p.push_phase();
+    }
+    // mixed radix: the last child varies fastest
+    let mut stride = vec![1usize; dims.len()];
+    for h in (0..dims.len().saturating_sub(1)).rev() {
+        stride[h] = stride[h + 1] * dims[h + 1];
+    }
+    for state in 0..n {
+        for (h, c) in chains.iter().enumerate() {
+            let i = state / stride[h] % dims[h];
+            p.exit_success[state] += c.exit_success[i];
+            p.exit_failure[state] += c.exit_failure[i];
+            for &(j, r) in &c.transitions[i] {
+                let target = state - i * stride[h] + j * stride[h];
+                p.transitions[state].push((target, r));
+            }
+        }
+    }
+    // the joint start: the product of the initial distributions
+    let mut initial = vec![(0usize, 1.0f64)];
+    for (c, &step) in chains.iter().zip(&stride) {
+        initial = initial
+            .iter()
+            .flat_map(|&(s, w)| c.initial.iter().map(move |&(i, q)| (s + i * step, w * q)))
+            .collect();
+    }
+    p.initial = initial;
+    p
 }
