@@ -41,10 +41,12 @@
 
 use super::curve::CurvePoint;
 use super::law::sample_weighted;
+use super::renewal::Renewal;
 use super::shifted::{self, ShiftedLaw};
 use super::{atoms, counts, phase, AnalysisError, Figures};
 use crate::solve::chain::PhaseChain;
 use crate::solve::quadrature::GaussLegendre;
+use crate::tree::nav2::MAX_RERUN_TERMS;
 use crate::tree::{NodeId, NodeKind, Tree};
 
 /// Points of the quadrature rule (the error is estimated against half).
@@ -689,6 +691,12 @@ pub(crate) fn figures(
     child_figures: &[Figures],
     max_states: usize,
 ) -> Result<Figures, AnalysisError> {
+    // a race against a renewal process of re-runs: exact without a series
+    match super::renewal::figures(tree, id, max_states)? {
+        Renewal::Figures(f) => return Ok(f),
+        Renewal::TooLarge { error, terms } if terms > MAX_RERUN_TERMS as f64 => return Err(error),
+        Renewal::TooLarge { .. } | Renewal::NotApplicable => {}
+    }
     let race = race_of(tree, id, max_states)?;
     let scale = child_figures
         .iter()
