@@ -132,6 +132,13 @@ fn long_series_match_the_renewal_closed_form() {
         "{action: {name: follow, ps: 0.85, mu: 0.016666666666666666, nu: 0.05}}",
     ));
     assert_figures("one action", root_figures(&t), want, 1e-9);
+    // its law is the loop's series: the curve is refused at once, naming
+    // the loop
+    let e = curve(&t, 0, &[1.0], &CurveOptions::default()).unwrap_err();
+    assert!(
+        matches!(&e, btrel::AnalysisError::Unbounded { node } if node == "replan"),
+        "{e}"
+    );
 
     // C′ two actions in turn (a plan then a check), R two phases in turn
     let (p1, a1, b1, p2, a2, b2) = (0.99, 1.5, 3.0, 0.98, 5.0, 0.7);
@@ -163,6 +170,46 @@ fn long_series_match_the_renewal_closed_form() {
         "{sequence: {children: [{action: {ps: 1.0, mu: 0.1}}, {action: {ps: 1.0, mu: 0.03}}]}}",
     ));
     assert_figures("two in turn", root_figures(&t), want, 1e-9);
+}
+
+#[test]
+fn a_long_rest_is_exact_too() {
+    // R = until_failure(A), A succeeding w.p. 0.9 after Exp(0.05) and
+    // failing after Exp(0.05): a geometric number of Exp(0.05) times, so R
+    // fails after Exp(0.005) and never succeeds. Its phase chain is the
+    // loop unrolled (306 copies of A, 612 phases: too many for the dense
+    // exponential, so the wait is uniformized). The node fails at
+    // min(R, L): MTTF = ∫ P(R > t) P(L > t) dt = (1 − Λ(0.005))/0.005.
+    let lam = |x: f64| {
+        loop_transform(
+            1.0,
+            &[Path {
+                coef: 0.99,
+                rates: vec![2.0],
+            }],
+            &[Path {
+                coef: 0.01,
+                rates: vec![4.0],
+            }],
+            x,
+        )
+    };
+    let rate = 0.05 * 0.1;
+    let want = (1.0 - lam(rate).0) / rate;
+    let t = tree(&race_yaml(
+        1.0,
+        "{action: {ps: 0.99, mu: 2.0, nu: 4.0}}",
+        "{until_failure: {child: {action: {ps: 0.9, mu: 0.05, nu: 0.05}}}}",
+    ));
+    let f = root_figures(&t);
+    assert_eq!(f.ps, 0.0, "{f:?}");
+    assert!((f.pf - 1.0).abs() < 1e-12, "{f:?}");
+    let mttf = f.mttf.unwrap();
+    assert!(
+        (mttf - want).abs() < 1e-9 * want,
+        "MTTF {mttf} vs {want} (diff {:.2e})",
+        mttf - want
+    );
 }
 
 /// The same race with `R` followed by an action of fixed time 1e-300 s

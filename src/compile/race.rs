@@ -718,6 +718,14 @@ pub(crate) fn curve(
     times: &[f64],
     max_states: usize,
 ) -> Result<Vec<CurvePoint>, AnalysisError> {
+    // the law of a renewal race is its loop's series (its figures are not)
+    if let Some((process, terms)) = super::renewal::series(tree, id, max_states) {
+        if terms > MAX_RERUN_TERMS as f64 {
+            return Err(AnalysisError::Unbounded {
+                node: tree.node(process).name.clone(),
+            });
+        }
+    }
     let race = race_of(tree, id, max_states)?;
     let rows = race.rows(times, false)?;
     Ok(times

@@ -76,6 +76,8 @@ pub(crate) enum Renewal {
 
 /// The parts of a renewal race.
 struct Parts {
+    /// The re-run process `until_failure(Sequence(wait, C′))`.
+    process: NodeId,
     /// The fixed wait `d` (s).
     wait: f64,
     /// The re-run `C′`.
@@ -127,12 +129,14 @@ fn parts(tree: &Tree, id: NodeId) -> Option<Parts> {
     };
     if let Some((wait, rerun)) = process(a) {
         return Some(Parts {
+            process: a,
             wait,
             rerun,
             rest: b,
         });
     }
     process(b).map(|(wait, rerun)| Parts {
+        process: b,
         wait,
         rerun,
         rest: a,
@@ -152,6 +156,14 @@ fn series_terms(c: &PhaseChain) -> f64 {
         return 1.0;
     }
     (1e-14f64.ln() / p.min(1.0 - 1e-16).ln()).ceil().max(1.0)
+}
+
+/// When node `id` is a renewal race whose re-run has a phase chain: the
+/// re-run process and the number of re-runs its law's series needs.
+pub(crate) fn series(tree: &Tree, id: NodeId, max_states: usize) -> Option<(NodeId, f64)> {
+    let p = parts(tree, id)?;
+    let c = phase::chain_of(tree, p.rerun, max_states).ok()?;
+    Some((p.process, series_terms(&c)))
 }
 
 /// The exact figures of node `id` when it is a renewal race whose sides
