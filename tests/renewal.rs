@@ -132,6 +132,17 @@ fn long_series_match_the_renewal_closed_form() {
         "{action: {name: follow, ps: 0.85, mu: 0.016666666666666666, nu: 0.05}}",
     ));
     assert_figures("one action", root_figures(&t), want, 1e-9);
+    // the budget is checked before allocating: with 1 state the product
+    // chain (2 states) is refused, not the series tried
+    let small = btrel::Options {
+        max_states: 1,
+        ..Default::default()
+    };
+    let e = btrel::analyze(&t, &small).unwrap_err();
+    assert!(
+        matches!(&e, btrel::AnalysisError::StateBudget { node, .. } if node == "race"),
+        "{e}"
+    );
     // its law is the loop's series: the curve is refused at once, naming
     // the loop
     let e = curve(&t, 0, &[1.0], &CurveOptions::default()).unwrap_err();

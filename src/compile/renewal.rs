@@ -43,8 +43,8 @@
 //! relative accuracy (rounding, about 1e-13; no truncation of the
 //! re-runs). Cost: `O(n_R³)` for the exponential (or `n_R · Λd · edges`
 //! by uniformization) and `O(n_R² n_C)` for the passes, independent of the
-//! number of re-runs; refused (a budget error) beyond 4e9 operations or 3e7
-//! numbers kept, or a product chain above the state budget.
+//! number of re-runs; refused beyond 4e9 operations, or when the product
+//! chain's states or the numbers kept (8 a state) exceed the state budget.
 //!
 //! Ties: R returns at time 0 only (a phase chain has no atom later), before
 //! any re-run can fail (`d > 0`); `C′` fails at a cycle's start only at
@@ -59,9 +59,10 @@ use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
 
 /// Most operations (exponential and passes) the method takes on.
 const MAX_WORK: f64 = 4e9;
-/// Most numbers it keeps (five `n_R × n_R` matrices and two vectors over
-/// the product chain): 240 MB.
-const MAX_CELLS: f64 = 3e7;
+/// The numbers it keeps (five `n_R × n_R` matrices and two vectors over
+/// the product chain) count against the state budget at this many per
+/// state (the default budget allows 3.2e7 numbers, 256 MB).
+const CELLS_PER_STATE: f64 = 8.0;
 
 /// What [`figures`] found.
 pub(crate) enum Renewal {
@@ -219,15 +220,20 @@ pub(crate) fn figures(
         },
         terms,
     };
-    let cells = 5.0 * (nr as f64).powi(2) + 2.0 * product;
-    if cells > MAX_CELLS {
-        return Ok(too_large(cells, MAX_CELLS as usize));
-    }
-    if product > max_states as f64 {
-        return Ok(too_large(product, max_states));
+    // the numbers kept, as states of the budget (8 numbers a state)
+    let cells = (5.0 * (nr as f64).powi(2) + 2.0 * product) / CELLS_PER_STATE;
+    if product.max(cells) > max_states as f64 {
+        return Ok(too_large(product.max(cells), max_states));
     }
     if work > MAX_WORK {
-        return Ok(too_large(product, (MAX_WORK / work * product) as usize));
+        return Ok(Renewal::TooLarge {
+            error: AnalysisError::Stiff {
+                node: name.clone(),
+                work,
+                limit: MAX_WORK,
+            },
+            terms,
+        });
     }
     let f = solve(&r, &c, p.wait).ok_or_else(|| AnalysisError::Numerical {
         node: name.clone(),
