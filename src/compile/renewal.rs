@@ -546,3 +546,67 @@ fn finish(ps: f64, pf: f64, ts: f64, tf: f64) -> Option<Figures> {
         mttf: (pf > 0.0).then(|| tf / pf),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A chain with branching and rates over three decades.
+    fn chain() -> PhaseChain {
+        let mut c = PhaseChain::default();
+        for _ in 0..5 {
+            c.push_phase();
+        }
+        c.initial = vec![(0, 0.6), (1, 0.4)];
+        c.transitions[0] = vec![(2, 3.0), (3, 0.5)];
+        c.transitions[1] = vec![(3, 0.02)];
+        c.transitions[2] = vec![(4, 7.0)];
+        c.exit_success = vec![0.1, 0.01, 0.0, 0.3, 2.0];
+        c.exit_failure = vec![0.05, 0.0, 1.0, 0.2, 0.5];
+        c
+    }
+
+    #[test]
+    fn dense_and_uniformized_exponentials_agree() {
+        let c = chain();
+        for d in [0.01, 0.7, 3.0] {
+            let (e1, a1) = dense_exponential(&c, d);
+            let (e2, a2) = uniformized_exponential(&c, d);
+            for (x, y) in e1.iter().zip(&e2) {
+                assert!((x - y).abs() < 1e-14, "d = {d}: {x} vs {y}");
+            }
+            for (x, y) in a1.iter().zip(&a2) {
+                assert!((x[0] - y[0]).abs() < 1e-14 && (x[1] - y[1]).abs() < 1e-14);
+            }
+            // rows are distributions: phases, Success and Failure sum to 1
+            for i in 0..c.len() {
+                let row: f64 =
+                    e1[i * c.len()..(i + 1) * c.len()].iter().sum::<f64>() + a1[i][0] + a1[i][1];
+                assert!((row - 1.0).abs() < 1e-14, "row {i}: {row}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_rerun_that_cannot_fail_leaves_the_rest_alone() {
+        // C′ always succeeds: the node returns when R does, with R's figures
+        let r = chain();
+        let mut c = PhaseChain::default();
+        let i = c.push_phase();
+        c.exit_success[i] = 4.0;
+        c.initial.push((i, 1.0));
+        let f = solve(&r, &c, 0.5).expect("finite");
+        let a = crate::solve::transient::absorption_by_phase(&r);
+        let (mut ps, mut ts, mut pf, mut tf) = (0.0, 0.0, 0.0, 0.0);
+        for &(i, w) in &r.initial {
+            ps += w * a.to_success[i];
+            ts += w * a.time_to_success[i];
+            pf += w * a.to_failure[i];
+            tf += w * a.time_to_failure[i];
+        }
+        assert!((f.ps - ps).abs() < 1e-14, "{f:?} vs {ps}");
+        assert!((f.pf - pf).abs() < 1e-14, "{f:?} vs {pf}");
+        assert!((f.mtts.unwrap() - ts / ps).abs() < 1e-12 * ts / ps);
+        assert!((f.mttf.unwrap() - tf / pf).abs() < 1e-12 * tf / pf);
+    }
+}
