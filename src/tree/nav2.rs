@@ -552,7 +552,9 @@ impl Lowering<'_> {
 /// Most re-runs in the series of a re-run process with mixed timing (a
 /// RateController's fixed wait, or a leaf with fixed times): the truncated
 /// series of the loop's law costs about K³ (K = 100: about 1 s, K = 300:
-/// about 12 s for a one-phase planner).
+/// about 12 s for a one-phase planner). The figures of a race whose re-run
+/// and rest are Markovian need no series (`crate::compile::renewal`); the
+/// curve and the other races do.
 pub const MAX_RERUN_TERMS: usize = 100;
 
 /// The number of terms of the re-run process's series (re-runs until
