@@ -3,7 +3,8 @@
 //! children (rates 1e6 and 1e-3), D nested wide Parallels over 1,000
 //! actions, and two races (Parallel M = 1, F = 1): BT.CPP's Timeout shape
 //! (a deadline against a hybrid action) and Nav2's re-planning (a loop of
-//! a 1 s wait and a planner against the follower).
+//! a 1 s wait and a planner against the follower; a short series, and a
+//! long one that the renewal method answers).
 //!
 //! Run: `cargo bench --bench engine`
 
@@ -39,6 +40,14 @@ const TIMEOUT_RACE: &str = "tree: {parallel: {success_threshold: 1, failure_thre
 const REPLANNING_RACE: &str = "tree: {parallel: {success_threshold: 1, failure_threshold: 1, \
     children: [{until_failure: {child: {sequence: {children: [{action: {ps: 1, tau_s: 1}}, \
     {action: {ps: 0.7, mu: 4, nu: 2}}]}}}}, {action: {ps: 0.9, mu: 0.2, nu: 0.1}}]}}";
+
+/// The same with a planner failing 0.5% of the time (its series would need
+/// about 6,430 re-runs; the renewal method needs none): report only, its
+/// curve needs the series.
+const LONG_REPLANNING_RACE: &str = "tree: {parallel: {success_threshold: 1, \
+    failure_threshold: 1, children: [{until_failure: {child: {sequence: {children: [\
+    {action: {ps: 1, tau_s: 1}}, {action: {ps: 0.995, mu: 4, nu: 2}}]}}}}, \
+    {action: {ps: 0.9, mu: 0.0166667, nu: 0.05}}]}}";
 
 fn stiff16() -> String {
     let sub = "{sequence: {children: [{action: {ps: 0.99, mu: 1e6, nu: 1e6}}, \
@@ -85,6 +94,10 @@ fn engine(c: &mut Criterion) {
         ("stiff_16_subtrees".to_string(), stiff16()),
         ("timeout_race".to_string(), TIMEOUT_RACE.to_string()),
         ("replanning_race".to_string(), REPLANNING_RACE.to_string()),
+        (
+            "long_replanning_race".to_string(),
+            LONG_REPLANNING_RACE.to_string(),
+        ),
     ];
     for d in [25, 50, 100] {
         cases.push((format!("nested_{d}_levels"), nested(d)));
@@ -94,7 +107,7 @@ fn engine(c: &mut Criterion) {
         group.bench_with_input(BenchmarkId::new("report", name), &tree, |b, tree| {
             b.iter(|| analyze(tree, &Options::default()).expect("analysable"))
         });
-        if !name.starts_with("nested") && !name.starts_with("stiff") {
+        if !name.starts_with("nested") && !name.starts_with("stiff") && !name.starts_with("long") {
             group.bench_with_input(
                 BenchmarkId::new("curve_1000_points", name),
                 &tree,
@@ -104,6 +117,20 @@ fn engine(c: &mut Criterion) {
             );
         }
     }
+    // one attempt of Nav2's default tree (trees/nav2-default-attempt.xml):
+    // re-planning at 1 Hz with a costmap-clearing retry, raced by the
+    // follower with its own
+    let attempt = btrel::tree::xml::parse_xml_files(
+        std::path::Path::new("trees/nav2-default-attempt.xml"),
+        std::path::Path::new("trees/nav2-default-attempt.params.yaml"),
+        &[],
+    )
+    .expect("the bundled tree reads");
+    group.bench_with_input(
+        BenchmarkId::new("report", "nav2_default_attempt_race"),
+        &attempt,
+        |b, tree| b.iter(|| analyze(tree, &Options::default()).expect("analysable")),
+    );
     group.finish();
 }
 

@@ -945,13 +945,15 @@ fn usage_errors_exit_2() {
 
 #[test]
 fn analysis_errors_exit_1() {
-    // a Parallel needs its children's laws: a Sequence holding a mixed-timing
-    // Parallel has none yet (the inner race itself is exact: tests/race.rs)
+    // a Parallel needs its children's laws: a Sequence holding a race of a
+    // hybrid and a stochastic action has none yet (the inner race itself is
+    // exact: tests/race.rs; a race of deterministic and stochastic children
+    // is a shifted mixture: tests/model.rs)
     let f = fixture(
         "det-parallel.yaml",
         b"tree:\n  parallel:\n    success_threshold: 1\n    failure_threshold: 1\n    children:\n      \
           - sequence: {children: [{parallel: {success_threshold: 1, failure_threshold: 1, children: [\
-          {action: {name: timer, ps: 0.5, tau_s: 1, tau_f: 2}}, {action: {ps: 0.5, mu: 1, nu: 1}}]}}]}\n      \
+          {action: {name: timer, ps: 0.5, tau_s: 1, nu: 1}}, {action: {ps: 0.5, mu: 1, nu: 1}}]}}]}\n      \
           - action: {ps: 0.5, mu: 1, nu: 1}\n",
     );
     let out = btrel().arg("report").arg(&f.path).output().unwrap();

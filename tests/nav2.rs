@@ -93,13 +93,19 @@ fn rate_controller_replanning_races_the_follower() {
     // below the Sequence's 0.9·0.8 = 0.72
     assert!(exact.0 < 0.72 && exact.0 > 0.2, "{exact:?}");
     check_race(&tree, exact, 200_000);
-    // a re-plan that succeeds with probability 0.9 needs a series of 306
-    // re-runs (0.9^306 ≤ 1e-14), more than the analysis takes on: refused,
-    // naming the node, its place and the size
-    let e = analyze(&tree, &Options::default()).unwrap_err();
+    // a re-plan that succeeds with probability 0.9 would need a series of
+    // 306 re-runs (0.9^306 ≤ 1e-14); the figures need none (the renewal
+    // method), and equal the closed form
+    check_exact(&tree, exact);
+    // the curve needs the series: refused, naming the node, its place and
+    // the size, and saying that the figures are exact
+    let e = curve(&tree, 0, &[1.0], &CurveOptions::default()).unwrap_err();
     let msg = e.to_string();
     assert!(
-        msg.contains("'pipe'") && msg.contains("line 3, column 1") && msg.contains("306 re-runs"),
+        msg.contains("'pipe'")
+            && msg.contains("line 3, column 1")
+            && msg.contains("306 re-runs")
+            && msg.contains("are exact without it"),
         "{msg}"
     );
     // with ps 0.7 (91 re-runs) the lowering is analysed, exactly

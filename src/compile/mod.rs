@@ -27,6 +27,7 @@ pub mod mrg;
 pub mod phase;
 pub mod plan;
 pub(crate) mod race;
+mod renewal;
 pub(crate) mod shifted;
 
 use crate::solve::chain::{AbsorbingChain, Edge, Target};
@@ -225,7 +226,20 @@ pub struct Analysis {
 /// The tree with its Nav2 nodes lowered to exactly equivalent primitives
 /// (`None`: the tree has none), or the refusal naming the node.
 pub fn primitive_view(tree: &Tree) -> Result<Option<View>, AnalysisError> {
-    crate::tree::nav2::primitive_view(tree).map_err(|e| {
+    located(tree, crate::tree::nav2::primitive_view(tree))
+}
+
+/// [`primitive_view`] for the figures alone
+/// ([`crate::tree::nav2::primitive_view_for_figures`]).
+pub fn primitive_view_for_figures(tree: &Tree) -> Result<Option<View>, AnalysisError> {
+    located(tree, crate::tree::nav2::primitive_view_for_figures(tree))
+}
+
+fn located(
+    tree: &Tree,
+    view: Result<Option<View>, crate::tree::nav2::NotPrimitive>,
+) -> Result<Option<View>, AnalysisError> {
+    view.map_err(|e| {
         let n = tree.node(e.node);
         AnalysisError::Nav2 {
             node: n.name.clone(),
@@ -254,7 +268,7 @@ impl Analysis {
 /// Analyses every node of the tree, bottom-up, each from its planned
 /// representation ([`plan`]).
 pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError> {
-    let view = primitive_view(tree)?;
+    let view = primitive_view_for_figures(tree)?;
     let (tree, image) = match &view {
         Some(v) => (&v.tree, Some(&v.image)),
         None => (tree, None),

@@ -64,6 +64,16 @@ pub(crate) fn chain_of(
                 }
                 let rate = match d {
                     Some(Duration::Exponential { rate }) => rate,
+                    // a zero-time outcome (a synchronous action) is
+                    // instantaneous, as a condition's
+                    Some(Duration::Fixed { time: 0.0 }) => {
+                        if success {
+                            c.initial_success += p;
+                        } else {
+                            c.initial_failure += p;
+                        }
+                        continue;
+                    }
                     _ => {
                         return Err(AnalysisError::NotMarkovian {
                             leaf: node.name.clone(),

@@ -102,7 +102,8 @@ fn side(p: f64, d: Option<Duration>) -> (bool, bool) {
     }
     match d {
         Some(Duration::Exponential { .. }) => (true, false),
-        Some(Duration::Fixed { .. }) => (false, true),
+        // a zero-time outcome is instantaneous in a phase chain too
+        Some(Duration::Fixed { time }) => (time == 0.0, true),
         _ => (false, false),
     }
 }

@@ -41,10 +41,12 @@
 
 use super::curve::CurvePoint;
 use super::law::sample_weighted;
+use super::renewal::Renewal;
 use super::shifted::{self, ShiftedLaw};
 use super::{atoms, counts, phase, AnalysisError, Figures};
 use crate::solve::chain::PhaseChain;
 use crate::solve::quadrature::GaussLegendre;
+use crate::tree::nav2::MAX_RERUN_TERMS;
 use crate::tree::{NodeId, NodeKind, Tree};
 
 /// Points of the quadrature rule (the error is estimated against half).
@@ -689,6 +691,12 @@ pub(crate) fn figures(
     child_figures: &[Figures],
     max_states: usize,
 ) -> Result<Figures, AnalysisError> {
+    // a race against a renewal process of re-runs: exact without a series
+    match super::renewal::figures(tree, id, max_states)? {
+        Renewal::Figures(f) => return Ok(f),
+        Renewal::TooLarge { error, terms } if terms > MAX_RERUN_TERMS as f64 => return Err(error),
+        Renewal::TooLarge { .. } | Renewal::NotApplicable => {}
+    }
     let race = race_of(tree, id, max_states)?;
     let scale = child_figures
         .iter()
@@ -710,6 +718,14 @@ pub(crate) fn curve(
     times: &[f64],
     max_states: usize,
 ) -> Result<Vec<CurvePoint>, AnalysisError> {
+    // the law of a renewal race is its loop's series (its figures are not)
+    if let Some((process, terms)) = super::renewal::series(tree, id, max_states) {
+        if terms > MAX_RERUN_TERMS as f64 {
+            return Err(AnalysisError::Unbounded {
+                node: tree.node(process).name.clone(),
+            });
+        }
+    }
     let race = race_of(tree, id, max_states)?;
     let rows = race.rows(times, false)?;
     Ok(times

@@ -126,6 +126,15 @@ fn exponential(chain: &PhaseChain, h: f64) -> Exponential {
     Exponential { x, bound }
 }
 
+/// `e^{Qh}` of a phase chain as a dense row-major `(n + 2)²` matrix in
+/// double-double (phases, then Success = n, Failure = n + 1; upper
+/// triangular), and the rigorous bound on its error in the ∞-norm (module
+/// docs). The chain must have at most [`MAX_DENSE_STATES`] − 2 phases.
+pub(crate) fn exponential_matrix(chain: &PhaseChain, h: f64) -> (Vec<Dd>, f64) {
+    let e = exponential(chain, h);
+    (e.x.a, e.bound)
+}
+
 /// Rough operation count of [`transient_dense`], to choose between it and
 /// uniformization: one exponential (28 Taylor products and `s` squarings
 /// of an upper-triangular m × m double-double matrix, ~m³/6 multiply-adds

@@ -45,7 +45,7 @@
 //! runs back to back: after each Success it starts again at once, until one
 //! run fails (which fails the pipeline) or the pipeline ends.
 
-use super::{Decorator, NodeId, NodeKind, Tree};
+use super::{Decorator, Duration, NodeId, NodeKind, Tree};
 
 /// What ticking a child again after it returned Success does, when its
 /// parent (a PipelineSequence) does not reset it.
@@ -195,6 +195,20 @@ pub struct View {
 ///
 /// Anything else is refused, naming the node.
 pub fn primitive_view(tree: &Tree) -> Result<Option<View>, NotPrimitive> {
+    lower(tree, false)
+}
+
+/// [`primitive_view`] for the figures alone (ps, pf, MTTS, MTTF): a
+/// RateController's re-run process with a long series is lowered too where
+/// the race has the exact renewal solution (`crate::compile::renewal`: the
+/// re-run and the rest of the pipeline are Markovian), which needs no
+/// series; the refusal stays where it does not (and for everything else,
+/// e.g. the curve, which needs the series).
+pub fn primitive_view_for_figures(tree: &Tree) -> Result<Option<View>, NotPrimitive> {
+    lower(tree, true)
+}
+
+fn lower(tree: &Tree, figures: bool) -> Result<Option<View>, NotPrimitive> {
     let nav2 = |k: &NodeKind| {
         matches!(
             k,
@@ -214,6 +228,7 @@ pub fn primitive_view(tree: &Tree) -> Result<Option<View>, NotPrimitive> {
         out: Vec::with_capacity(tree.nodes.len()),
         image: vec![usize::MAX; tree.nodes.len()],
         copied: vec![false; tree.nodes.len()],
+        figures,
     };
     lower.node(Tree::ROOT, None, 0, None)?;
     Ok(Some(View {
@@ -234,6 +249,8 @@ struct Lowering<'a> {
     out: Vec<super::Node>,
     image: Vec<NodeId>,
     copied: Vec<bool>,
+    /// Lowering for the figures alone ([`primitive_view_for_figures`]).
+    figures: bool,
 }
 
 impl Lowering<'_> {
@@ -428,7 +445,16 @@ impl Lowering<'_> {
                     })
                 }
             };
-            if let Some(terms) = long_series(tree, rerun, wait.is_some()) {
+            let renewal = wait.is_some() && renewal_applies(tree, rerun, &children[k + 1..]);
+            if let Some(terms) =
+                long_series(tree, rerun, wait.is_some()).filter(|_| !(renewal && self.figures))
+            {
+                let exact = if renewal {
+                    " (the figures — ps, pf, MTTS, MTTF — are exact without it; the \
+                     distribution over time is not)"
+                } else {
+                    ""
+                };
                 return Err(NotPrimitive {
                     node: pipe,
                     reason: format!(
@@ -436,7 +462,7 @@ impl Lowering<'_> {
                          the pipeline when a re-run fails; the exact lowering races that loop \
                          with the rest, and its law here is a series of about {terms:.0} \
                          re-runs, more than the {MAX_RERUN_TERMS} the analysis computes in \
-                         about a second"
+                         about a second{exact}"
                     ),
                 });
             }
@@ -526,7 +552,9 @@ impl Lowering<'_> {
 /// Most re-runs in the series of a re-run process with mixed timing (a
 /// RateController's fixed wait, or a leaf with fixed times): the truncated
 /// series of the loop's law costs about K³ (K = 100: about 1 s, K = 300:
-/// about 12 s for a one-phase planner).
+/// about 12 s for a one-phase planner). The figures of a race whose re-run
+/// and rest are Markovian need no series (`crate::compile::renewal`); the
+/// curve and the other races do.
 pub const MAX_RERUN_TERMS: usize = 100;
 
 /// The number of terms of the re-run process's series (re-runs until
@@ -550,6 +578,30 @@ fn long_series(tree: &Tree, rerun: NodeId, waits: bool) -> Option<f64> {
     }
     let terms = (1e-14f64.ln() / ps.min(1.0 - 1e-16).ln()).ceil();
     (terms > MAX_RERUN_TERMS as f64).then_some(terms)
+}
+
+/// Whether the race of a RateController's re-run process against the rest
+/// of the pipeline (`rest`: the later children) has the exact renewal
+/// solution of `crate::compile::renewal`: the re-run and the rest lower to
+/// Markovian subtrees (phase chains): their leaves are Markovian, and
+/// neither holds a pipeline child that re-runs (nor does the rest itself,
+/// before its last child).
+fn renewal_applies(tree: &Tree, rerun: NodeId, rest: &[NodeId]) -> bool {
+    let inert = |kids: &[NodeId]| kids.iter().all(|&c| retick(tree, c) == Retick::Inert);
+    let plain = |id: NodeId| {
+        tree.subtree(id).all(|n| match &tree.nodes[n].kind {
+            // exponential or zero times: a phase chain
+            NodeKind::Action(a) => [a.success, a.failure].iter().flatten().all(|d| {
+                matches!(d, Duration::Exponential { .. })
+                    || matches!(d, Duration::Fixed { time } if *time == 0.0)
+            }),
+            NodeKind::Pipeline { children } => children.split_last().is_none_or(|(_, e)| inert(e)),
+            _ => true,
+        })
+    };
+    plain(rerun)
+        && rest.iter().all(|&c| plain(c))
+        && rest.split_last().is_none_or(|(_, e)| inert(e))
 }
 
 /// The subtree rooted at `id` as a tree of its own.
