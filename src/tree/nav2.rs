@@ -135,7 +135,7 @@ pub fn retick(tree: &Tree, id: NodeId) -> Retick {
         } => Retick::Fail,
         _ if zero_time(tree, id) || !outcomes(tree, id).1 => Retick::Inert,
         NodeKind::Decorator {
-            decorator: Decorator::Rate { period },
+            decorator: Decorator::Rate { period, .. },
             ..
         } => Retick::Rate(*period),
         _ => Retick::Restart,
@@ -413,9 +413,22 @@ impl Lowering<'_> {
                 Retick::Inert => continue,
                 Retick::Restart => (c, None),
                 Retick::Rate(period) => {
-                    let NodeKind::Decorator { child, .. } = tree.nodes[c].kind else {
+                    let NodeKind::Decorator { child, decorator } = tree.nodes[c].kind else {
                         unreachable!("Rate is a decorator")
                     };
+                    if let Decorator::Rate { first, .. } = decorator {
+                        if first != period {
+                            return Err(NotPrimitive {
+                                node: c,
+                                reason: format!(
+                                    "its first re-run comes {first} s after its child's first \
+                                     Success and the later ones {period} s after each Success \
+                                     (Nav2's SpeedController starts with the period \
+                                     2/(min_rate + max_rate)); the analysis models one period"
+                                ),
+                            });
+                        }
+                    }
                     (child, Some(period))
                 }
                 Retick::Fail => {
