@@ -80,9 +80,14 @@
 //!   `<Action ID="X">`, `<Condition ID="X">` are the node type X;
 //!   `SubTreePlus` (v3) is `SubTree`.
 //!
-//! Known node types without a stochastic meaning yet (scripting conditions,
-//! Switch, RunOnce, counted loops over queues, Nav2's
-//! PipelineSequence, RateController, RoundRobin, ...), custom control nodes
+//! * ManualSelector, ConsumeQueue, MoveIt Pro's ForEach and
+//!   RepeatUnlessFailureEachTick, Nav2's GoalUpdatedController,
+//!   PathLongerOnApproach, DistanceController and SpeedController: see
+//!   `controllers.rs` and `predicates.rs` (branch probabilities, queue
+//!   lengths and the robot's speed from the params file).
+//!
+//! Known node types without a stochastic meaning yet (RunOnce, ParallelAll,
+//! Nav2's PersistentSequence, ...), custom control nodes
 //! and decorators, counts from the blackboard (unless the params file gives
 //! the reference a value: `"{name}": {value: N}`) or −1 (forever), and
 //! pre-conditions (`_skipIf`, `_failureIf`, `_successIf`, `_while`, unless
