@@ -309,3 +309,28 @@ fn port_values_are_checked_like_other_params() {
     );
     assert!(e.to_string().contains("takes only `value`"), "{e}");
 }
+
+#[test]
+fn replanning_controllers_with_random_times_agree_with_the_simulator() {
+    // the planner A (ps 1/2, Exp(2) either way) re-run while B (ps 0.9,
+    // success Exp(1/2), failure Exp(1)) runs: the exact race of the lowered
+    // pipeline against btrel's simulator, which plays the controller's
+    // waits itself
+    let params = "A: {ps: 0.5, mu: 2, nu: 2}\nB: {ps: 0.9, mu: 0.5, nu: 1}\n";
+    for (controller, speed) in [
+        (
+            "<DistanceController distance=\"0.5\">",
+            "\"DistanceController/speed\": {value: 0.25}",
+        ),
+        // v = 0.5 in [0, 1]: rate 1 Hz = (0.5 + 1.5)/2, both waits 1 s
+        (
+            "<SpeedController min_rate=\"0.5\" max_rate=\"1.5\" min_speed=\"0\" max_speed=\"1\">",
+            "\"SpeedController/speed\": {value: 0.5}",
+        ),
+    ] {
+        let tag = &controller[1..controller.find(' ').unwrap()];
+        let body = format!("<PipelineSequence>{controller}<A/></{tag}><B/></PipelineSequence>");
+        let t = tree(&body, &format!("{params}{speed}\n"));
+        assert_root_matches_simulation(&t, 200_000);
+    }
+}

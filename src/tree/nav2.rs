@@ -418,6 +418,9 @@ impl Lowering<'_> {
                     };
                     if let Decorator::Rate { first, .. } = decorator {
                         if first != period {
+                            // seconds to at most 6 decimals (1.818182, 1)
+                            let secs = |x: f64| format!("{}", (x * 1e6).round() / 1e6);
+                            let (first, period) = (secs(first), secs(period));
                             return Err(NotPrimitive {
                                 node: c,
                                 reason: format!(

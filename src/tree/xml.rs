@@ -3367,8 +3367,9 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
                 ),
             )
             .with_help(
-                "GoalUpdatedController and PathLongerOnApproach are read exactly as an earlier \
-                 PipelineSequence child when their child is a leaf, takes no time or cannot fail",
+                "as an earlier PipelineSequence child, GoalUpdatedController is read exactly when \
+                 its child is a leaf, takes no time or cannot fail, and PathLongerOnApproach when \
+                 its child takes no time or cannot fail",
             ));
     }
     Ok(Keyed {
