@@ -308,6 +308,26 @@ fn port_values_are_checked_like_other_params() {
         &format!("{A}\"DistanceController/speed\": {{value: 0.5, ps: 1}}\n"),
     );
     assert!(e.to_string().contains("takes only `value`"), "{e}");
+    // rates too small for a finite period, a bad range: located errors
+    let speed = format!("{A}\"SpeedController/speed\": {{value: 0.1}}\n");
+    let e = err(
+        "<SpeedController min_rate=\"1e-320\" max_rate=\"1e-320\"><A/></SpeedController>",
+        &speed,
+    );
+    assert!(
+        e.to_string().contains("t.xml:3:1") && e.to_string().contains("no finite period"),
+        "{e}"
+    );
+    let e = err(
+        "<SpeedController min_speed=\"1\" max_speed=\"1\"><A/></SpeedController>",
+        &speed,
+    );
+    assert!(e.to_string().contains("min_speed < max_speed"), "{e}");
+    let e = err(
+        "<SpeedController max_rate=\"fast\"><A/></SpeedController>",
+        &speed,
+    );
+    assert!(e.to_string().contains("is not a number"), "{e}");
 }
 
 #[test]

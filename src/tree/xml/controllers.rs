@@ -174,7 +174,16 @@ impl<'a> Builder<'a> {
         let scaled =
             (speed - min_speed) / (max_speed - min_speed) * (max_rate - min_rate) + min_rate;
         let rate = scaled.min(max_rate).max(min_rate);
-        Ok(Some((2.0 / (max_rate + min_rate), 1.0 / rate)))
+        let (first, period) = (2.0 / (max_rate + min_rate), 1.0 / rate);
+        if !(first.is_finite() && period.is_finite()) {
+            return Err(self
+                .err(
+                    e.loc,
+                    format!("<{ty}>: rates {min_rate}..{max_rate} Hz give no finite period"),
+                )
+                .with_help("give rates of at least 1e-300 Hz"));
+        }
+        Ok(Some((first, period)))
     }
 
     /// Nav2's `PathLongerOnApproach` (`path_longer_on_approach.cpp`): when
