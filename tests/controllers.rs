@@ -354,3 +354,29 @@ fn replanning_controllers_with_random_times_agree_with_the_simulator() {
         assert_root_matches_simulation(&t, 200_000);
     }
 }
+
+#[test]
+fn path_longer_on_approach_below_a_reactive_sequence_is_not_restarted() {
+    // ReactiveSequence(PathLongerOnApproach(A), B): re-ticked while B runs,
+    // it finds the path it stored and returns Success at once, so the node
+    // is Sequence(flow, B): ps (0.7 + 0.3·1/2)·0.8
+    let longer = "<PathLongerOnApproach path=\"{path}\"><A/></PathLongerOnApproach>";
+    let params =
+        format!("{A}B: {{ps: 0.8, mu: 1, nu: 1}}\n\"PathLongerOnApproach/longer\": {{ps: 0.3}}\n");
+    let body = format!("<ReactiveSequence>{longer}<B/></ReactiveSequence>");
+    let f = root(&body, &params);
+    assert!(close(f.ps, 0.85 * 0.8), "{f:?}");
+    assert_root_matches_simulation(&tree(&body, &params), 100_000);
+    // after B, or below a ReactiveFallback (a re-tick's Success would end
+    // the fallback): B would be restarted or halted, refused
+    for body in [
+        format!("<ReactiveSequence><B/>{longer}</ReactiveSequence>"),
+        format!("<ReactiveFallback>{longer}<B/></ReactiveFallback>"),
+    ] {
+        let e = err(&body, &params);
+        assert!(
+            is_unsupported(&e) && e.to_string().contains("restarted"),
+            "{e}"
+        );
+    }
+}

@@ -3243,15 +3243,32 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
     };
     let mut restarts: Vec<Problem> = Vec::new();
     for &(id, doc, loc, ty) in &b.reactive {
-        let timed: Vec<String> = b.nodes[id]
+        // a PathLongerOnApproach that returned Success below a
+        // ReactiveSequence, ticked again (even from IDLE), finds the path it
+        // stored and returns Success at once: it is never restarted, though
+        // a later child that runs is halted while its own child runs
+        let once = |c: usize| {
+            ty == "ReactiveSequence"
+                && b.once
+                    .iter()
+                    .any(|o| o.0 == c && o.3 == "PathLongerOnApproach")
+        };
+        let kids: Vec<usize> = b.nodes[id]
             .kind
             .children()
             .iter()
-            .filter(|&&c| has_action(c))
+            .copied()
+            .filter(|&c| has_action(c))
+            .collect();
+        let timed: Vec<String> = kids
+            .iter()
             .map(|&c| format!("'{}'", b.nodes[c].name))
             .collect();
         let with_actions = timed.len();
-        if with_actions >= 2 {
+        let restarted = kids
+            .split_last()
+            .is_some_and(|(_, earlier)| earlier.iter().any(|&c| !once(c)));
+        if restarted {
             restarts.push(Problem {
                 doc,
                 loc,
