@@ -288,6 +288,22 @@ fn speed_controller_waits_two_over_the_rate_sum_first() {
     let params = params.replace("{value: 1.0}", "{value: 0.5}");
     let f = root(&body, &params);
     assert!(close(f.ps, 0.125), "{f:?}");
+    // Nav2's default ports at half the top speed: rate 0.55 Hz, both waits
+    // 2/1.1 = 1/0.55 s (equal up to rounding: one period)
+    let t = tree(
+        "<SpeedController min_rate=\"0.1\" max_rate=\"1.0\" min_speed=\"0.0\" max_speed=\"0.26\"><A/></SpeedController>",
+        &format!("{A}\"SpeedController/speed\": {{value: 0.13}}\n"),
+    );
+    match t.nodes[0].kind {
+        btrel::tree::NodeKind::Decorator {
+            decorator: btrel::tree::Decorator::Rate { first, period },
+            ..
+        } => assert!(
+            first == period && (period - 1.0 / 0.55).abs() < 1e-12,
+            "{first} {period}"
+        ),
+        ref k => panic!("{k:?}"),
+    }
     // speeds above max_speed clamp to max_rate, a negative one is invalid
     let params2 = params.replace("{value: 0.5}", "{value: -1}");
     let e = err(&body, &params2);

@@ -183,6 +183,13 @@ impl<'a> Builder<'a> {
                 )
                 .with_help("give rates of at least 1e-300 Hz"));
         }
+        // equal up to rounding (v at the middle of the speed range): one
+        // period
+        let first = if (first - period).abs() <= 1e-12 * period {
+            period
+        } else {
+            first
+        };
         Ok(Some((first, period)))
     }
 
