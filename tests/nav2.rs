@@ -319,9 +319,9 @@ fn attributes_are_checked_with_their_place() {
     assert!(matches!(
         tree.nodes[0].kind,
         btrel::tree::NodeKind::Decorator {
-            decorator: btrel::tree::Decorator::Rate { period },
+            decorator: btrel::tree::Decorator::Rate { period, first },
             ..
-        } if (period - 0.1).abs() < 1e-15
+        } if (period - 0.1).abs() < 1e-15 && first == period
     ));
 }
 

@@ -530,7 +530,7 @@ fn node_types_without_a_meaning_are_listed_at_once() {
     let src = r#"<root BTCPP_format="4" main_tree_to_execute="Main">
   <BehaviorTree ID="Main">
     <PersistentSequence>
-      <DistanceController distance="1"><A/></DistanceController>
+      <ParallelAll max_failures="1"><A/></ParallelAll>
       <Sequence _skipIf="x > 1"><A/></Sequence>
       <SubTree ID="Sub"/>
     </PersistentSequence>
@@ -547,7 +547,7 @@ fn node_types_without_a_meaning_are_listed_at_once() {
     let lines: Vec<&str> = e.message.lines().skip(1).collect();
     assert_eq!(lines.len(), 4, "{e}");
     assert!(lines[0].starts_with("  t.xml:3:5: <PersistentSequence>: Nav2 control node"));
-    assert!(lines[1].starts_with("  t.xml:4:7: <DistanceController>: Nav2 decorator"));
+    assert!(lines[1].starts_with("  t.xml:4:7: <ParallelAll>: it runs every child"));
     assert!(lines[2].starts_with("  t.xml:5:17: `_skipIf` attribute on <Sequence>"));
     assert!(lines[3].starts_with("  t.xml:9:26: <RunOnce>"));
     assert_eq!((e.line, e.column), (3, 5));

@@ -139,9 +139,9 @@ enum Op {
 enum Mode {
     /// Nothing (placeholder for the last child too).
     Inert,
-    /// Runs `op` again `period` s after each Success (0: back to back),
-    /// until a run fails.
-    Again { op: u32, period: f64 },
+    /// Runs `op` again `first` s after the child's first Success, then
+    /// `period` s after each Success (0: back to back), until a run fails.
+    Again { op: u32, period: f64, first: f64 },
     /// Fails at the next tick (SingleTrigger).
     Fail,
 }
@@ -399,12 +399,30 @@ impl Program {
                 }
                 match retick(tree, c) {
                     Retick::Inert => Mode::Inert,
-                    Retick::Restart => Mode::Again { op, period: 0.0 },
-                    // the RateController's child, run afresh each period
-                    Retick::Rate(period) => match self.ops[op as usize] {
-                        Op::Decorator { child, .. } => Mode::Again { op: child, period },
-                        _ => unreachable!("a RateController compiles to a decorator"),
+                    Retick::Restart => Mode::Again {
+                        op,
+                        period: 0.0,
+                        first: 0.0,
                     },
+                    // the RateController's child, run afresh each period
+                    // (a SpeedController's first wait differs)
+                    Retick::Rate(period) => {
+                        let first = match tree.nodes[c].kind {
+                            NodeKind::Decorator {
+                                decorator: Decorator::Rate { first, .. },
+                                ..
+                            } => first,
+                            _ => period,
+                        };
+                        match self.ops[op as usize] {
+                            Op::Decorator { child, .. } => Mode::Again {
+                                op: child,
+                                period,
+                                first,
+                            },
+                            _ => unreachable!("a RateController compiles to a decorator"),
+                        }
+                    }
                     Retick::Fail => Mode::Fail,
                 }
             })
@@ -607,10 +625,10 @@ impl Program {
             t = stop;
             match self.modes[i as usize] {
                 Mode::Inert => {}
-                Mode::Again { op, period } => scratch.reruns.push(Rerun {
+                Mode::Again { op, period, first } => scratch.reruns.push(Rerun {
                     op,
                     period,
-                    next: t + period,
+                    next: t + first,
                     fail_at: f64::INFINITY,
                     strict: false,
                     since: t,

@@ -247,6 +247,10 @@ pub enum Decorator {
     Rate {
         /// Seconds between a Success of the child and its next start (1/hz).
         period: f64,
+        /// Seconds between the child's first Success and its first re-run
+        /// (`period` for a RateController or a DistanceController; Nav2's
+        /// SpeedController waits 2/(min_rate + max_rate) s first).
+        first: f64,
     },
     /// Nav2's SingleTrigger: runs its child once per execution; ticked
     /// again without being reset (as an earlier child of a

@@ -135,7 +135,7 @@ pub fn retick(tree: &Tree, id: NodeId) -> Retick {
         } => Retick::Fail,
         _ if zero_time(tree, id) || !outcomes(tree, id).1 => Retick::Inert,
         NodeKind::Decorator {
-            decorator: Decorator::Rate { period },
+            decorator: Decorator::Rate { period, .. },
             ..
         } => Retick::Rate(*period),
         _ => Retick::Restart,
@@ -430,9 +430,25 @@ impl Lowering<'_> {
                 Retick::Inert => continue,
                 Retick::Restart => (c, None),
                 Retick::Rate(period) => {
-                    let NodeKind::Decorator { child, .. } = tree.nodes[c].kind else {
+                    let NodeKind::Decorator { child, decorator } = tree.nodes[c].kind else {
                         unreachable!("Rate is a decorator")
                     };
+                    if let Decorator::Rate { first, .. } = decorator {
+                        if first != period {
+                            // seconds to at most 6 decimals (1.818182, 1)
+                            let secs = |x: f64| format!("{}", (x * 1e6).round() / 1e6);
+                            let (first, period) = (secs(first), secs(period));
+                            return Err(NotPrimitive {
+                                node: c,
+                                reason: format!(
+                                    "its first re-run comes {first} s after its child's first \
+                                     Success and the later ones {period} s after each Success \
+                                     (Nav2's SpeedController starts with the period \
+                                     2/(min_rate + max_rate)); the analysis models one period"
+                                ),
+                            });
+                        }
+                    }
                     (child, Some(period))
                 }
                 Retick::Fail => {

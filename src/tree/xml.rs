@@ -80,9 +80,14 @@
 //!   `<Action ID="X">`, `<Condition ID="X">` are the node type X;
 //!   `SubTreePlus` (v3) is `SubTree`.
 //!
-//! Known node types without a stochastic meaning yet (scripting conditions,
-//! Switch, RunOnce, counted loops over queues, Nav2's
-//! PipelineSequence, RateController, RoundRobin, ...), custom control nodes
+//! * ManualSelector, ConsumeQueue, MoveIt Pro's ForEach and
+//!   RepeatUnlessFailureEachTick, Nav2's GoalUpdatedController,
+//!   PathLongerOnApproach, DistanceController and SpeedController: see
+//!   `controllers.rs` and `predicates.rs` (branch probabilities, queue
+//!   lengths and the robot's speed from the params file).
+//!
+//! Known node types without a stochastic meaning yet (RunOnce, ParallelAll,
+//! Nav2's PersistentSequence, ...), custom control nodes
 //! and decorators, counts from the blackboard (unless the params file gives
 //! the reference a value: `"{name}": {value: N}`) or −1 (forever), and
 //! pre-conditions (`_skipIf`, `_failureIf`, `_successIf`, `_while`, unless
@@ -127,6 +132,7 @@ use super::action::{sloc, validate_action, ActionParams, At, Loc};
 use super::error::{nearest, TreeError};
 use super::{Decorator, Flow, FlowNext, FlowState, Node, NodeKind, Tree};
 
+mod controllers;
 mod predicates;
 
 /// Largest XML or params file, in bytes.
@@ -682,7 +688,10 @@ fn parse_params(src: &str, file: &str) -> Result<ParamsTable, TreeError> {
     for (k, e) in entries {
         let p = e.value;
         let at = |line: u32, column: u32| (line as usize, column as usize);
-        if is_blackboard_key(&k) {
+        // `"<node>/<port>": {value: x}`: a number a node reads for a port
+        // whose value comes from the robot (a DistanceController's speed)
+        let port_value = k.contains('/') && p.value.is_some();
+        if is_blackboard_key(&k) || port_value {
             let leaf_key = [&p.ps, &p.pf, &p.mu, &p.nu, &p.tau_s, &p.tau_f]
                 .into_iter()
                 .flatten()
@@ -701,11 +710,16 @@ fn parse_params(src: &str, file: &str) -> Result<ParamsTable, TreeError> {
             };
             if leaf_key.is_some() || p.fit.is_some() {
                 let (line, column) = leaf_key.map_or((e.line, e.column), |x| (x.line, x.column));
+                let what = if port_value {
+                    "port value"
+                } else {
+                    "blackboard entry"
+                };
                 return Err(TreeError::at(
                     file,
                     src,
                     at(line, column),
-                    format!("blackboard entry `{k}` takes only `value`"),
+                    format!("{what} `{k}` takes only `value`"),
                 )
                 .with_help("leaf parameters (ps, mu, ...) belong under the leaf's name or ID"));
             }
@@ -723,11 +737,16 @@ fn parse_params(src: &str, file: &str) -> Result<ParamsTable, TreeError> {
                 file,
                 src,
                 at(v.line, v.column),
-                format!("`value` in the entry of `{k}`, which is not a blackboard reference"),
+                format!(
+                    "`value` in the entry of `{k}`, which is not a blackboard reference or a \
+                     node's port"
+                ),
             )
             .with_help(format!(
                 "`value` gives a blackboard entry, keyed as the XML writes it: `\"{{{k}}}\": \
-                 {{value: ...}}`; a leaf takes ps, pf, mu, nu, tau_s, tau_f"
+                 {{value: ...}}`, or a node's port, keyed `\"<node>/<port>\"` (e.g. \
+                 `\"DistanceController/speed\": {{value: 0.3}}`); a leaf takes ps, pf, mu, nu, \
+                 tau_s, tau_f"
             )));
         }
         let params = ActionParams {
@@ -818,6 +837,17 @@ enum Decl {
     Other(&'static str),
 }
 
+/// The queue loops: BT.CPP's `LoopInt`, ... (`queue`, literal or from the
+/// blackboard, `if_empty`), `ConsumeQueue` (`queue` from the blackboard,
+/// empty: Success) and MoveIt Pro's `ForEach` (`vector_in` from the
+/// blackboard; an empty vector is refused).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Queue {
+    Loop,
+    Consume,
+    ForEach,
+}
+
 /// How a leaf's kind is decided.
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum LeafKind {
@@ -875,21 +905,12 @@ fn unsupported(ty: &str) -> Option<&'static str> {
         | "BlackboardCheckDouble"
         | "BlackboardCheckString"
         | "BlackboardCheckBool" => "its outcome is computed from blackboard values",
-        "ManualSelector" => "it branches on blackboard values or user input",
-        "RunOnce" | "ConsumeQueue" | "ParallelAll" | "ForEach" | "RepeatUnlessFailureEachTick" => {
-            "it loops until a failure, over a queue, or runs its child at most once"
+        "RunOnce" => "it runs its child at most once, keeping its status across executions",
+        "ParallelAll" => {
+            "it runs every child to the end and compares the failures with a threshold"
         }
         "NonblockingSequence" | "PersistentSequence" | "PauseResumeController" => {
             "Nav2 control node: it keeps state across executions or waits for an external request"
-        }
-        "DistanceController" | "SpeedController" => {
-            "Nav2 decorator: it ticks its child again when the robot has moved a distance (or at \
-             a rate set by its speed), which depends on the robot's motion (simulate a \
-             RateController with the period you expect instead)"
-        }
-        "GoalUpdatedController" | "PathLongerOnApproach" => {
-            "Nav2 decorator: it ticks its child depending on goal updates or path lengths on \
-             the blackboard"
         }
         _ => return None,
     })
@@ -945,6 +966,14 @@ const BUILTINS: &[&str] = &[
     "LoopBool",
     "Switch2",
     "Switch3",
+    "ManualSelector",
+    "ConsumeQueue",
+    "ForEach",
+    "RepeatUnlessFailureEachTick",
+    "DistanceController",
+    "SpeedController",
+    "GoalUpdatedController",
+    "PathLongerOnApproach",
 ];
 
 /// Most states of a flow built from BT.CPP nodes (a RetryUntilSuccessful
@@ -959,6 +988,9 @@ fn canonical(ty: &str) -> &str {
     match ty {
         "SequenceStar" => "SequenceWithMemory",
         "RetryUntilSuccesful" => "RetryUntilSuccessful",
+        // MoveIt Pro 9.3+: Repeat with one iteration per parent tick, which
+        // in continuous time (ticks without gaps) is Repeat
+        "RepeatUnlessFailureEachTick" => "Repeat",
         t => t,
     }
 }
@@ -989,6 +1021,13 @@ struct Builder<'a> {
     /// WhileDoElse nodes (node, source, location), checked once the leaves
     /// are known: their condition child must take no time.
     while_do_else: Vec<(usize, usize, Loc)>,
+    /// Port values the params file lacks (source, location, message),
+    /// listed with the leaves' missing parameters.
+    missing_values: Vec<(usize, Loc, String)>,
+    /// Nodes whose re-tick after returning changes nothing under the SBT
+    /// assumptions (node, source, location, type): refused as an earlier
+    /// PipelineSequence child whose re-tick btrel would read as a re-run.
+    once: Vec<(usize, usize, Loc, &'static str)>,
     problems: Vec<Problem>,
     seen_problems: HashSet<(usize, Loc, String)>,
     /// The source of the element being built (for error locations).
@@ -1541,6 +1580,46 @@ impl<'a> Builder<'a> {
                 self.one_child(e, ty)?;
                 self.node(e.children[0], parent, depth, path, prefix, retry)
             }
+            // GoalUpdatedController (`goal_updated_controller.cpp`) ticks its
+            // child at its first tick and again only while it runs or when
+            // the goal on the blackboard changed; it returns the child's
+            // status. The goal keeps its value during the run (the SBT
+            // assumption for blackboard values), so it runs its child once
+            // per execution: the child itself. Ticked again after returning
+            // (an earlier PipelineSequence child) it returns RUNNING without
+            // ticking the child, which does not block the pipeline: checked
+            // after the build (`once`)
+            "GoalUpdatedController" => {
+                self.check_attrs(e, &attrs(&[]), true)?;
+                self.one_child(e, ty)?;
+                let id = self.node(e.children[0], parent, depth, path, prefix, retry)?;
+                self.once.push((id, e.doc, e.loc, "GoalUpdatedController"));
+                Ok(id)
+            }
+            "DistanceController" | "SpeedController" => {
+                let distance = canon == "DistanceController";
+                let keys: &[&'static str] = if distance {
+                    &["distance", "global_frame", "robot_base_frame"]
+                } else {
+                    &[
+                        "min_rate",
+                        "max_rate",
+                        "min_speed",
+                        "max_speed",
+                        "filter_duration",
+                    ]
+                };
+                self.check_attrs(e, &attrs(keys), false)?;
+                self.motion_controller(e, ty, distance, parent, depth, &path, prefix, retry)
+            }
+            "PathLongerOnApproach" => {
+                self.check_attrs(e, &attrs(&["path", "prox_len", "length_factor"]), false)?;
+                self.path_longer(e, ty, parent, depth, &path, prefix, retry)
+            }
+            "ManualSelector" => {
+                self.check_attrs(e, &attrs(&["repeat_last_selection"]), false)?;
+                self.manual_selector(e, ty, parent, depth, &path, prefix, retry)
+            }
             "RateController" | "SingleTrigger" => {
                 let rate = canon == "RateController";
                 self.check_attrs(e, &attrs(if rate { &["hz"] } else { &[] }), false)?;
@@ -1550,7 +1629,10 @@ impl<'a> Builder<'a> {
                     let Some(period) = self.period(e, ty)? else {
                         return self.placeholder(e, &base, parent, depth, &path, prefix, retry);
                     };
-                    Decorator::Rate { period }
+                    Decorator::Rate {
+                        period,
+                        first: period,
+                    }
                 } else {
                     Decorator::SingleTrigger
                 };
@@ -1885,7 +1967,21 @@ impl<'a> Builder<'a> {
             // t18_waypoints example registers it
             "LoopInt" | "LoopDouble" | "LoopString" | "LoopBool" | "LoopPose" => {
                 self.check_attrs(e, &attrs(&["queue", "if_empty", "value"]), false)?;
-                self.loop_queue(e, ty, parent, depth, &path, prefix, retry)
+                self.loop_queue(e, ty, Queue::Loop, parent, depth, &path, prefix, retry)
+            }
+            // BT.CPP's ConsumeQueue<T> (v3, deprecated in v4 for LoopNode):
+            // pops one item per child run from a queue object on the
+            // blackboard, a child Failure is its Failure, an empty queue is
+            // Success
+            "ConsumeQueue" => {
+                self.check_attrs(e, &attrs(&["queue", "popped_item"]), false)?;
+                self.loop_queue(e, ty, Queue::Consume, parent, depth, &path, prefix, retry)
+            }
+            // MoveIt Pro's ForEach: ticks its child once per element of
+            // `vector_in`, a child Failure ends it with Failure
+            "ForEach" => {
+                self.check_attrs(e, &attrs(&["vector_in", "out", "index"]), false)?;
+                self.loop_queue(e, ty, Queue::ForEach, parent, depth, &path, prefix, retry)
             }
             _ => {
                 self.check_attrs(e, &attrs(&[]), true)?;
@@ -2739,6 +2835,8 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
         leaves: Vec::new(),
         reactive: Vec::new(),
         while_do_else: Vec::new(),
+        missing_values: Vec::new(),
+        once: Vec::new(),
         problems: Vec::new(),
         seen_problems: HashSet::new(),
         cur: std::cell::Cell::new(0),
@@ -3053,6 +3151,7 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
         };
         b.nodes[leaf.node].kind = new_kind;
     }
+    missing.append(&mut b.missing_values);
     if let Some(&(doc, first, _)) = missing.first() {
         let lines: Vec<String> = missing
             .iter()
@@ -3083,10 +3182,14 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
     {
         return Err(perr(
             sloc(def),
-            format!("params key `{key}` matches no blackboard reference that btrel reads"),
-            "blackboard values (keys written `{name}`) are read where a count or a duration \
-             (num_cycles, num_attempts, number_of_retries, msec, delay_msec, ...) is written \
-             as that reference; remove the entry or check its spelling"
+            format!(
+                "params key `{key}` matches no blackboard reference or port value that btrel reads"
+            ),
+            "blackboard values (keys written `{name}`) are read where a count, a duration or a \
+             queue (num_cycles, num_attempts, number_of_retries, msec, delay_msec, queue, \
+             vector_in, ...) is written as that reference; port values (keys written \
+             `<node>/<port>`) are read by DistanceController and SpeedController (`speed`); \
+             remove the entry or check its spelling"
                 .into(),
         ));
     }
@@ -3140,21 +3243,43 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
     };
     let mut restarts: Vec<Problem> = Vec::new();
     for &(id, doc, loc, ty) in &b.reactive {
-        let with_actions = b.nodes[id]
+        // a PathLongerOnApproach that returned Success below a
+        // ReactiveSequence, ticked again (even from IDLE), finds the path it
+        // stored and returns Success at once: it is never restarted, though
+        // a later child that runs is halted while its own child runs
+        let once = |c: usize| {
+            ty == "ReactiveSequence"
+                && b.once
+                    .iter()
+                    .any(|o| o.0 == c && o.3 == "PathLongerOnApproach")
+        };
+        let kids: Vec<usize> = b.nodes[id]
             .kind
             .children()
             .iter()
-            .filter(|&&c| has_action(c))
-            .count();
-        if with_actions >= 2 {
+            .copied()
+            .filter(|&c| has_action(c))
+            .collect();
+        let timed: Vec<String> = kids
+            .iter()
+            .map(|&c| format!("'{}'", b.nodes[c].name))
+            .collect();
+        let with_actions = timed.len();
+        let restarted = kids
+            .split_last()
+            .is_some_and(|(_, earlier)| earlier.iter().any(|&c| !once(c)));
+        if restarted {
             restarts.push(Problem {
                 doc,
                 loc,
                 text: format!(
-                    "<{ty}> with actions in {with_actions} children: BT.CPP halts its other \
-                     children when one returns RUNNING and ticks them again from IDLE, so an \
-                     earlier action is restarted while a later one runs (and that one is \
-                     halted); a {} does not model this (keep actions in one child, e.g. the last)",
+                    "<{ty}> with actions that take time in {with_actions} children ({}): BT.CPP \
+                     halts its other children when one returns RUNNING and ticks them again \
+                     from IDLE, so an earlier action is restarted while a later one runs (and \
+                     that one is halted); a {} does not model this (keep actions in one child, \
+                     e.g. the last; an action that returns within its tick, such as Nav2's \
+                     synchronous TruncatePathLocal, takes no time: `tau_s: 0`, `tau_f: 0`)",
+                    timed.join(", "),
                     if ty == "ReactiveSequence" {
                         "Sequence"
                     } else {
@@ -3208,6 +3333,61 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
     let mut keys = vec![None; b.nodes.len()];
     for (node, key) in param_keys {
         keys[node] = Some(key);
+    }
+    // GoalUpdatedController and PathLongerOnApproach ticked again after
+    // returning (an earlier PipelineSequence child) do not run their child
+    // again while the goal and the path keep their values; btrel reads a
+    // re-ticked subtree that takes time and can fail as re-run
+    let mut again: Vec<Problem> = Vec::new();
+    let view = Tree {
+        title: None,
+        nodes: if b.once.is_empty() {
+            Vec::new()
+        } else {
+            b.nodes.clone()
+        },
+    };
+    for &(id, doc, loc, ty) in &b.once {
+        let tree = &view;
+        let Some(p) = tree.nodes[id].parent else {
+            continue;
+        };
+        let earlier = match &tree.nodes[p].kind {
+            NodeKind::Pipeline { children } => children.last() != Some(&id),
+            _ => false,
+        };
+        if earlier && super::nav2::retick(tree, id) != super::nav2::Retick::Inert {
+            again.push(Problem {
+                doc,
+                loc,
+                text: format!(
+                    "<{ty}> as an earlier child of a PipelineSequence: ticked again while a later \
+                     child runs it does not run its child again (the goal and the path keep \
+                     their values), while btrel's PipelineSequence would re-run a subtree that \
+                     takes time and can fail"
+                ),
+                semantic: true,
+            });
+        }
+    }
+    if let Some(first) = again.first() {
+        let n = again.len();
+        let refs: Vec<&Problem> = again.iter().collect();
+        return Err(b
+            .err_in(
+                first.doc,
+                first.loc,
+                format!(
+                    "{UNSUPPORTED} {n} node{} of this tree:\n{}",
+                    if n == 1 { "" } else { "s" },
+                    problem_lines(&sources, &refs)
+                ),
+            )
+            .with_help(
+                "as an earlier PipelineSequence child, GoalUpdatedController is read exactly when \
+                 its child is a leaf, takes no time or cannot fail, and PathLongerOnApproach when \
+                 its child takes no time or cannot fail",
+            ));
     }
     Ok(Keyed {
         tree: Tree {

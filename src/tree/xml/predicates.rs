@@ -9,8 +9,8 @@
 //! it once (Precondition reads `if` only before the child starts) is exact.
 
 use super::{
-    canonical, Builder, Elem, Flow, FlowNext, FlowState, Leaf, LeafKind, NodeKind, TreeError,
-    PRECONDITIONS,
+    canonical, Builder, Elem, Flow, FlowNext, FlowState, Leaf, LeafKind, NodeKind, Queue,
+    TreeError, PRECONDITIONS,
 };
 
 /// The parent element of each element (`None` for the roots).
@@ -78,7 +78,7 @@ impl<'a> Builder<'a> {
     /// [`Builder::predicate`]; `constants`: whether `true` / `false` are
     /// read as constant predicates (not for a Switch's case values).
     #[allow(clippy::too_many_arguments)]
-    fn predicate_leaf(
+    pub(super) fn predicate_leaf(
         &mut self,
         e: &Elem,
         ty: &str,
@@ -248,11 +248,18 @@ impl<'a> Builder<'a> {
     /// SUCCESS → Repeat n; FAILURE → a flow running the child n times, then
     /// Failure; n = 0 → a condition of ps 1 / 0 (the child never runs, and
     /// is not built). `if_empty` = SKIPPED or from the blackboard is refused.
+    ///
+    /// `ConsumeQueue` (BT.CPP `consume_queue.h`) and MoveIt Pro's `ForEach`
+    /// read the same way, from a blackboard reference only (`queue`,
+    /// `vector_in`: BT.CPP reads a queue object there, not a literal) and
+    /// without `if_empty`: an empty queue is Success for ConsumeQueue and
+    /// refused for ForEach (MoveIt Pro does not document that case).
     #[allow(clippy::too_many_arguments)]
     pub(super) fn loop_queue(
         &mut self,
         e: &'a Elem,
         ty: &str,
+        form: Queue,
         parent: Option<usize>,
         depth: usize,
         path: &str,
@@ -261,14 +268,37 @@ impl<'a> Builder<'a> {
     ) -> Result<usize, TreeError> {
         self.one_child(e, ty)?;
         let base = self.name_attr(e)?.unwrap_or_else(|| ty.to_string());
-        let Some(q) = e.attr("queue") else {
+        let port = if form == Queue::ForEach {
+            "vector_in"
+        } else {
+            "queue"
+        };
+        let Some(q) = e.attr(port) else {
+            let literal = if form == Queue::Loop {
+                format!("<{ty} queue=\"a;b;c\">, or ")
+            } else {
+                String::new()
+            };
             return Err(self
-                .err(e.loc, format!("<{ty}> needs `queue`"))
+                .err(e.loc, format!("<{ty}> needs `{port}`"))
                 .with_help(format!(
-                    "write <{ty} queue=\"a;b;c\">, or a blackboard reference whose length the \
-                     params file gives: `\"{{queue}}\": {{value: N}}`"
+                    "write {literal}a blackboard reference whose length the params file gives: \
+                     <{ty} {port}=\"{{items}}\"> with `\"{{items}}\": {{value: N}}`"
                 )));
         };
+        if form != Queue::Loop && !q.value.trim().starts_with('{') {
+            self.problem(
+                e.doc,
+                q.loc,
+                format!(
+                    "<{ty}> with {port} = \"{}\", not a blackboard reference: it reads a \
+                     container from the blackboard, which a literal does not give",
+                    q.value.trim()
+                ),
+                true,
+            );
+            return self.placeholder(e, &base, parent, depth, path, prefix, retry);
+        }
         let n = if q.value.trim().starts_with('{') {
             if self.unresolved(&q.value) {
                 let v = q.value.trim();
@@ -276,15 +306,15 @@ impl<'a> Builder<'a> {
                     e.doc,
                     q.loc,
                     format!(
-                        "<{ty}> with queue = \"{v}\", a blackboard reference: its length is only \
+                        "<{ty}> with {port} = \"{v}\", a blackboard reference: its length is only \
                          known at run time (give it in the params file: `\"{v}\": {{value: N}}`)"
                     ),
                     true,
                 );
                 return self.placeholder(e, &base, parent, depth, path, prefix, retry);
             }
-            let Some((n, at)) = self.int_attr(e, "queue")? else {
-                return Err(self.err(q.loc, format!("<{ty}> needs `queue`")));
+            let Some((n, at)) = self.int_attr(e, port)? else {
+                return Err(self.err(q.loc, format!("<{ty}> needs `{port}`")));
             };
             if !(0..=MAX_QUEUE as i64).contains(&n) {
                 return Err(self
@@ -334,6 +364,19 @@ impl<'a> Builder<'a> {
                 }
             },
         };
+        if n == 0 && form == Queue::ForEach {
+            self.problem(
+                e.doc,
+                q.loc,
+                format!(
+                    "<{ty}> over an empty vector ({} has length 0 in the params file): MoveIt \
+                     Pro does not document what ForEach returns then",
+                    q.value.trim()
+                ),
+                true,
+            );
+            return self.placeholder(e, &base, parent, depth, path, prefix, retry);
+        }
         if n == 0 {
             let ps = if if_empty_success { 1.0 } else { 0.0 };
             return self.push(
