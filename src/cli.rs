@@ -70,6 +70,7 @@ Examples:
   btrel fit day1.btlog day2.btlog --by name -o params.yaml
   btrel fit runs.db3 -o params.yaml                   # every session of a SqliteLogger file
   btrel fit episodes.csv --tree tree.xml -o tree.params.yaml
+  btrel fit run.btlog --timing auto -o params.yaml    # Erlang, shifted, ... per outcome by BIC
 
 LOG is a BehaviorTree.CPP v4 FileLogger2 file (.btlog), a BehaviorTree.CPP v4 SqliteLogger
 database (.db3/.btdb, or any file starting with `SQLite format 3`; opened read-only, each
@@ -91,6 +92,17 @@ struct FitArgs {
     /// Write the params file here (atomically) instead of standard output (- is standard output).
     #[arg(short, long, value_name = "PARAMS.yaml")]
     output: Option<PathBuf>,
+    /// Timing families: `exponential` (the book's model; deterministic when every duration of
+    /// each outcome is one time) or `auto` (per outcome deterministic, exponential, shifted
+    /// exponential or Erlang-k, k ≤ 20, by BIC; needs 10 completed episodes of the outcome).
+    #[arg(long, value_enum, default_value = "exponential")]
+    timing: FitTiming,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum FitTiming {
+    Exponential,
+    Auto,
 }
 
 const SENSITIVITY_EXAMPLES: &str = "\
@@ -1078,7 +1090,11 @@ fn fit(args: FitArgs) -> Result<(), Failure> {
         FitBy::Id => btrel::fit::By::Id,
         FitBy::Name => btrel::fit::By::Name,
     };
-    let fitted = btrel::fit::fit_logs(&logs, by)
+    let mode = match args.timing {
+        FitTiming::Exponential => btrel::fit::TimingMode::Exponential,
+        FitTiming::Auto => btrel::fit::TimingMode::Auto,
+    };
+    let fitted = btrel::fit::fit_logs_with(&logs, by, mode)
         .map_err(|e| Failure::input(format!("{e}; key by ID instead with --by id")))?;
     for l in &fitted.leaves {
         for w in &l.warnings {

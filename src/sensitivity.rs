@@ -186,7 +186,9 @@ pub fn params_of(kind: &NodeKind) -> Vec<(Param, f64)> {
                     Some(Duration::Exponential { rate: r })
                     | Some(Duration::TruncatedExponential { rate: r, .. }) => v.push((rate, r)),
                     Some(Duration::Fixed { time }) => v.push((tau, time)),
-                    None => {}
+                    // Erlang, hypoexponential and shifted times have no
+                    // mu/nu/tau parameter: they are held
+                    Some(Duration::PhaseType { .. }) | None => {}
                 }
             }
             v

@@ -642,6 +642,9 @@ fn action(v: Value) -> Option<ActionDef> {
         nu: None,
         tau_s: None,
         tau_f: None,
+        // `success_time` / `failure_time` are left to the full parser
+        success_time: None,
+        failure_time: None,
     };
     let mut has_ps = false;
     fields(v, |k, v| {
