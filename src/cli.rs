@@ -741,7 +741,15 @@ fn analysis_failure(cmd: Cmd, method: Method) -> impl Fn(AnalysisError) -> Failu
         if cmd == Cmd::Plot && !matches!(e, AnalysisError::NeverReturns { .. }) {
             fixes.push("`--mc N` (plot a simulation alone)".to_string());
         }
-        let mut message = e.to_string();
+        let mut message = match (&e, cmd) {
+            // an exported model is a CTMC: say why, not what a Parallel supports
+            (AnalysisError::NotMarkovian { leaf }, Cmd::ExportPrism) => format!(
+                "action '{leaf}' has a fixed, hybrid or shifted time, which no CTMC (PRISM or \
+                 Storm model) represents exactly: only exponential, Erlang and hypoexponential \
+                 times are phases"
+            ),
+            _ => e.to_string(),
+        };
         if !fixes.is_empty() {
             message.push_str(&format!("\n  help: instead use {}", or_list(&fixes)));
         }
