@@ -138,6 +138,12 @@ fn simulation_agrees_with_the_exact_figures_and_curves() {
            {parallel: {success_threshold: 2, children: [\
              {action: {ps: 0.9, success_time: {erlang: {k: 2, rate: 3}}, failure_time: {rate: 1}}}, \
              {action: {ps: 0.6, mu: 1.2, failure_time: {erlang: {k: 3, rate: 4}}}}]}}]}}",
+        // a retry loop racing a shifted deadline
+        "tree: {parallel: {success_threshold: 1, failure_threshold: 1, children: [\
+           {until_success: {child: {action: {ps: 0.4, \
+             success_time: {shift: 0.3, erlang: {k: 2, rate: 5}}, \
+             failure_time: {hypoexponential: [3, 6]}}}}}, \
+           {action: {ps: 0, failure_time: {shift: 1.5, rate: 2}}}]}}",
     ];
     let times = [0.5, 1.0, 2.0, 4.0];
     for (i, y) in cases.iter().enumerate() {
@@ -370,4 +376,76 @@ fn few_episodes_keep_the_exponential_with_a_warning() {
     let (s, _, w) = families(counts_of(erl, Vec::new(), Vec::new()));
     assert!(matches!(s, Some(Family::Exponential { .. })), "{s:?}");
     assert!(w.iter().any(|w| w.contains("fewer than 10")), "{w:?}");
+}
+
+#[test]
+fn xml_params_files_take_the_time_laws() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let xml = dir.path().join("t.xml");
+    std::fs::write(
+        &xml,
+        r#"<root BTCPP_format="4" main_tree_to_execute="Main">
+  <BehaviorTree ID="Main">
+    <Sequence name="seq">
+      <Dock name="dock"/>
+      <Grasp name="grasp"/>
+    </Sequence>
+  </BehaviorTree>
+  <TreeNodesModel><Action ID="Dock"/><Action ID="Grasp"/></TreeNodesModel>
+</root>"#,
+    )
+    .expect("written");
+    let params = dir.path().join("t.params.yaml");
+    std::fs::write(
+        &params,
+        "dock: {ps: 1, success_time: {shift: 8, erlang: {k: 3, rate: 0.5}}}\n\
+         grasp: {ps: 0.5, success_time: {hypoexponential: [1, 4]}, failure_time: {fixed: 2}}\n",
+    )
+    .expect("written");
+    let (code, out, err) = run_btrel(&[
+        "report",
+        xml.to_str().expect("path"),
+        "--params",
+        params.to_str().expect("path"),
+        "--format",
+        "json",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
+    let node = |name: &str| {
+        v["nodes"]
+            .as_array()
+            .expect("nodes")
+            .iter()
+            .find(|n| n["name"] == name)
+            .cloned()
+            .expect("node")
+    };
+    // dock: 8 + 3/0.5 = 14; grasp: 1 + 1/4 on Success, 2 on Failure
+    assert!((node("dock")["mtts"].as_f64().expect("mtts") - 14.0).abs() < 1e-12);
+    assert!((node("grasp")["mtts"].as_f64().expect("mtts") - 1.25).abs() < 1e-12);
+    let seq = node("seq");
+    assert!(
+        (seq["mtts"].as_f64().expect("mtts") - 15.25).abs() < 1e-12,
+        "{seq}"
+    );
+    assert!(
+        (seq["mttf"].as_f64().expect("mttf") - 16.0).abs() < 1e-12,
+        "{seq}"
+    );
+    // a bad value in the params file: located there
+    std::fs::write(
+        &params,
+        "dock: {ps: 1, success_time: {erlang: {k: 0, rate: 0.5}}}\ngrasp: {ps: 1, mu: 1}\n",
+    )
+    .expect("written");
+    let (code, _, err) = run_btrel(&[
+        "check",
+        xml.to_str().expect("path"),
+        "--params",
+        params.to_str().expect("path"),
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("t.params.yaml:1:42"), "{err}");
+    assert!(err.contains("not a valid stage count"), "{err}");
 }
