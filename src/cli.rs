@@ -111,7 +111,8 @@ Examples:
   btrel sensitivity trees/search-and-grasp.yaml --of success-by --deadline 100
   btrel sensitivity trees/search-and-grasp.yaml --of mttf --format json
 
-For every leaf parameter (ps, mu, nu, tau_s, tau_f) the derivative of the root's figure and
+For every leaf parameter (ps, mu, nu, tau_s, tau_f; Erlang, hypoexponential and shifted
+`success_time`/`failure_time` laws are held) the derivative of the root's figure and
 its elasticity d ln O / d ln θ, ranked by |elasticity|; the table ends with sentences for the
 top entries (ps changed by 0.1, other parameters by 10%, the new figure computed again).
 Derivatives: Richardson-extrapolated central differences through the engine (one-sided at
@@ -320,7 +321,8 @@ struct CurveArgs {
     /// exact (default): exact chain; book: the chapter's recursion.
     #[arg(long, value_enum, default_value_t = MethodArg::Exact)]
     method: MethodArg,
-    /// as-given, or deterministic: every exponential time replaced by 1/rate.
+    /// as-given, or deterministic: every exponential time replaced by 1/rate (an Erlang,
+    /// hypoexponential or shifted time by its mean).
     #[arg(long, value_enum, default_value_t = TimingArg::AsGiven)]
     timing: TimingArg,
     /// Also simulate N runs and add mc_success, mc_failure, mc_running columns.
