@@ -443,12 +443,34 @@ fn fit_families(counts: &Counts, warnings: &mut Vec<String>) -> Option<(Estimate
         n,
         near_constant(&counts.failure_durations),
     );
+    // an outcome whose completed episodes have no exposure of their own
+    // (instants, every halt weighed to the other outcome): the exponential
+    // maximum of the whole likelihood
+    let fallback = |rate: Option<Estimate>, done: usize| {
+        (done > 0).then_some(()).and(rate).map(|r| timing::SideFit {
+            family: timing::Family::Exponential { rate: r.value },
+            candidates: Vec::new(),
+            ks: None,
+        })
+    };
+    let success = success.or_else(|| fallback(m.mu, counts.successes));
+    let failure = failure.or_else(|| fallback(m.nu, counts.failures));
+    if counts.instants > 0 {
+        warnings.push(format!(
+            "{} of its {} completed episodes returned instantly (no RUNNING state); \
+             no family fitted here has instants, so its rates are too high",
+            counts.instants,
+            counts.successes + counts.failures
+        ));
+    }
     for (fit, what, done) in [
         (&success, "success", counts.successes),
         (&failure, "failure", counts.failures),
     ] {
         if let Some(f) = fit {
-            if f.candidates.is_empty() && !matches!(f.family, timing::Family::Deterministic { .. })
+            if f.candidates.is_empty()
+                && done < timing::FAMILY_MIN
+                && !matches!(f.family, timing::Family::Deterministic { .. })
             {
                 warnings.push(format!(
                     "the {what} time's family was not chosen: {done} completed {what} episode{} \
@@ -659,6 +681,12 @@ pub fn fit_leaf_with(
 }
 
 fn num(x: f64) -> String {
+    if x == f64::NEG_INFINITY {
+        return "-.inf".into();
+    }
+    if x.is_nan() {
+        return ".nan".into();
+    }
     if x.is_finite() {
         let s = format!("{x}");
         if s.contains(['.', 'e']) {

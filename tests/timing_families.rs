@@ -449,3 +449,23 @@ fn xml_params_files_take_the_time_laws() {
     assert!(err.contains("t.params.yaml:1:42"), "{err}");
     assert!(err.contains("not a valid stage count"), "{err}");
 }
+
+#[test]
+fn instant_successes_with_halts_still_get_a_success_time() {
+    // 20 successes in zero time, 30 timed failures, 5 halts: every outcome
+    // that occurred needs a time in the params file
+    let ex = draw(30, 9, |r| 2.0 * exp(r));
+    let mut c = counts_of(vec![0.0; 20], ex, vec![0.5, 1.0, 1.5, 2.0, 2.5]);
+    c.instants = 20;
+    let f = fit_leaf_with("A", Declared::Action, c, TimingMode::Auto).expect("fitted");
+    let line = btrel::fit::params_line(&f);
+    assert!(
+        line.contains("mu: ") || line.contains("success_time: "),
+        "{line}"
+    );
+    assert!(
+        f.warnings.iter().any(|w| w.contains("instantly")),
+        "{:?}",
+        f.warnings
+    );
+}
