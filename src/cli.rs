@@ -111,8 +111,9 @@ Examples:
   btrel sensitivity trees/search-and-grasp.yaml --of success-by --deadline 100
   btrel sensitivity trees/search-and-grasp.yaml --of mttf --format json
 
-For every leaf parameter (ps, mu, nu, tau_s, tau_f; Erlang, hypoexponential and shifted
-`success_time`/`failure_time` laws are held) the derivative of the root's figure and
+For every leaf parameter (ps, mu, nu, tau_s, tau_f; the shift of a shifted `success_time` /
+`failure_time` is its tau_s / tau_f, the rates of Erlang and hypoexponential stages are held)
+the derivative of the root's figure and
 its elasticity d ln O / d ln θ, ranked by |elasticity|; the table ends with sentences for the
 top entries (ps changed by 0.1, other parameters by 10%, the new figure computed again).
 Derivatives: Richardson-extrapolated central differences through the engine (one-sided at

@@ -469,3 +469,32 @@ fn instant_successes_with_halts_still_get_a_success_time() {
         f.warnings
     );
 }
+
+#[test]
+fn sensitivity_moves_a_shift_as_its_tau() {
+    use btrel::sensitivity::{sensitivity, Objective, Param};
+    // MTTS = shift + k/rate: dMTTS/dshift = 1, elasticity 2/4; P(S by 5)
+    // = Erlang-2 CDF at 5 − shift, so its derivative is −(density at 3) =
+    // −3 e^{−3}
+    let t = tree("tree: {action: {ps: 1, success_time: {shift: 2, erlang: {k: 2, rate: 1}}}}");
+    let s = sensitivity(&t, Objective::Mtts, &Default::default()).expect("sensitivity");
+    let row = s
+        .rows
+        .iter()
+        .find(|r| r.param == Param::TauS)
+        .expect("the shift is a parameter");
+    assert_eq!(row.value, 2.0);
+    assert!((row.derivative - 1.0).abs() < 1e-8, "{row:?}");
+    assert!(
+        (row.elasticity.expect("defined") - 0.5).abs() < 1e-8,
+        "{row:?}"
+    );
+    let s = sensitivity(&t, Objective::SuccessBy(5.0), &Default::default()).expect("sensitivity");
+    let row = s
+        .rows
+        .iter()
+        .find(|r| r.param == Param::TauS)
+        .expect("shift");
+    let want = -3.0 * (-3.0f64).exp();
+    assert!((row.derivative - want).abs() < 1e-7, "{row:?} vs {want}");
+}
