@@ -31,6 +31,10 @@ Input (stdin, JSON): {"times": ["0.5", ...], "trees": [node, ...]} where a
 node is one of
   {"action": {"ps": "0.3", "success": DUR|null, "failure": DUR|null}}
      DUR = {"exp": rate} | {"fixed": time} | {"trunc": [rate, cap]}
+         | {"phases": {"shift": time, "stages": [[rate, count], ...]}}
+           (a deterministic shift, then `count` exponential stages of each
+           rate in series: Erlang, hypoexponential and their shifted forms;
+           an Erlang-k stage block is the term t^(k-1) e^(-rate t) rate^k/(k-1)!)
   {"condition": "0.4"}
   {"sequence": [node...]} | {"fallback": [node...]}
   {"parallel": {"m": 2, "f": 1, "children": [node...]}}
@@ -243,6 +247,13 @@ def side(w, dur):
         return Measure(dens=Fn({(0, lam, ZERO): w * fr(lam)}))
     if "fixed" in dur:
         return delta(Fraction(dur["fixed"]), w)
+    if "phases" in dur:
+        law = delta(Fraction(dur["phases"]["shift"]), w)
+        for rate, count in dur["phases"]["stages"]:
+            lam, k = Fraction(rate), int(count)
+            erlang = Fn({(k - 1, lam, ZERO): fr(lam) ** k / factorial(k - 1)})
+            law = law.conv(Measure(dens=erlang))
+        return law
     lam, cap = Fraction(dur["trunc"][0]), Fraction(dur["trunc"][1])
     tail = exp_neg(lam, cap)
     dens = Fn({(0, lam, ZERO): w * fr(lam)})

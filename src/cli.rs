@@ -70,6 +70,7 @@ Examples:
   btrel fit day1.btlog day2.btlog --by name -o params.yaml
   btrel fit runs.db3 -o params.yaml                   # every session of a SqliteLogger file
   btrel fit episodes.csv --tree tree.xml -o tree.params.yaml
+  btrel fit run.btlog --timing auto -o params.yaml    # Erlang, shifted, ... per outcome by BIC
 
 LOG is a BehaviorTree.CPP v4 FileLogger2 file (.btlog), a BehaviorTree.CPP v4 SqliteLogger
 database (.db3/.btdb, or any file starting with `SQLite format 3`; opened read-only, each
@@ -91,6 +92,17 @@ struct FitArgs {
     /// Write the params file here (atomically) instead of standard output (- is standard output).
     #[arg(short, long, value_name = "PARAMS.yaml")]
     output: Option<PathBuf>,
+    /// Timing families: `exponential` (the book's model; deterministic when every duration of
+    /// each outcome is one time) or `auto` (per outcome deterministic, exponential, shifted
+    /// exponential or Erlang-k, k ≤ 20, by BIC; needs 10 completed episodes of the outcome).
+    #[arg(long, value_enum, default_value = "exponential")]
+    timing: FitTiming,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum FitTiming {
+    Exponential,
+    Auto,
 }
 
 const SENSITIVITY_EXAMPLES: &str = "\
@@ -99,7 +111,9 @@ Examples:
   btrel sensitivity trees/search-and-grasp.yaml --of success-by --deadline 100
   btrel sensitivity trees/search-and-grasp.yaml --of mttf --format json
 
-For every leaf parameter (ps, mu, nu, tau_s, tau_f) the derivative of the root's figure and
+For every leaf parameter (ps, mu, nu, tau_s, tau_f; the shift of a shifted `success_time` /
+`failure_time` is its tau_s / tau_f, the rates of Erlang and hypoexponential stages are held)
+the derivative of the root's figure and
 its elasticity d ln O / d ln θ, ranked by |elasticity|; the table ends with sentences for the
 top entries (ps changed by 0.1, other parameters by 10%, the new figure computed again).
 Derivatives: Richardson-extrapolated central differences through the engine (one-sided at
@@ -308,7 +322,8 @@ struct CurveArgs {
     /// exact (default): exact chain; book: the chapter's recursion.
     #[arg(long, value_enum, default_value_t = MethodArg::Exact)]
     method: MethodArg,
-    /// as-given, or deterministic: every exponential time replaced by 1/rate.
+    /// as-given, or deterministic: every exponential time replaced by 1/rate (an Erlang,
+    /// hypoexponential or shifted time by its mean).
     #[arg(long, value_enum, default_value_t = TimingArg::AsGiven)]
     timing: TimingArg,
     /// Also simulate N runs and add mc_success, mc_failure, mc_running columns.
@@ -729,7 +744,15 @@ fn analysis_failure(cmd: Cmd, method: Method) -> impl Fn(AnalysisError) -> Failu
         if cmd == Cmd::Plot && !matches!(e, AnalysisError::NeverReturns { .. }) {
             fixes.push("`--mc N` (plot a simulation alone)".to_string());
         }
-        let mut message = e.to_string();
+        let mut message = match (&e, cmd) {
+            // an exported model is a CTMC: say why, not what a Parallel supports
+            (AnalysisError::NotMarkovian { leaf }, Cmd::ExportPrism) => format!(
+                "action '{leaf}' has a fixed, hybrid or shifted time, which no CTMC (PRISM or \
+                 Storm model) represents exactly: only exponential, Erlang and hypoexponential \
+                 times are phases"
+            ),
+            _ => e.to_string(),
+        };
         if !fixes.is_empty() {
             message.push_str(&format!("\n  help: instead use {}", or_list(&fixes)));
         }
@@ -1078,7 +1101,11 @@ fn fit(args: FitArgs) -> Result<(), Failure> {
         FitBy::Id => btrel::fit::By::Id,
         FitBy::Name => btrel::fit::By::Name,
     };
-    let fitted = btrel::fit::fit_logs(&logs, by)
+    let mode = match args.timing {
+        FitTiming::Exponential => btrel::fit::TimingMode::Exponential,
+        FitTiming::Auto => btrel::fit::TimingMode::Auto,
+    };
+    let fitted = btrel::fit::fit_logs_with(&logs, by, mode)
         .map_err(|e| Failure::input(format!("{e}; key by ID instead with --by id")))?;
     for l in &fitted.leaves {
         for w in &l.warnings {

@@ -34,6 +34,20 @@
 
 use crate::logs::{Declared, End, Episode};
 
+pub mod timing;
+
+/// Which timing families `fit` considers.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TimingMode {
+    /// Exponential times (deterministic when every duration of each outcome
+    /// is one time): the book's model.
+    #[default]
+    Exponential,
+    /// Per outcome: deterministic, exponential, shifted exponential or
+    /// Erlang-k by BIC ([`timing`]).
+    Auto,
+}
+
 /// z of a two-sided 95% interval.
 pub const Z95: f64 = 1.959963984540054;
 /// Figures resting on fewer episodes than this get a warning.
@@ -313,6 +327,14 @@ pub enum Timing {
         nu: Option<Estimate>,
         em_iterations: usize,
     },
+    /// `--timing auto`: each outcome's family chosen by BIC, then fitted
+    /// jointly ([`timing`]).
+    Families {
+        success: Option<timing::SideFit>,
+        failure: Option<timing::SideFit>,
+        em_iterations: usize,
+        log_likelihood: f64,
+    },
 }
 
 /// One leaf's fitted parameters.
@@ -364,6 +386,221 @@ fn count_ps(c: &Counts) -> Estimate {
 
 /// Fits one leaf; None when no episode completed (only halts, or none).
 pub fn fit_leaf(key: &str, declared: Declared, counts: Counts) -> Option<LeafFit> {
+    fit_leaf_with(key, declared, counts, TimingMode::Exponential)
+}
+
+/// `log(p e^{a} + (1−p) e^{b})` without underflow (`a`, `b` log survivals).
+fn log_mix(p: f64, a: f64, b: f64) -> f64 {
+    let x = if p > 0.0 {
+        p.ln() + a
+    } else {
+        f64::NEG_INFINITY
+    };
+    let y = if p < 1.0 {
+        (1.0 - p).ln() + b
+    } else {
+        f64::NEG_INFINITY
+    };
+    let m = x.max(y);
+    if m == f64::NEG_INFINITY {
+        return m;
+    }
+    m + ((x - m).exp() + (y - m).exp()).ln()
+}
+
+/// `--timing auto` for a leaf whose episodes are not all instants: the
+/// families by BIC, then the joint EM ([`timing`] module docs).
+fn fit_families(counts: &Counts, warnings: &mut Vec<String>) -> Option<(Estimate, Timing)> {
+    use timing::{choose, refit, Side};
+    let m = mle_exponential(counts)?;
+    let n = counts.episodes() as f64;
+    let (ns, nf) = (counts.successes as f64, counts.failures as f64);
+    let mut p = m.ps.value;
+    let mut w: Vec<f64> = match (m.mu, m.nu) {
+        (Some(mu), Some(nu)) => counts
+            .censored
+            .iter()
+            .map(|&c| posterior_success(p, mu.value, nu.value, c))
+            .collect(),
+        _ => vec![p; counts.censored.len()],
+    };
+    let wf: Vec<f64> = w.iter().map(|x| 1.0 - x).collect();
+    let success = choose(
+        &Side {
+            events: &counts.success_durations,
+            censored: &counts.censored,
+            weights: &w,
+        },
+        n,
+        near_constant(&counts.success_durations),
+    );
+    let failure = choose(
+        &Side {
+            events: &counts.failure_durations,
+            censored: &counts.censored,
+            weights: &wf,
+        },
+        n,
+        near_constant(&counts.failure_durations),
+    );
+    // an outcome whose completed episodes have no exposure of their own
+    // (instants, every halt weighed to the other outcome): the exponential
+    // maximum of the whole likelihood
+    let fallback = |rate: Option<Estimate>, done: usize| {
+        (done > 0).then_some(()).and(rate).map(|r| timing::SideFit {
+            family: timing::Family::Exponential { rate: r.value },
+            candidates: Vec::new(),
+            ks: None,
+        })
+    };
+    let success = success.or_else(|| fallback(m.mu, counts.successes));
+    let failure = failure.or_else(|| fallback(m.nu, counts.failures));
+    if counts.instants > 0 {
+        warnings.push(format!(
+            "{} of its {} completed episodes returned instantly (no RUNNING state); \
+             no family fitted here has instants, so its rates are too high",
+            counts.instants,
+            counts.successes + counts.failures
+        ));
+    }
+    for (fit, what, done) in [
+        (&success, "success", counts.successes),
+        (&failure, "failure", counts.failures),
+    ] {
+        if let Some(f) = fit {
+            if f.candidates.is_empty()
+                && done < timing::FAMILY_MIN
+                && !matches!(f.family, timing::Family::Deterministic { .. })
+            {
+                warnings.push(format!(
+                    "the {what} time's family was not chosen: {done} completed {what} episode{} \
+                     (fewer than {}); exponential kept",
+                    if done == 1 { "" } else { "s" },
+                    timing::FAMILY_MIN
+                ));
+            }
+        }
+    }
+    let (mut fs, mut ff) = (
+        success.as_ref().map(|f| f.family),
+        failure.as_ref().map(|f| f.family),
+    );
+    // joint EM over the halts under the chosen families
+    let log_sf = |f: &Option<timing::Family>, c: f64| f.map_or(f64::NEG_INFINITY, |f| f.log_sf(c));
+    let mut iterations = 0;
+    if !counts.censored.is_empty() {
+        for it in 1..=10_000 {
+            iterations = it;
+            for (j, &c) in counts.censored.iter().enumerate() {
+                let (a, b) = (log_sf(&fs, c), log_sf(&ff, c));
+                let mix = log_mix(p, a, b);
+                w[j] = if mix == f64::NEG_INFINITY {
+                    p
+                } else if p > 0.0 {
+                    (p.ln() + a - mix).exp()
+                } else {
+                    0.0
+                };
+            }
+            let sw: f64 = w.iter().sum();
+            let p2 = (ns + sw) / n;
+            let wf: Vec<f64> = w.iter().map(|x| 1.0 - x).collect();
+            let fs2 = fs.and_then(|f| {
+                refit(
+                    &Side {
+                        events: &counts.success_durations,
+                        censored: &counts.censored,
+                        weights: &w,
+                    },
+                    &f,
+                )
+            });
+            let ff2 = ff.and_then(|f| {
+                refit(
+                    &Side {
+                        events: &counts.failure_durations,
+                        censored: &counts.censored,
+                        weights: &wf,
+                    },
+                    &f,
+                )
+            });
+            let rate = |f: &Option<timing::Family>| match f {
+                Some(
+                    timing::Family::Exponential { rate }
+                    | timing::Family::ShiftedExponential { rate, .. }
+                    | timing::Family::Erlang { rate, .. },
+                ) => *rate,
+                _ => 1.0,
+            };
+            let change = ((p2 - p) / p.max(1e-300))
+                .abs()
+                .max(((rate(&fs2) - rate(&fs)) / rate(&fs)).abs())
+                .max(((rate(&ff2) - rate(&ff)) / rate(&ff)).abs());
+            p = p2;
+            fs = fs2.or(fs);
+            ff = ff2.or(ff);
+            if change < 1e-12 {
+                break;
+            }
+        }
+    }
+    let mut ll = 0.0;
+    if ns > 0.0 {
+        ll += ns * p.ln();
+    }
+    if nf > 0.0 {
+        ll += nf * (1.0 - p).ln();
+    }
+    for (f, ev) in [
+        (&fs, &counts.success_durations),
+        (&ff, &counts.failure_durations),
+    ] {
+        if let Some(f) = f {
+            ll += ev.iter().map(|&t| f.log_pdf(t)).sum::<f64>();
+        }
+    }
+    for &c in &counts.censored {
+        ll += log_mix(p, log_sf(&fs, c), log_sf(&ff, c));
+    }
+    let with = |fit: Option<timing::SideFit>, f: Option<timing::Family>| {
+        fit.map(|mut s| {
+            if let Some(f) = f {
+                s.family = f;
+            }
+            s
+        })
+    };
+    let completed = ns + nf;
+    let se = (p * (1.0 - p) / completed).sqrt();
+    let ps = if counts.censored.is_empty() || p == 0.0 || p == 1.0 {
+        count_ps(counts)
+    } else {
+        Estimate {
+            value: p,
+            se: Some(se),
+            ci95: ((p - Z95 * se).max(0.0), (p + Z95 * se).min(1.0)),
+        }
+    };
+    Some((
+        ps,
+        Timing::Families {
+            success: with(success, fs),
+            failure: with(failure, ff),
+            em_iterations: iterations,
+            log_likelihood: ll,
+        },
+    ))
+}
+
+/// Fits one leaf with the timing families of `mode`; None when no episode
+/// completed (only halts, or none).
+pub fn fit_leaf_with(
+    key: &str,
+    declared: Declared,
+    counts: Counts,
+    mode: TimingMode,
+) -> Option<LeafFit> {
     if counts.successes + counts.failures == 0 {
         return None;
     }
@@ -380,6 +617,8 @@ pub fn fit_leaf(key: &str, declared: Declared, counts: Counts) -> Option<LeafFit
                 tau_f: (counts.failures > 0).then_some(0.0),
             },
         )
+    } else if mode == TimingMode::Auto {
+        fit_families(&counts, &mut warnings)?
     } else {
         let ds = near_constant(&counts.success_durations);
         let df = near_constant(&counts.failure_durations);
@@ -442,6 +681,12 @@ pub fn fit_leaf(key: &str, declared: Declared, counts: Counts) -> Option<LeafFit
 }
 
 fn num(x: f64) -> String {
+    if x == f64::NEG_INFINITY {
+        return "-.inf".into();
+    }
+    if x.is_nan() {
+        return ".nan".into();
+    }
     if x.is_finite() {
         let s = format!("{x}");
         if s.contains(['.', 'e']) {
@@ -490,6 +735,18 @@ pub fn params_line(f: &LeafFit) -> String {
             }
             stats.push_str(", timing: deterministic");
         }
+        Timing::Families {
+            success,
+            failure,
+            log_likelihood,
+            ..
+        } => {
+            families_fields(&mut s, &mut stats, success, failure);
+            stats.push_str(&format!(
+                ", timing: auto, log_likelihood: {}",
+                num(*log_likelihood)
+            ));
+        }
         Timing::Exponential { mu, nu, .. } => {
             if let Some(m) = mu {
                 s.push_str(&format!(", mu: {}", num(m.value)));
@@ -516,6 +773,58 @@ pub fn params_line(f: &LeafFit) -> String {
     s
 }
 
+/// The times and statistics of a `--timing auto` fit: `mu`/`nu` when both
+/// outcomes are exponential, `tau_s`/`tau_f` when both are deterministic,
+/// else `success_time`/`failure_time` for both (mixture semantics, never
+/// the hybrid race of `mu` + `tau_f`).
+fn families_fields(
+    s: &mut String,
+    stats: &mut String,
+    success: &Option<timing::SideFit>,
+    failure: &Option<timing::SideFit>,
+) {
+    use timing::Family;
+    let sides = [
+        (success, "success", "mu", "tau_s"),
+        (failure, "failure", "nu", "tau_f"),
+    ];
+    let present = || sides.iter().filter_map(|(f, ..)| f.as_ref());
+    let all_exp = present().all(|f| matches!(f.family, Family::Exponential { .. }));
+    let all_det = present().all(|f| matches!(f.family, Family::Deterministic { .. }));
+    for (fit, what, rate_key, tau_key) in sides {
+        let Some(f) = fit else { continue };
+        match f.family {
+            Family::Exponential { rate } if all_exp => {
+                s.push_str(&format!(", {rate_key}: {}", num(rate)))
+            }
+            Family::Deterministic { time } if all_det => {
+                s.push_str(&format!(", {tau_key}: {}", num(time)))
+            }
+            family => s.push_str(&format!(", {what}_time: {}", family.duration().to_yaml())),
+        }
+        let name = serde_json::to_string(&f.family.name()).unwrap_or_default();
+        stats.push_str(&format!(", {what}_family: {name}"));
+        if let Some(best) = f.candidates.first() {
+            stats.push_str(&format!(", {what}_bic: {}", num(best.bic)));
+            if let Some(e) = f
+                .candidates
+                .iter()
+                .find(|c| matches!(c.family, Family::Exponential { .. }))
+            {
+                stats.push_str(&format!(", {what}_bic_exponential: {}", num(e.bic)));
+            }
+        }
+        if let Some(ks) = f.ks {
+            stats.push_str(&format!(
+                ", {what}_ks_d: {}, {what}_ks_stephens: {}, {what}_exponential_rejected_5pct: {}",
+                num(ks.d),
+                num(ks.modified),
+                ks.rejected
+            ));
+        }
+    }
+}
+
 /// How leaves are keyed (and pooled) in the params file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum By {
@@ -539,6 +848,15 @@ pub struct Fitted {
 /// Pools the logs' leaves by key and fits each. Errors when one name is
 /// used by leaves of different IDs (`By::Name`).
 pub fn fit_logs(logs: &[crate::logs::Log], by: By) -> Result<Fitted, String> {
+    fit_logs_with(logs, by, TimingMode::Exponential)
+}
+
+/// [`fit_logs`] with the timing families of `mode`.
+pub fn fit_logs_with(
+    logs: &[crate::logs::Log],
+    by: By,
+    mode: TimingMode,
+) -> Result<Fitted, String> {
     let mut order: Vec<String> = Vec::new();
     let mut pooled: std::collections::HashMap<String, (Declared, String, Vec<Episode>)> =
         std::collections::HashMap::new();
@@ -576,7 +894,7 @@ pub fn fit_logs(logs: &[crate::logs::Log], by: By) -> Result<Fitted, String> {
             continue;
         };
         let counts = Counts::from_episodes(&eps);
-        match fit_leaf(&key, declared, counts.clone()) {
+        match fit_leaf_with(&key, declared, counts.clone(), mode) {
             Some(f) => leaves.push(f),
             None => unfitted.push((key, counts)),
         }
@@ -606,10 +924,23 @@ pub fn render(f: &Fitted, by: By) -> String {
             "#   {file}: {records} records, {eps} leaf episodes\n"
         ));
     }
-    s.push_str(
-        "# timing: exponential rates by maximum likelihood with halted episodes censored;\n\
-         # `fit:` holds counts, standard errors and 95% intervals (ignored by the analysis)\n",
-    );
+    let auto = f
+        .leaves
+        .iter()
+        .any(|l| matches!(l.timing, Timing::Families { .. }));
+    if auto {
+        s.push_str(
+            "# timing: per outcome deterministic, exponential, shifted exponential or Erlang-k\n\
+             # by BIC, maximum likelihood with halted episodes censored;\n\
+             # `fit:` holds counts, the families compared, standard errors and 95% intervals\n\
+             # (ignored by the analysis)\n",
+        );
+    } else {
+        s.push_str(
+            "# timing: exponential rates by maximum likelihood with halted episodes censored;\n\
+             # `fit:` holds counts, standard errors and 95% intervals (ignored by the analysis)\n",
+        );
+    }
     for (key, c) in &f.unfitted {
         s.push_str(&format!(
             "# not fitted: {key} ({} episodes, none completed)\n",

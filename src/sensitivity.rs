@@ -186,7 +186,10 @@ pub fn params_of(kind: &NodeKind) -> Vec<(Param, f64)> {
                     Some(Duration::Exponential { rate: r })
                     | Some(Duration::TruncatedExponential { rate: r, .. }) => v.push((rate, r)),
                     Some(Duration::Fixed { time }) => v.push((tau, time)),
-                    None => {}
+                    // a shifted law's shift is its tau; the stages' rates
+                    // (Erlang, hypoexponential) are held
+                    Some(Duration::PhaseType { shift, .. }) if shift > 0.0 => v.push((tau, shift)),
+                    Some(Duration::PhaseType { .. }) | None => {}
                 }
             }
             v
@@ -225,7 +228,9 @@ pub fn with_param(tree: &Tree, id: NodeId, param: Param, x: f64) -> Tree {
                 } else {
                     (&mut a.failure, &mut a.success)
                 };
-                if let Some(Duration::Fixed { time }) = own {
+                if let Some(Duration::Fixed { time } | Duration::PhaseType { shift: time, .. }) =
+                    own
+                {
                     *time = x;
                 }
                 if let Some(Duration::TruncatedExponential { cap, .. }) = other {

@@ -153,7 +153,9 @@ fn rate_law(rate: f64, se: Option<f64>, events: Option<u64>) -> Option<Gamma<f64
 fn rate_of(d: Option<Duration>) -> Option<f64> {
     match d? {
         Duration::Exponential { rate } | Duration::TruncatedExponential { rate, .. } => Some(rate),
-        Duration::Fixed { .. } => None,
+        // the parameters of Erlang, hypoexponential and shifted times are
+        // held (their fit statistics give no standard error per parameter)
+        Duration::Fixed { .. } | Duration::PhaseType { .. } => None,
     }
 }
 
@@ -225,6 +227,11 @@ impl Sampler {
                         || matches!(a.failure, Some(Duration::Fixed { .. }))
                     {
                         held.push(format!("{}: fixed times held", node.name));
+                    }
+                    for d in [a.success, a.failure].into_iter().flatten() {
+                        if matches!(d, Duration::PhaseType { .. }) {
+                            held.push(format!("{}: {} time held", node.name, d.family()));
+                        }
                     }
                 }
                 _ => {}

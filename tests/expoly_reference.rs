@@ -66,6 +66,10 @@ fn duration(d: Option<Duration>) -> Value {
         Some(Duration::TruncatedExponential { rate, cap }) => {
             json!({"trunc": [dec(rate), dec(cap)]})
         }
+        Some(Duration::PhaseType { shift, stages }) => json!({"phases": {
+            "shift": dec(shift),
+            "stages": stages.iter().map(|(r, c)| json!([dec(r), c])).collect::<Vec<_>>()
+        }}),
     }
 }
 
@@ -153,6 +157,29 @@ const CASES: &[&str] = &[
     // equal rates (repeated poles) and Retry over a mixed Fallback
     "tree: {retry: {attempts: 3, child: {fallback: {children: [\
        {action: {ps: 0.3, mu: 1.5, nu: 1.5}}, {action: {ps: 0.5, mu: 1.5, tau_f: 0.4}}]}}}}",
+    // Erlang, hypoexponential and shifted times (`success_time` /
+    // `failure_time`): in a Sequence, a Fallback, a Markovian Parallel
+    // (phase product), a race of a shifted exponential against an
+    // exponential, and a Retry
+    "tree: {sequence: {children: [\
+       {action: {ps: 0.8, success_time: {erlang: {k: 3, rate: 2}}, nu: 1}}, \
+       {action: {ps: 0.7, success_time: {hypoexponential: [1, 3]}, \
+         failure_time: {shift: 0.4, rate: 2}}}]}}",
+    "tree: {fallback: {children: [\
+       {action: {ps: 0.5, success_time: {shift: 0.2, erlang: {k: 2, rate: 5}}, \
+         failure_time: {fixed: 0.3}}}, \
+       {action: {ps: 0.9, mu: 2, failure_time: {hypoexponential: [2, 2, 0.5]}}}]}}",
+    "tree: {parallel: {success_threshold: 2, children: [\
+       {action: {ps: 0.9, success_time: {erlang: {k: 2, rate: 3}}, failure_time: {rate: 1}}}, \
+       {action: {ps: 0.6, mu: 1.2, failure_time: {erlang: {k: 3, rate: 4}}}}]}}",
+    "tree: {parallel: {success_threshold: 1, failure_threshold: 1, children: [\
+       {action: {ps: 1, success_time: {shift: 0.5, rate: 2}}}, {action: {ps: 0, nu: 1.5}}]}}",
+    "tree: {parallel: {success_threshold: 1, children: [\
+       {action: {ps: 0.7, success_time: {shift: 0.25, erlang: {k: 2, rate: 4}}, \
+         failure_time: {fixed: 0.6}}}, \
+       {action: {ps: 0.5, success_time: {erlang: {k: 2, rate: 2}}, nu: 3}}]}}",
+    "tree: {retry: {attempts: 2, child: {action: {ps: 0.6, \
+       success_time: {shift: 0.1, hypoexponential: [4, 1.5]}, failure_time: {erlang: {k: 2, rate: 6}}}}}}",
 ];
 
 #[test]

@@ -140,7 +140,8 @@ fn long_series_match_the_renewal_closed_form() {
     };
     let e = btrel::analyze(&t, &small).unwrap_err();
     assert!(
-        matches!(&e, btrel::AnalysisError::StateBudget { node, .. } if node == "race"),
+        // (the planner's own two phases already exceed a budget of one)
+        matches!(&e, btrel::AnalysisError::StateBudget { node, .. } if node == "race" || node == "plan"),
         "{e}"
     );
     // its law is the loop's series: the curve is refused at once, naming

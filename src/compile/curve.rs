@@ -68,7 +68,8 @@ impl Default for CurveOptions {
     }
 }
 
-/// The tree with every exponential time replaced by its mean (`τ = 1/rate`).
+/// The tree with every random time replaced by its mean (`τ = 1/rate`; an
+/// Erlang, hypoexponential or shifted time by its mean).
 pub fn deterministic_version(tree: &Tree) -> Tree {
     let mut t = tree.clone();
     let fix = |d: Option<Duration>| {
@@ -76,6 +77,7 @@ pub fn deterministic_version(tree: &Tree) -> Tree {
             Duration::Exponential { rate } | Duration::TruncatedExponential { rate, .. } => {
                 Duration::Fixed { time: 1.0 / rate }
             }
+            d @ Duration::PhaseType { .. } => Duration::Fixed { time: d.mean() },
             fixed => fixed,
         })
     };
@@ -463,7 +465,8 @@ fn breakpoints(
                 match d {
                     Duration::Fixed { time } => out.push(time),
                     Duration::TruncatedExponential { cap, .. } => out.push(cap),
-                    Duration::Exponential { .. } => {}
+                    Duration::PhaseType { shift, .. } if shift > 0.0 => out.push(shift),
+                    Duration::Exponential { .. } | Duration::PhaseType { .. } => {}
                 }
             }
         }

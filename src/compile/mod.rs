@@ -121,9 +121,9 @@ impl Figures {
 /// What can go wrong while analysing a valid tree.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum AnalysisError {
-    /// A deterministic or hybrid action where the analysis needs exponential times.
+    /// A deterministic, hybrid or shifted action where the analysis needs phase-type times.
     #[error(
-        "action '{leaf}' has deterministic or hybrid times, which the exact analysis of a \
+        "action '{leaf}' has deterministic, hybrid or shifted times, which the exact analysis of a \
          Parallel node does not support yet"
     )]
     NotMarkovian {

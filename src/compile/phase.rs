@@ -3,7 +3,9 @@
 //!
 //! * An action is the two-phase mixture of Def. 9.7: with probability `ps`
 //!   it enters a phase of rate `mu` that exits to Success, with probability
-//!   `pf` a phase of rate `nu` that exits to Failure.
+//!   `pf` a phase of rate `nu` that exits to Failure. An Erlang or
+//!   hypoexponential outcome time is its stages in series instead of one
+//!   phase.
 //! * A condition has no phase: it starts in Success with probability `ps`,
 //!   in Failure otherwise.
 //! * A Sequence (Fallback) concatenates its children's phases: a child's
@@ -62,31 +64,41 @@ pub(crate) fn chain_of(
                 if p <= 0.0 {
                     continue;
                 }
-                let rate = match d {
-                    Some(Duration::Exponential { rate }) => rate,
-                    // a zero-time outcome (a synchronous action) is
-                    // instantaneous, as a condition's
-                    Some(Duration::Fixed { time: 0.0 }) => {
-                        if success {
-                            c.initial_success += p;
-                        } else {
-                            c.initial_failure += p;
-                        }
-                        continue;
+                // a zero-time outcome (a synchronous action) is
+                // instantaneous, as a condition's
+                if let Some(Duration::Fixed { time: 0.0 }) = d {
+                    if success {
+                        c.initial_success += p;
+                    } else {
+                        c.initial_failure += p;
                     }
-                    _ => {
-                        return Err(AnalysisError::NotMarkovian {
-                            leaf: node.name.clone(),
-                        })
-                    }
-                };
-                let i = c.push_phase();
-                if success {
-                    c.exit_success[i] = rate;
-                } else {
-                    c.exit_failure[i] = rate;
+                    continue;
                 }
-                c.initial.push((i, p));
+                // exponential: one phase; Erlang, hypoexponential: in series
+                let Some(rates) = d.and_then(|d: Duration| d.phase_rates()) else {
+                    return Err(AnalysisError::NotMarkovian {
+                        leaf: node.name.clone(),
+                    });
+                };
+                if c.len() + rates.len() > max_states {
+                    return Err(AnalysisError::StateBudget {
+                        node: node.name.clone(),
+                        states: (c.len() + rates.len()) as f64,
+                        budget: max_states,
+                    });
+                }
+                let first = c.len();
+                for (j, &rate) in rates.iter().enumerate() {
+                    let i = c.push_phase();
+                    if j + 1 < rates.len() {
+                        c.transitions[i].push((i + 1, rate));
+                    } else if success {
+                        c.exit_success[i] = rate;
+                    } else {
+                        c.exit_failure[i] = rate;
+                    }
+                }
+                c.initial.push((first, p));
             }
             Ok(c)
         }

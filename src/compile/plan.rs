@@ -101,10 +101,11 @@ fn side(p: f64, d: Option<Duration>) -> (bool, bool) {
         return (true, true);
     }
     match d {
-        Some(Duration::Exponential { .. }) => (true, false),
         // a zero-time outcome is instantaneous in a phase chain too
         Some(Duration::Fixed { time }) => (time == 0.0, true),
-        _ => (false, false),
+        // exponential, Erlang, hypoexponential: phases in series
+        Some(d) => (d.phase_rates().is_some(), false),
+        None => (false, false),
     }
 }
 

@@ -14,7 +14,9 @@
 //!
 //! * a stochastic (or any Markovian) subtree: one component per outcome,
 //!   its exact phase chain, relabelled so that the outcome is counted;
-//! * a fixed time τ: an empty chain (an atom) shifted by τ;
+//! * a fixed time τ: an empty chain (an atom) shifted by τ; a shifted
+//!   (Erlang, hypoexponential or exponential) time: its stages' chain
+//!   shifted by its shift;
 //! * a hybrid action's random side `min(X, τ)`, X ~ Exp(λ): by memorylessness
 //!   its law is `Exp(λ) − e^{−λτ}·(δ_τ ⊛ Exp(λ)) + e^{−λτ}·δ_τ` (the only
 //!   negative weights; they are bounded by 1);
@@ -118,6 +120,12 @@ fn leaf_side(p: f64, d: Option<Duration>) -> Vec<Component> {
             shift: 0.0,
             weight: p,
             chain: exponential(rate),
+        }],
+        // Erlang, hypoexponential, shifted: the stages' chain after the shift
+        Some(Duration::PhaseType { shift, stages }) => vec![Component {
+            shift,
+            weight: p,
+            chain: stages.chain(),
         }],
         Some(Duration::TruncatedExponential { rate, cap }) => {
             let tail = (-rate * cap).exp();

@@ -36,6 +36,26 @@ fn duration_text(d: &Duration, rate_symbol: &str, tau_symbol: &str) -> String {
         Duration::TruncatedExponential { rate, cap } => {
             format!("{rate_symbol} = {}, cut at {}", short(rate), short(cap))
         }
+        Duration::PhaseType { shift, stages } => {
+            let body = match stages.as_erlang() {
+                Some((1, rate)) => format!("exponential, rate {}", short(rate)),
+                Some((k, rate)) => format!("Erlang-{k}, rate {}", short(rate)),
+                None => format!(
+                    "hypoexponential, rates {}",
+                    stages
+                        .series()
+                        .iter()
+                        .map(|&r| short(r))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            };
+            if shift > 0.0 {
+                format!("{} + {body}", short(shift))
+            } else {
+                body
+            }
+        }
     }
 }
 

@@ -24,18 +24,20 @@
 //! A leaf is evaluated without branching on its outcome: its duration is
 //! `min(E·a + b, c)` with `E ~ Exp(1)` and `(a, b, c)` picked by the outcome:
 //! `(1/rate, 0, ∞)` for an exponential time, `(0, time, ∞)` for a fixed one,
-//! `(1/rate, 0, cap)` for a truncated exponential.
+//! `(1/rate, 0, cap)` for a truncated exponential, `(0, shift, ∞)` plus a
+//! draw of the exponential stages for Erlang, hypoexponential and shifted
+//! times.
 
 use rand::Rng;
 use rand_distr::{Distribution, Exp1};
 
-use crate::tree::{Decorator, Duration, FlowNext, NodeId, NodeKind, Tree};
+use crate::tree::{Decorator, Duration, FlowNext, NodeId, NodeKind, Stages, Tree};
 
 /// Outcomes compare the top 53 bits of a `u64` draw with `round(ps · 2^53)`.
 const ONE53: f64 = (1u64 << 53) as f64;
 
 /// A leaf, ready to sample. Index 0 of each pair is Failure, 1 Success.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 struct Leaf {
     /// Success iff `draw >> 11 < thr` (`thr = 2^53` always succeeds).
     thr: u64,
@@ -44,6 +46,9 @@ struct Leaf {
     a: [f64; 2],
     b: [f64; 2],
     c: [f64; 2],
+    /// The exponential stages added to `b` (Erlang, hypoexponential and
+    /// shifted times; boxed so that the common leaves stay small).
+    stages: Option<Box<[Option<Stages>; 2]>>,
 }
 
 impl Leaf {
@@ -54,14 +59,21 @@ impl Leaf {
             Some(Duration::Fixed { time }) => (0.0, time, f64::INFINITY),
             Some(Duration::Exponential { rate }) => (1.0 / rate, 0.0, f64::INFINITY),
             Some(Duration::TruncatedExponential { rate, cap }) => (1.0 / rate, 0.0, cap),
+            Some(Duration::PhaseType { shift, .. }) => (0.0, shift, f64::INFINITY),
+        };
+        let stages = |d: Option<Duration>| match d {
+            Some(Duration::PhaseType { stages, .. }) => Some(*stages),
+            _ => None,
         };
         let (f, s) = (abc(failure), abc(success));
+        let st = [stages(failure), stages(success)];
         Leaf {
             thr: (ps * ONE53).round().clamp(0.0, ONE53) as u64,
             random: f.0 != 0.0 || s.0 != 0.0,
             a: [f.0, s.0],
             b: [f.1, s.1],
             c: [f.2, s.2],
+            stages: st.iter().any(Option::is_some).then(|| Box::new(st)),
         }
     }
 
@@ -75,7 +87,12 @@ impl Leaf {
         let ok = (rng.next_u64() >> 11) < self.thr;
         let e: f64 = if self.random { Exp1.sample(rng) } else { 0.0 };
         let i = ok as usize;
-        let (t, cap) = (e * self.a[i] + self.b[i], self.c[i]);
+        let (mut t, cap) = (e * self.a[i] + self.b[i], self.c[i]);
+        if let Some(st) = &self.stages {
+            if let Some(s) = &st[i] {
+                t += s.sample(rng);
+            }
+        }
         // Not `f64::min`: no NaN can occur, and this compiles to one `minsd`.
         (ok, if t < cap { t } else { cap })
     }

@@ -8,7 +8,7 @@ use serde_saphyr::Spanned;
 
 use super::error::TreeError;
 use super::parse::PROBABILITY_SUM_TOLERANCE;
-use super::{Action, Duration};
+use super::{Action, Duration, Stages};
 
 /// A 1-based (line, column).
 pub(crate) type Loc = (usize, usize);
@@ -29,6 +29,163 @@ pub(crate) struct ActionParams {
     pub tau_s: Option<At<f64>>,
     #[serde(default)]
     pub tau_f: Option<At<f64>>,
+    #[serde(default)]
+    pub success_time: Option<At<TimeDef>>,
+    #[serde(default)]
+    pub failure_time: Option<At<TimeDef>>,
+}
+
+/// An outcome's time law as written under `success_time` / `failure_time`:
+/// `{rate: r}`, `{fixed: t}`, `{erlang: {k: 3, rate: r}}`,
+/// `{hypoexponential: [r1, r2]}`, and `shift: s` with a rate, an Erlang or a
+/// hypoexponential (a deterministic delay before it).
+#[derive(Deserialize, Default, Debug, Clone, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct TimeDef {
+    #[serde(default)]
+    pub rate: Option<At<f64>>,
+    #[serde(default)]
+    pub fixed: Option<At<f64>>,
+    #[serde(default)]
+    pub shift: Option<At<f64>>,
+    #[serde(default)]
+    pub erlang: Option<At<ErlangDef>>,
+    #[serde(default)]
+    pub hypoexponential: Option<At<Vec<At<f64>>>>,
+}
+
+/// `{k: stages, rate: r}`.
+#[derive(Deserialize, Debug, Clone, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct ErlangDef {
+    pub k: At<f64>,
+    pub rate: At<f64>,
+}
+
+impl ActionParams {
+    /// The location of the first `success_time` / `failure_time`, if any.
+    pub(crate) fn time_law_at(&self) -> Option<Loc> {
+        [&self.success_time, &self.failure_time]
+            .into_iter()
+            .flatten()
+            .map(sloc)
+            .next()
+    }
+}
+
+/// What `success_time` / `failure_time` accept (for help texts).
+pub(crate) const TIME_LAW_HELP: &str = "write one of `{rate: r}` (exponential, 1/s), \
+     `{fixed: t}` (deterministic, s), `{erlang: {k: 3, rate: r}}` (k exponential stages of \
+     rate r), `{hypoexponential: [r1, r2, ...]}` (one stage per rate), optionally with \
+     `shift: s` before a rate, an Erlang or a hypoexponential (a deterministic delay, s)";
+
+/// Validates a `success_time` / `failure_time` law.
+fn time_law(
+    key: &str,
+    def: &At<TimeDef>,
+    e: &dyn Fn(Loc, String, String) -> TreeError,
+) -> Result<Duration, TreeError> {
+    let t = &def.value;
+    let positive = |what: String, v: &At<f64>| {
+        let x = v.value;
+        if !x.is_finite() || x <= 0.0 {
+            return Err(e(
+                sloc(v),
+                format!("{what} = {x} is not a valid rate"),
+                format!("{what} is a rate in 1/s and must be a finite number > 0"),
+            ));
+        }
+        Ok(x)
+    };
+    let time = |what: String, v: &At<f64>| {
+        let x = v.value;
+        if !x.is_finite() || x < 0.0 {
+            return Err(e(
+                sloc(v),
+                format!("{what} = {x} is not a valid time"),
+                format!("{what} is a time in s and must be a finite number >= 0"),
+            ));
+        }
+        Ok(x)
+    };
+    let laws = [
+        t.rate.as_ref().map(|_| "rate"),
+        t.fixed.as_ref().map(|_| "fixed"),
+        t.erlang.as_ref().map(|_| "erlang"),
+        t.hypoexponential.as_ref().map(|_| "hypoexponential"),
+    ];
+    let given: Vec<&str> = laws.into_iter().flatten().collect();
+    if given.len() != 1 {
+        let message = if given.is_empty() {
+            format!("`{key}` gives no law")
+        } else {
+            format!("`{key}` gives {} laws ({})", given.len(), given.join(", "))
+        };
+        return Err(e(sloc(def), message, TIME_LAW_HELP.into()));
+    }
+    let shift = t
+        .shift
+        .as_ref()
+        .map(|v| time(format!("{key}.shift"), v))
+        .transpose()?;
+    if let (Some(fixed), Some(_)) = (&t.fixed, &shift) {
+        return Err(e(
+            sloc(fixed),
+            format!("`{key}` gives both `fixed` and `shift`"),
+            "a deterministic time is `{fixed: t}` alone; `shift` delays a random law".into(),
+        ));
+    }
+    let stages_err = |at: Loc, what: String| {
+        e(
+            at,
+            format!("`{key}`: {what}"),
+            format!(
+                "at most {} distinct rates and {} stages in all",
+                super::stages::MAX_STAGES,
+                super::stages::MAX_PHASES
+            ),
+        )
+    };
+    let stages = if let Some(v) = &t.fixed {
+        return Ok(Duration::Fixed {
+            time: time(format!("{key}.fixed"), v)?,
+        });
+    } else if let Some(v) = &t.rate {
+        Stages::erlang(1, positive(format!("{key}.rate"), v)?)
+            .map_err(|w| stages_err(sloc(v), w))?
+    } else if let Some(er) = &t.erlang {
+        let k = &er.value.k;
+        let max = super::stages::MAX_PHASES;
+        if !(k.value.is_finite()
+            && k.value.fract() == 0.0
+            && (1.0..=f64::from(max)).contains(&k.value))
+        {
+            return Err(e(
+                sloc(k),
+                format!("{key}.erlang.k = {} is not a valid stage count", k.value),
+                format!("k is the number of exponential stages: a whole number from 1 to {max}"),
+            ));
+        }
+        let rate = positive(format!("{key}.erlang.rate"), &er.value.rate)?;
+        Stages::erlang(k.value as u32, rate).map_err(|w| stages_err(sloc(er), w))?
+    } else if let Some(list) = &t.hypoexponential {
+        if list.value.is_empty() {
+            return Err(e(
+                sloc(list),
+                format!("`{key}.hypoexponential` is empty"),
+                "list the stages' rates (1/s), e.g. `{hypoexponential: [1.0, 2.0]}`".into(),
+            ));
+        }
+        let rates = list
+            .value
+            .iter()
+            .map(|v| positive(format!("{key}.hypoexponential rate"), v))
+            .collect::<Result<Vec<f64>, TreeError>>()?;
+        Stages::hypoexponential(&rates).map_err(|w| stages_err(sloc(list), w))?
+    } else {
+        unreachable!("exactly one law is given (checked above)")
+    };
+    Ok(Duration::phase_type(shift.unwrap_or(0.0), stages))
 }
 
 /// The location of a value.
@@ -133,19 +290,75 @@ pub(crate) fn validate_action(
             "give `nu` (exponential, rate) or `tau_f` (deterministic, time), not both".into(),
         ));
     }
+    // `success_time` / `failure_time`: one law per outcome, the outcomes
+    // independent (a mixture, never the hybrid race of `mu` + `tau_f`)
+    let laws = [
+        (
+            &p.success_time,
+            "success_time",
+            [(&p.mu, "mu"), (&p.tau_s, "tau_s")],
+            (&p.tau_f, "tau_f"),
+        ),
+        (
+            &p.failure_time,
+            "failure_time",
+            [(&p.nu, "nu"), (&p.tau_f, "tau_f")],
+            (&p.tau_s, "tau_s"),
+        ),
+    ];
+    for (law, key, same, other) in &laws {
+        let Some(law) = law else { continue };
+        for (v, k) in same {
+            if let Some(v) = v {
+                return Err(e(
+                    sloc(v).max(sloc(law)),
+                    format!("both `{k}` and `{key}` give the {} time", &key[..7]),
+                    format!("give `{key}` or `{k}`, not both"),
+                ));
+            }
+        }
+        if let (Some(v), k) = other {
+            return Err(e(
+                sloc(v).max(sloc(law)),
+                format!("`{k}` with `{key}`"),
+                format!(
+                    "`{k}` next to a rate is the hybrid time of Def. 9.9 (the rate's time cut \
+                     at `{k}`), which `{key}` does not take; write the other outcome's time as \
+                     `{}: {{fixed: t}}` (independent of this one)",
+                    if key.starts_with("success") {
+                        "failure_time"
+                    } else {
+                        "success_time"
+                    }
+                ),
+            ));
+        }
+    }
+    let success_law = p
+        .success_time
+        .as_ref()
+        .map(|d| time_law("success_time", d, e))
+        .transpose()?;
+    let failure_law = p
+        .failure_time
+        .as_ref()
+        .map(|d| time_law("failure_time", d, e))
+        .transpose()?;
     let mu = p.mu.as_ref().map(|v| rate("mu", v)).transpose()?;
     let nu = p.nu.as_ref().map(|v| rate("nu", v)).transpose()?;
     let tau_s = p.tau_s.as_ref().map(|v| time("tau_s", v)).transpose()?;
     let tau_f = p.tau_f.as_ref().map(|v| time("tau_f", v)).transpose()?;
     let mut missing = Vec::new();
-    if ps > 0.0 && mu.is_none() && tau_s.is_none() {
+    if ps > 0.0 && mu.is_none() && tau_s.is_none() && success_law.is_none() {
         missing.push(format!(
-            "can succeed (ps = {ps}) but has no success time: add `mu` (1/s) or `tau_s` (s)"
+            "can succeed (ps = {ps}) but has no success time: add `mu` (1/s), `tau_s` (s) or \
+             `success_time`"
         ));
     }
-    if pf > 0.0 && nu.is_none() && tau_f.is_none() {
+    if pf > 0.0 && nu.is_none() && tau_f.is_none() && failure_law.is_none() {
         missing.push(format!(
-            "can fail (pf = {pf}) but has no failure time: add `nu` (1/s) or `tau_f` (s)"
+            "can fail (pf = {pf}) but has no failure time: add `nu` (1/s), `tau_f` (s) or \
+             `failure_time`"
         ));
     }
     if !missing.is_empty() {
@@ -165,6 +378,8 @@ pub(crate) fn validate_action(
         (None, Some(time), _) => Some(Duration::Fixed { time }),
         (None, None, _) => None,
     };
+    let success = success_law.or(success);
+    let failure = failure_law.or(failure);
     Ok(Ok(Action {
         ps,
         pf,

@@ -9,10 +9,12 @@ mod action;
 pub mod error;
 pub mod nav2;
 pub mod parse;
+pub mod stages;
 pub mod xml;
 
 pub use error::TreeError;
 pub use parse::{parse_bytes, parse_file, parse_str, parse_str_with, ParseLimits};
+pub use stages::Stages;
 
 /// Index of a node in [`Tree::nodes`].
 pub type NodeId = usize;
@@ -356,6 +358,17 @@ pub enum Duration {
         /// The deterministic time of the other outcome (s).
         cap: f64,
     },
+    /// A deterministic `shift` followed by a sum of independent exponential
+    /// stages: Erlang-k (one rate, k stages), hypoexponential (one stage
+    /// per rate) and their shifted forms (`success_time` / `failure_time`).
+    /// A single stage without shift is always written
+    /// [`Duration::Exponential`] (see [`Duration::phase_type`]).
+    PhaseType {
+        /// Deterministic delay before the first stage (s, ≥ 0).
+        shift: f64,
+        /// The exponential stages (interned, see [`stages::intern`]).
+        stages: &'static Stages,
+    },
 }
 
 impl Duration {
@@ -366,6 +379,7 @@ impl Duration {
             Duration::Fixed { time } => time,
             // E[min(X, c)] = ∫_0^c e^{-λt} dt = (1 - e^{-λc}) / λ
             Duration::TruncatedExponential { rate, cap } => -(-rate * cap).exp_m1() / rate,
+            Duration::PhaseType { shift, stages } => shift + stages.mean(),
         }
     }
 
@@ -376,12 +390,124 @@ impl Duration {
             Duration::Fixed { time } => f64::from(u8::from(t >= time)),
             Duration::TruncatedExponential { cap, .. } if t >= cap => 1.0,
             Duration::TruncatedExponential { rate, .. } => -(-rate * t).exp_m1(),
+            Duration::PhaseType { shift, stages } => stages.cdf(t - shift),
         }
     }
 
     /// Whether the duration is a single exponential phase.
     pub fn is_exponential(&self) -> bool {
         matches!(self, Duration::Exponential { .. })
+    }
+
+    /// `shift` then `stages`, written in its simplest form: one stage
+    /// without shift is [`Duration::Exponential`].
+    pub fn phase_type(shift: f64, stages: Stages) -> Duration {
+        match stages.iter().collect::<Vec<_>>()[..] {
+            [(rate, 1)] if shift == 0.0 => Duration::Exponential { rate },
+            _ => Duration::PhaseType {
+                shift,
+                stages: stages::intern(stages),
+            },
+        }
+    }
+
+    /// The deterministic part of the duration: the fixed time, the shift of
+    /// a shifted law, 0 otherwise.
+    pub fn shift(&self) -> f64 {
+        match *self {
+            Duration::Fixed { time } => time,
+            Duration::PhaseType { shift, .. } => shift,
+            Duration::Exponential { .. } | Duration::TruncatedExponential { .. } => 0.0,
+        }
+    }
+
+    /// The exponential stages after the shift: one for an exponential, none
+    /// for a fixed time or a truncated (hybrid) exponential.
+    pub fn stages(&self) -> Option<Stages> {
+        match *self {
+            Duration::Exponential { rate } => Stages::erlang(1, rate).ok(),
+            Duration::PhaseType { stages, .. } => Some(*stages),
+            Duration::Fixed { .. } | Duration::TruncatedExponential { .. } => None,
+        }
+    }
+
+    /// The rates of the duration's phases in series (entered in order, the
+    /// last one ending the outcome) when it is exactly phase-type: an
+    /// exponential, an Erlang or a hypoexponential without shift. `None`
+    /// for fixed, hybrid and shifted times.
+    pub fn phase_rates(&self) -> Option<Vec<f64>> {
+        match *self {
+            Duration::Exponential { rate } => Some(vec![rate]),
+            Duration::PhaseType { shift: 0.0, stages } => Some(stages.series()),
+            _ => None,
+        }
+    }
+
+    /// The family's name as in outputs: `exponential`, `deterministic`,
+    /// `truncated exponential`, `Erlang`, `hypoexponential`, `shifted
+    /// exponential`, `shifted Erlang`, `shifted hypoexponential`.
+    pub fn family(&self) -> &'static str {
+        match *self {
+            Duration::Exponential { .. } => "exponential",
+            Duration::Fixed { .. } => "deterministic",
+            Duration::TruncatedExponential { .. } => "truncated exponential",
+            Duration::PhaseType { shift, stages } => {
+                let shifted = shift > 0.0;
+                match (shifted, stages.as_erlang()) {
+                    (false, Some(_)) => "Erlang",
+                    (false, None) => "hypoexponential",
+                    (true, Some((1, _))) => "shifted exponential",
+                    (true, Some(_)) => "shifted Erlang",
+                    (true, None) => "shifted hypoexponential",
+                }
+            }
+        }
+    }
+
+    /// The duration in the `success_time` / `failure_time` syntax of the
+    /// tree and params files (a flow mapping), e.g. `{erlang: {k: 3, rate:
+    /// 0.5}}` or `{shift: 8, rate: 0.5}`. A truncated exponential has no
+    /// such form (it is written with `mu`/`nu` and `tau_f`/`tau_s`): its rate.
+    pub fn to_yaml(&self) -> String {
+        let body = |s: &Stages| match s.as_erlang() {
+            Some((1, rate)) => format!("rate: {rate}"),
+            Some((k, rate)) => format!("erlang: {{k: {k}, rate: {rate}}}"),
+            None => format!(
+                "hypoexponential: [{}]",
+                s.series()
+                    .iter()
+                    .map(|r| r.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        };
+        match self {
+            Duration::Exponential { rate } | Duration::TruncatedExponential { rate, .. } => {
+                format!("{{rate: {rate}}}")
+            }
+            Duration::Fixed { time } => format!("{{fixed: {time}}}"),
+            Duration::PhaseType { shift, stages } if *shift > 0.0 => {
+                format!("{{shift: {shift}, {}}}", body(stages))
+            }
+            Duration::PhaseType { stages, .. } => format!("{{{}}}", body(stages)),
+        }
+    }
+
+    /// One draw of the duration.
+    pub fn sample<R: rand::Rng + ?Sized>(&self, rng: &mut R) -> f64 {
+        use rand_distr::{Distribution, Exp1};
+        match *self {
+            Duration::Exponential { rate } => {
+                let e: f64 = Exp1.sample(rng);
+                e / rate
+            }
+            Duration::Fixed { time } => time,
+            Duration::TruncatedExponential { rate, cap } => {
+                let e: f64 = Exp1.sample(rng);
+                (e / rate).min(cap)
+            }
+            Duration::PhaseType { shift, stages } => shift + stages.sample(rng),
+        }
     }
 }
 
@@ -414,11 +540,12 @@ impl Action {
         }
     }
 
-    /// Whether every outcome time is exponential (the action is a two-phase
-    /// mixture that a CTMC represents exactly).
+    /// Whether every outcome time is phase-type (exponential, Erlang or
+    /// hypoexponential, no shift): the action is a mixture of phase chains
+    /// that a CTMC represents exactly.
     pub fn is_markovian(&self) -> bool {
-        self.success.is_none_or(|d| d.is_exponential())
-            && self.failure.is_none_or(|d| d.is_exponential())
+        self.success.is_none_or(|d| d.phase_rates().is_some())
+            && self.failure.is_none_or(|d| d.phase_rates().is_some())
     }
 }
 

@@ -21,7 +21,7 @@ mod fast;
 
 use serde::Deserialize;
 
-use super::action::{sloc, validate_action, ActionParams, At};
+use super::action::{sloc, validate_action, ActionParams, At, TimeDef};
 use super::error::{nearest, TreeError};
 use super::{Action, Decorator, Flow, FlowNext, FlowState, Node, NodeKind, Tree};
 
@@ -207,6 +207,10 @@ struct ActionDef {
     tau_s: Option<At<f64>>,
     #[serde(default)]
     tau_f: Option<At<f64>>,
+    #[serde(default)]
+    success_time: Option<At<TimeDef>>,
+    #[serde(default)]
+    failure_time: Option<At<TimeDef>>,
 }
 
 #[derive(Deserialize)]
@@ -506,6 +510,8 @@ const NODE_KEYS: &[&str] = &[
     "nu",
     "tau_s",
     "tau_f",
+    "success_time",
+    "failure_time",
     "children",
     "child",
     "attempts",
@@ -1230,6 +1236,8 @@ impl Builder<'_> {
             nu: a.nu.clone(),
             tau_s: a.tau_s.clone(),
             tau_f: a.tau_f.clone(),
+            success_time: a.success_time.clone(),
+            failure_time: a.failure_time.clone(),
         };
         let err = |at: (usize, usize), message: String, help: String| {
             self.err(at, message).with_help(help)

@@ -128,7 +128,7 @@
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::Path;
 
-use super::action::{sloc, validate_action, ActionParams, At, Loc};
+use super::action::{sloc, validate_action, ActionParams, At, Loc, TimeDef};
 use super::error::{nearest, TreeError};
 use super::{Decorator, Flow, FlowNext, FlowState, Node, NodeKind, Tree};
 
@@ -660,6 +660,10 @@ struct ParamsEntry {
     #[serde(default)]
     tau_f: Option<At<f64>>,
     #[serde(default)]
+    success_time: Option<At<TimeDef>>,
+    #[serde(default)]
+    failure_time: Option<At<TimeDef>>,
+    #[serde(default)]
     #[allow(dead_code)]
     fit: Option<serde::de::IgnoredAny>,
     /// The value of a blackboard entry (keys written `"{name}"`).
@@ -695,6 +699,13 @@ fn parse_params(src: &str, file: &str) -> Result<ParamsTable, TreeError> {
             let leaf_key = [&p.ps, &p.pf, &p.mu, &p.nu, &p.tau_s, &p.tau_f]
                 .into_iter()
                 .flatten()
+                .map(|x| (x.line, x.column))
+                .chain(
+                    [&p.success_time, &p.failure_time]
+                        .into_iter()
+                        .flatten()
+                        .map(|x| (x.line, x.column)),
+                )
                 .next();
             let Some(v) = p.value else {
                 return Err(TreeError::at(
@@ -709,7 +720,7 @@ fn parse_params(src: &str, file: &str) -> Result<ParamsTable, TreeError> {
                 )));
             };
             if leaf_key.is_some() || p.fit.is_some() {
-                let (line, column) = leaf_key.map_or((e.line, e.column), |x| (x.line, x.column));
+                let (line, column) = leaf_key.unwrap_or((e.line, e.column));
                 let what = if port_value {
                     "port value"
                 } else {
@@ -756,6 +767,8 @@ fn parse_params(src: &str, file: &str) -> Result<ParamsTable, TreeError> {
             nu: p.nu,
             tau_s: p.tau_s,
             tau_f: p.tau_f,
+            success_time: p.success_time,
+            failure_time: p.failure_time,
         };
         table.leaves.insert(
             k,
@@ -803,8 +816,8 @@ fn parse_params_entries(
         };
         TreeError::at(file, src, at, format!("invalid params file: {text}")).with_help(
             "the params file maps a node's name or ID to its parameters, e.g. \
-             `grasp: {ps: 0.5, mu: 0.1, nu: 0.2}`; accepted keys: ps, pf, mu, nu, tau_s, tau_f \
-             (and `fit`, the statistics `btrel fit` writes, which the analysis ignores)",
+             `grasp: {ps: 0.5, mu: 0.1, nu: 0.2}`; accepted keys: ps, pf, mu, nu, tau_s, tau_f, \
+             success_time, failure_time (and `fit`, the statistics `btrel fit` writes, which the analysis ignores)",
         )
     })
 }
@@ -999,6 +1012,7 @@ fn has_timing(p: &ActionParams) -> bool {
     [&p.pf, &p.mu, &p.nu, &p.tau_s, &p.tau_f]
         .into_iter()
         .any(Option::is_some)
+        || p.time_law_at().is_some()
 }
 
 struct Builder<'a> {
@@ -3123,10 +3137,12 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
             if let Some(extra) = [&p.pf, &p.mu, &p.nu, &p.tau_s, &p.tau_f]
                 .into_iter()
                 .flatten()
+                .map(sloc)
+                .chain(p.time_law_at())
                 .next()
             {
                 return Err(perr(
-                    sloc(extra),
+                    extra,
                     format!("`{key}` is used by {who}, and a condition takes only `ps`"),
                     "a condition returns in zero time; give only its probability of success `ps`"
                         .into(),

@@ -15,6 +15,7 @@
 //! message (including those found while building the tree) comes from the
 //! full parser. Tests check that both readers build identical trees.
 
+use super::super::action::{ErlangDef, TimeDef};
 use super::{
     ActionDef, At, ConditionDef, ControlDef, DecoratorDef, FileDef, NodeDef, ParallelDef,
     RepeatDef, RetryDef,
@@ -642,6 +643,8 @@ fn action(v: Value) -> Option<ActionDef> {
         nu: None,
         tau_s: None,
         tau_f: None,
+        success_time: None,
+        failure_time: None,
     };
     let mut has_ps = false;
     fields(v, |k, v| {
@@ -656,11 +659,70 @@ fn action(v: Value) -> Option<ActionDef> {
             "nu" => d.nu = Some(number(v)?),
             "tau_s" => d.tau_s = Some(number(v)?),
             "tau_f" => d.tau_f = Some(number(v)?),
+            "success_time" => d.success_time = Some(time_law(v)?),
+            "failure_time" => d.failure_time = Some(time_law(v)?),
             _ => return Some(false),
         }
         Some(true)
     })?;
     has_ps.then_some(d)
+}
+
+/// A time law (`{erlang: {k: 3, rate: 0.5}}`, `{shift: 2, rate: 1}`, ...);
+/// `None` on an unknown or repeated key, which the full parser reports.
+fn time_law(v: Value) -> Option<At<TimeDef>> {
+    let (line, column) = (v.line, v.column);
+    let mut d = TimeDef::default();
+    fields(v, |k, v| {
+        let slot_taken = match k {
+            "rate" => d.rate.replace(number(v)?).is_some(),
+            "fixed" => d.fixed.replace(number(v)?).is_some(),
+            "shift" => d.shift.replace(number(v)?).is_some(),
+            "erlang" => {
+                let (el, ec) = (v.line, v.column);
+                let (mut kk, mut rate) = (None, None);
+                fields(v, |k, v| {
+                    let taken = match k {
+                        "k" => kk.replace(number(v)?).is_some(),
+                        "rate" => rate.replace(number(v)?).is_some(),
+                        _ => return Some(false),
+                    };
+                    Some(!taken)
+                })?;
+                d.erlang
+                    .replace(At {
+                        value: ErlangDef {
+                            k: kk?,
+                            rate: rate?,
+                        },
+                        line: el,
+                        column: ec,
+                    })
+                    .is_some()
+            }
+            "hypoexponential" => {
+                let (hl, hc) = (v.line, v.column);
+                let Kind::Seq(items) = v.kind else {
+                    return None;
+                };
+                let rates = items.into_iter().map(number).collect::<Option<Vec<_>>>()?;
+                d.hypoexponential
+                    .replace(At {
+                        value: rates,
+                        line: hl,
+                        column: hc,
+                    })
+                    .is_some()
+            }
+            _ => return Some(false),
+        };
+        Some(!slot_taken)
+    })?;
+    Some(At {
+        value: d,
+        line,
+        column,
+    })
 }
 
 fn condition(v: Value) -> Option<ConditionDef> {

@@ -1,0 +1,90 @@
+#!/usr/bin/env python3
+"""Runs a BehaviorTree.CPP v4 tree whose actions take durations of known
+families with behaviortreepy and writes a real FileLogger2 `.btlog`, for
+tests/fit_families.rs (`btrel fit --timing auto`).
+
+A Sequence of three actions, run RUNS times:
+  Expo   Success with probability 0.7 after Exp(mean 20 ms), else Failure
+         after Exp(mean 10 ms)
+  Erl    Success after Erlang-3 of rate 200/s (mean 15 ms)
+  Shift  Success after 10 ms + Exp(mean 5 ms)
+The truth is printed as JSON, with the mean and largest delay between a
+drawn end and the tick that returned it (tick quantisation).
+
+usage: make_families_log.py OUT.btlog RUNS SEED
+"""
+import json
+import random
+import sys
+import time
+
+import behaviortreepy as bt
+
+TREE = """
+<root BTCPP_format="4" main_tree_to_execute="Main">
+  <BehaviorTree ID="Main">
+    <Sequence name="all">
+      <ForceSuccess><Expo name="expo"/></ForceSuccess>
+      <Erl name="erl"/>
+      <Shift name="shift"/>
+    </Sequence>
+  </BehaviorTree>
+</root>
+"""
+
+
+def main():
+    out, runs, seed = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+    rng = random.Random(seed)
+    draws = {
+        "Expo": lambda: (True, rng.expovariate(50.0))
+        if rng.random() < 0.7
+        else (False, rng.expovariate(100.0)),
+        "Erl": lambda: (True, sum(rng.expovariate(200.0) for _ in range(3))),
+        "Shift": lambda: (True, 0.010 + rng.expovariate(200.0)),
+    }
+    factory = bt.BehaviorTreeFactory()
+    state = {}
+    late = []
+
+    def make(draw):
+        def on_start(node):
+            ok, d = draw()
+            state[node.uid()] = (time.monotonic() + d, ok)
+            return bt.NodeStatus.RUNNING
+
+        def on_running(node):
+            deadline, ok = state[node.uid()]
+            now = time.monotonic()
+            if now < deadline:
+                return bt.NodeStatus.RUNNING
+            late.append(now - deadline)
+            return bt.NodeStatus.SUCCESS if ok else bt.NodeStatus.FAILURE
+
+        def on_halted(node):
+            state.pop(node.uid(), None)
+
+        return on_start, on_running, on_halted
+
+    for name, draw in draws.items():
+        factory.register_simple_stateful_action(name, *make(draw))
+    tree = factory.create_tree_from_text(TREE)
+    logger = bt.FileLogger(tree, out)
+    for _ in range(runs):
+        while tree.tick_once() == bt.NodeStatus.RUNNING:
+            pass
+        tree.halt_tree()
+    logger.flush()
+    del logger
+    truth = {
+        "Expo": {"family": "exponential", "ps": 0.7, "mu": 50.0, "nu": 100.0},
+        "Erl": {"family": "Erlang-3", "rate": 200.0},
+        "Shift": {"family": "shifted exponential", "shift": 0.010, "rate": 200.0},
+        "late_mean_s": sum(late) / max(len(late), 1),
+        "late_max_s": max(late, default=0.0),
+    }
+    json.dump(truth, sys.stdout)
+
+
+if __name__ == "__main__":
+    main()
