@@ -70,6 +70,20 @@ fn the_planner_table_row_by_row() {
             Representation::Race,
         ),
         (format!("tree: {{fallback: {{children: [{hyb}, {exp}]}}}}"), Representation::Shifted),
+        // phase-type leaves are Markovian, a shift is not
+        (
+            format!("tree: {{sequence: {{children: [{exp}, {{action: {{ps: 0.6, success_time: {{erlang: {{k: 3, rate: 2.0}}}}, failure_time: {{rate: 1.0}}}}}}]}}}}"),
+            Representation::Chain,
+        ),
+        (
+            format!("tree: {{sequence: {{children: [{exp}, {{action: {{ps: 0.6, success_time: {{shift: 0.5, rate: 2.0}}, failure_time: {{rate: 1.0}}}}}}]}}}}"),
+            Representation::Shifted,
+        ),
+        // a zero-time outcome is instantaneous: still a chain
+        (
+            format!("tree: {{sequence: {{children: [{exp}, {{action: {{ps: 0.6, tau_s: 0, tau_f: 0}}}}]}}}}"),
+            Representation::Chain,
+        ),
     ];
     for (yaml, expected) in &cases {
         let m = Model::new(&tree(yaml)).unwrap();

@@ -21,10 +21,10 @@
 //! | 2 | strategy `book`, a control node | [`Representation::Book`]: the book's CTMC over the node's MRG, children as exponential actions |
 //! | 3 | `until_failure` / `until_success` | [`Representation::Loop`]: the cyclic chain over the child's phase chain, or the shifted law's truncated series |
 //! | 4 | every leaf below deterministic (or a condition), no loop | [`Representation::Atoms`]: the finitely many return instants |
-//! | 5 | every leaf below exponential, the chain within the budget (a Parallel with the book's thresholds: its product ≤ [`super::PRODUCT_LIMIT`]) | [`Representation::Chain`]: the exact phase chain |
+//! | 5 | every leaf below phase-type (exponential, Erlang, hypoexponential), the chain within the budget (a Parallel with the book's thresholds: its product ≤ [`super::PRODUCT_LIMIT`]) | [`Representation::Chain`]: the exact phase chain |
 //! | 6 | a Parallel with the book's thresholds (`F ≥ N − M + 1`) | [`Representation::Counted`]: the count programme over the children's own laws |
 //! | 7 | a Parallel whose two thresholds can both be met | [`Representation::Race`]: the race of the children's laws |
-//! | 8 | a leaf below is deterministic or hybrid | [`Representation::Shifted`]: the shifted phase-type mixture |
+//! | 8 | a leaf below is deterministic, hybrid or shifted | [`Representation::Shifted`]: the shifted phase-type mixture |
 //! | 9 | otherwise (a chain over the budget: a wide Parallel below) | [`Representation::Composed`]: the composed outcome laws (interpolated densities) |
 //!
 //! The figures of a Sequence, Fallback, decorator or flow come from its
