@@ -354,9 +354,7 @@ impl<'t> Plan<'t> {
                 return Ok(atoms::figures(&a));
             }
             Representation::Counted => return self.counted_figures(id, m, child_figs),
-            Representation::Race => {
-                return race::figures(self.tree, id, child_figs, self.max_states)
-            }
+            Representation::Race => return race::figures(self, id, child_figs),
             r => unreachable!("a Parallel is never planned as {}", r.name()),
         };
         let a = solve_absorbing(&chain).map_err(numerical)?;
@@ -381,7 +379,7 @@ impl<'t> Plan<'t> {
         if self.shapes[id].looped {
             // a loop's law is a long series: built once by the race's
             // counting rather than at every quadrature pass
-            return race::figures(self.tree, id, child_figs, self.max_states);
+            return race::figures(self, id, child_figs);
         }
         let n = child_figs.len();
         let outcomes: Vec<(f64, f64)> = child_figs.iter().map(|f| (f.ps, f.pf)).collect();
@@ -448,7 +446,7 @@ impl<'t> Plan<'t> {
                 let (m, _, _) = thresholds(&node.kind).expect("a counted node is a Parallel");
                 self.counted_curve(id, m, times, options)
             }
-            Representation::Race => race::curve(self.tree, id, times, self.max_states),
+            Representation::Race => race::curve(self, id, times),
             Representation::Shifted => {
                 match super::shifted::shifted_law(self.tree, id, self.max_states)? {
                     Some(law) => curve_query::curve_by_shifted(&law, times, options, &node.name),
@@ -574,7 +572,7 @@ impl<'t> Plan<'t> {
     }
 
     /// A leaf below `id` that is neither exponential nor a condition.
-    fn mixed_leaf(&self, id: NodeId) -> String {
+    pub(crate) fn mixed_leaf(&self, id: NodeId) -> String {
         self.tree
             .subtree(id)
             .find(|&d| {

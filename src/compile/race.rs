@@ -43,11 +43,11 @@ use super::curve::CurvePoint;
 use super::law::sample_weighted;
 use super::renewal::Renewal;
 use super::shifted::{self, ShiftedLaw};
-use super::{atoms, counts, phase, AnalysisError, Figures};
+use super::{atoms, counts, AnalysisError, Figures, Plan, Representation};
 use crate::solve::chain::PhaseChain;
 use crate::solve::quadrature::GaussLegendre;
 use crate::tree::nav2::MAX_RERUN_TERMS;
-use crate::tree::{NodeId, NodeKind, Tree};
+use crate::tree::{NodeId, NodeKind};
 
 /// Points of the quadrature rule (the error is estimated against half).
 const RULE: usize = 24;
@@ -123,53 +123,63 @@ fn stiff(name: &str, chain: &PhaseChain, times: &[f64]) -> AnalysisError {
 }
 
 impl Racer {
-    /// The law of the subtree at `id`.
-    pub(crate) fn build(
-        tree: &Tree,
-        id: NodeId,
-        max_states: usize,
-    ) -> Result<Racer, AnalysisError> {
+    /// The law of the subtree at `id`, from its planned representation
+    /// ([`Plan`]): its phase chain, a shifted mixture (deterministic, mixed
+    /// or looping subtrees), or a counted Parallel or race of its children's
+    /// laws.
+    pub(crate) fn build(plan: &Plan, id: NodeId) -> Result<Racer, AnalysisError> {
+        let tree = plan.tree();
         let node = tree.node(id);
-        let err = match phase::phase_chain(tree, id, max_states) {
-            Ok(c) => return Ok(Racer::Chain(c)),
-            Err(e @ (AnalysisError::NotMarkovian { .. } | AnalysisError::StateBudget { .. })) => e,
-            Err(e) => return Err(e),
-        };
-        if let NodeKind::Parallel {
-            success_threshold: m,
-            failure_threshold: f,
-            children,
-        } = &node.kind
-        {
-            let n = children.len();
-            let f = (*f).min(n + 1 - m);
-            let kids = children
-                .iter()
-                .map(|&c| Racer::build(tree, c, max_states))
-                .collect::<Result<Vec<_>, _>>()?;
-            if !is_race(n, *m, f) {
-                return Ok(Racer::Counted {
-                    m: *m,
-                    f,
-                    children: kids,
-                });
-            }
-            return Ok(Racer::Race(Box::new(Race::new(
-                node.name.clone(),
-                *m,
-                f,
-                kids,
-            )?)));
-        }
-        match shifted::shifted_law(tree, id, max_states)? {
+        let shifted = || match shifted::shifted_law(tree, id, plan.max_states())? {
             Some(law) => Ok(Racer::Shifted(law)),
-            None => Err(match err {
-                AnalysisError::NotMarkovian { leaf } => AnalysisError::MixedTiming {
-                    node: node.name.clone(),
-                    leaf,
-                },
-                e => e,
+            None => Err(AnalysisError::MixedTiming {
+                node: node.name.clone(),
+                leaf: plan.mixed_leaf(id),
             }),
+        };
+        match plan.representation(id)? {
+            Representation::Chain => Ok(Racer::Chain(plan.chain(id)?)),
+            // a leaf or a loop: its chain when Markovian
+            Representation::Closed | Representation::Loop => match plan.chain(id) {
+                Ok(c) => Ok(Racer::Chain(c)),
+                Err(AnalysisError::NotMarkovian { .. }) => shifted(),
+                Err(e) => Err(e),
+            },
+            Representation::Atoms | Representation::Shifted => shifted(),
+            Representation::Counted | Representation::Race => {
+                let NodeKind::Parallel {
+                    success_threshold: m,
+                    failure_threshold: f,
+                    children,
+                } = &node.kind
+                else {
+                    unreachable!("counted nodes and races are Parallel nodes")
+                };
+                let n = children.len();
+                let f = (*f).min(n + 1 - m);
+                let kids = children
+                    .iter()
+                    .map(|&c| Racer::build(plan, c))
+                    .collect::<Result<Vec<_>, _>>()?;
+                if !is_race(n, *m, f) {
+                    return Ok(Racer::Counted {
+                        m: *m,
+                        f,
+                        children: kids,
+                    });
+                }
+                Ok(Racer::Race(Box::new(Race::new(
+                    node.name.clone(),
+                    *m,
+                    f,
+                    kids,
+                )?)))
+            }
+            // a chain over the budget (a wide Parallel below): its refusal
+            Representation::Composed | Representation::Book => match plan.chain(id) {
+                Err(e) => Err(e),
+                Ok(c) => Ok(Racer::Chain(c)),
+            },
         }
     }
 
@@ -665,8 +675,8 @@ pub fn resolve_instant(rows: &[Row], m: usize, f: usize) -> (f64, f64) {
 }
 
 /// The race node `id` (a Parallel whose thresholds can both be met).
-fn race_of(tree: &Tree, id: NodeId, max_states: usize) -> Result<Race, AnalysisError> {
-    let node = tree.node(id);
+fn race_of(plan: &Plan, id: NodeId) -> Result<Race, AnalysisError> {
+    let node = plan.tree().node(id);
     let NodeKind::Parallel {
         success_threshold: m,
         failure_threshold: f,
@@ -678,7 +688,7 @@ fn race_of(tree: &Tree, id: NodeId, max_states: usize) -> Result<Race, AnalysisE
     let f = (*f).min(children.len() + 1 - m);
     let kids = children
         .iter()
-        .map(|&c| Racer::build(tree, c, max_states))
+        .map(|&c| Racer::build(plan, c))
         .collect::<Result<Vec<_>, _>>()?;
     Race::new(node.name.clone(), *m, f, kids)
 }
@@ -686,18 +696,18 @@ fn race_of(tree: &Tree, id: NodeId, max_states: usize) -> Result<Race, AnalysisE
 /// Figures of race `id` (module docs); `child_figures` set the scale of the
 /// horizon.
 pub(crate) fn figures(
-    tree: &Tree,
+    plan: &Plan,
     id: NodeId,
     child_figures: &[Figures],
-    max_states: usize,
 ) -> Result<Figures, AnalysisError> {
+    let (tree, max_states) = (plan.tree(), plan.max_states());
     // a race against a renewal process of re-runs: exact without a series
     match super::renewal::figures(tree, id, max_states)? {
         Renewal::Figures(f) => return Ok(f),
         Renewal::TooLarge { error, terms } if terms > MAX_RERUN_TERMS as f64 => return Err(error),
         Renewal::TooLarge { .. } | Renewal::NotApplicable => {}
     }
-    let race = race_of(tree, id, max_states)?;
+    let race = race_of(plan, id)?;
     let scale = child_figures
         .iter()
         .map(Figures::mean_time)
@@ -713,11 +723,11 @@ pub(crate) fn figures(
 
 /// `π(t)` of race `id` at `times` (module docs).
 pub(crate) fn curve(
-    tree: &Tree,
+    plan: &Plan,
     id: NodeId,
     times: &[f64],
-    max_states: usize,
 ) -> Result<Vec<CurvePoint>, AnalysisError> {
+    let (tree, max_states) = (plan.tree(), plan.max_states());
     // the law of a renewal race is its loop's series (its figures are not)
     if let Some((process, terms)) = super::renewal::series(tree, id, max_states) {
         if terms > MAX_RERUN_TERMS as f64 {
@@ -726,7 +736,7 @@ pub(crate) fn curve(
             });
         }
     }
-    let race = race_of(tree, id, max_states)?;
+    let race = race_of(plan, id)?;
     let rows = race.rows(times, false)?;
     Ok(times
         .iter()
