@@ -143,12 +143,14 @@ pub enum AnalysisError {
         /// The budget.
         budget: usize,
     },
-    /// A subtree mixes deterministic (or hybrid) and stochastic times, which
-    /// has neither a finite phase chain nor finitely many atoms.
+    /// A subtree that mixes deterministic (or hybrid, or shifted) and
+    /// stochastic times in a form none of the exact representations holds,
+    /// where the analysis needs its time distribution.
     #[error(
-        "node '{node}' mixes deterministic or hybrid actions (e.g. '{leaf}') with stochastic \
-         ones: it has neither a finite phase chain nor finitely many return instants, so its \
-         exact π(t) is not supported"
+        "node '{node}' mixes deterministic, hybrid or shifted actions (e.g. '{leaf}') with \
+         stochastic ones in a form the exact analysis cannot represent yet (no finite phase \
+         chain, no finitely many return instants, no shifted phase-type mixture), and its time \
+         distribution is needed here"
     )]
     MixedTiming {
         /// The node analysed.
