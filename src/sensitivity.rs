@@ -21,7 +21,9 @@
 //! The engine's figures are exact up to rounding (and the truncation
 //! tolerance of π(t)), so the error is dominated by the extrapolation.
 
-use crate::compile::{analyze, AnalysisError, Options};
+mod exact;
+
+use crate::compile::{analyze, primitive_view_for_figures, Analysis, AnalysisError, Options};
 use crate::curve::{curve, CurveOptions};
 use crate::tree::{Duration, NodeId, NodeKind, Tree};
 
@@ -88,6 +90,8 @@ impl Param {
 /// How a derivative was computed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Scheme {
+    /// Exact: dual numbers through the node maps ([`exact`] module docs).
+    Exact,
     /// Richardson-extrapolated central differences, error O(h⁴).
     Central,
     /// Richardson-extrapolated one-sided differences (at a domain
@@ -98,8 +102,17 @@ pub enum Scheme {
 impl Scheme {
     pub fn name(&self) -> &'static str {
         match self {
+            Scheme::Exact => "exact",
             Scheme::Central => "richardson-central",
             Scheme::Forward => "richardson-forward",
+        }
+    }
+
+    /// `exact` or `richardson` (the JSON's `method`).
+    pub fn method(&self) -> &'static str {
+        match self {
+            Scheme::Exact => "exact",
+            Scheme::Central | Scheme::Forward => "richardson",
         }
     }
 }
@@ -283,13 +296,44 @@ pub fn richardson(
     }
 }
 
-/// Sensitivities of the root's `objective` to every leaf parameter.
+/// Sensitivities of the root's `objective` to every leaf parameter: exact
+/// where the node maps allow ([`exact`]), Richardson otherwise (each row
+/// says which).
 pub fn sensitivity(
     tree: &Tree,
     objective: Objective,
     options: &Options,
 ) -> Result<Sensitivity, SensitivityError> {
+    sensitivity_with(tree, objective, options, true)
+}
+
+/// [`sensitivity`] with every derivative by Richardson extrapolation (a
+/// cross-check of the exact derivatives).
+pub fn sensitivity_by_differences(
+    tree: &Tree,
+    objective: Objective,
+    options: &Options,
+) -> Result<Sensitivity, SensitivityError> {
+    sensitivity_with(tree, objective, options, false)
+}
+
+fn sensitivity_with(
+    tree: &Tree,
+    objective: Objective,
+    options: &Options,
+    exact: bool,
+) -> Result<Sensitivity, SensitivityError> {
     let value = objective_value(tree, objective, options)?;
+    // the analysis the exact derivatives start from: not for a curve's
+    // point, nor for a tree with Nav2 nodes (its leaves stand for several)
+    let analysis = if !exact
+        || matches!(objective, Objective::SuccessBy(_))
+        || primitive_view_for_figures(tree)?.is_some()
+    {
+        None
+    } else {
+        Some(analyze(tree, options)?)
+    };
     let mut rows = Vec::new();
     let mut skipped = Vec::new();
     for (id, node) in tree.nodes.iter().enumerate() {
@@ -297,6 +341,25 @@ pub fn sensitivity(
             continue;
         }
         for (param, x) in params_of(&node.kind) {
+            if let Some(d) = analysis
+                .as_ref()
+                .and_then(|a| exact_derivative(tree, a, id, param, objective))
+            {
+                if in_domain(&node.kind, param, x + 1e-9) || in_domain(&node.kind, param, x - 1e-9)
+                {
+                    let elasticity = (value != 0.0 && value.is_finite()).then(|| d * x / value);
+                    rows.push(Row {
+                        leaf: id,
+                        param,
+                        value: x,
+                        derivative: d,
+                        elasticity,
+                        scheme: Scheme::Exact,
+                        error: 0.0,
+                    });
+                    continue;
+                }
+            }
             let h0 = if x == 0.0 { 1e-3 } else { 1e-3 * x.abs() };
             let h = if param == Param::Ps { h0.min(1e-3) } else { h0 };
             let up = in_domain(&node.kind, param, x + h);
@@ -345,6 +408,26 @@ pub fn sensitivity(
         rows,
         skipped,
     })
+}
+
+/// The exact derivative of the root's `objective` along leaf `id`'s
+/// `param` ([`exact`]), or `None` where it is not available.
+fn exact_derivative(
+    tree: &Tree,
+    analysis: &Analysis,
+    id: NodeId,
+    param: Param,
+    objective: Objective,
+) -> Option<f64> {
+    let [ps, pf, ts, tf] = exact::root_tangent(tree, analysis, id, param)?;
+    let d = match objective {
+        Objective::Ps => ps.d,
+        Objective::Mtts => (ts.d * ps.v - ts.v * ps.d) / (ps.v * ps.v),
+        Objective::Mttf => (tf.d * pf.v - tf.v * pf.d) / (pf.v * pf.v),
+        Objective::MeanTime => ts.d + tf.d,
+        Objective::SuccessBy(_) => return None,
+    };
+    d.is_finite().then_some(d)
 }
 
 /// The change a sentence describes for a row: ps by ±0.1 (within [0, 1]),
