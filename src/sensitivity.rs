@@ -9,9 +9,18 @@
 //! it; changing `tau_s` of a hybrid action (Def. 9.9) moves the cap of its
 //! exponential failure time with it (likewise `tau_f`).
 //!
-//! # Derivatives: Richardson-extrapolated differences through the engine
+//! # Derivatives: exact where the algebra allows ([`exact`])
 //!
-//! Each derivative is a central difference D(h) = (O(θ+h) − O(θ−h))/2h of
+//! Dual numbers carried from the leaf up to the root through the maps of
+//! Sequence, Fallback, flows, decorators and loops, and the count
+//! programme of a Parallel's P(S)/P(F) ([`exact`] module docs); every row
+//! says which method gave it ([`Scheme`]). The rest (mean times through a
+//! Parallel, races, strategy `book`'s Parallels, trees with Nav2 nodes, and
+//! P(Success by a deadline)) is differenced:
+//!
+//! # Richardson-extrapolated differences through the engine
+//!
+//! Each such derivative is a central difference D(h) = (O(θ+h) − O(θ−h))/2h of
 //! the engine's figures, extrapolated to h → 0 from h and h/2: R = (4D(h/2)
 //! − D(h))/3 (error O(h⁴)), with h = 10⁻³·θ (10⁻³ for θ = 0). The error
 //! estimate is |R − D(h/2)|, which bounds the error of the less accurate
