@@ -9,9 +9,18 @@
 //! it; changing `tau_s` of a hybrid action (Def. 9.9) moves the cap of its
 //! exponential failure time with it (likewise `tau_f`).
 //!
-//! # Derivatives: Richardson-extrapolated differences through the engine
+//! # Derivatives: exact where the algebra allows ([`exact`])
 //!
-//! Each derivative is a central difference D(h) = (O(θ+h) − O(θ−h))/2h of
+//! Dual numbers carried from the leaf up to the root through the maps of
+//! Sequence, Fallback, flows, decorators and loops, and the count
+//! programme of a Parallel's P(S)/P(F) ([`exact`] module docs); every row
+//! says which method gave it ([`Scheme`]). The rest (mean times through a
+//! Parallel, races, strategy `book`'s Parallels, trees with Nav2 nodes, and
+//! P(Success by a deadline)) is differenced:
+//!
+//! # Richardson-extrapolated differences through the engine
+//!
+//! Each such derivative is a central difference D(h) = (O(θ+h) − O(θ−h))/2h of
 //! the engine's figures, extrapolated to h → 0 from h and h/2: R = (4D(h/2)
 //! − D(h))/3 (error O(h⁴)), with h = 10⁻³·θ (10⁻³ for θ = 0). The error
 //! estimate is |R − D(h/2)|, which bounds the error of the less accurate
@@ -21,7 +30,9 @@
 //! The engine's figures are exact up to rounding (and the truncation
 //! tolerance of π(t)), so the error is dominated by the extrapolation.
 
-use crate::compile::{analyze, AnalysisError, Options};
+mod exact;
+
+use crate::compile::{analyze, primitive_view_for_figures, Analysis, AnalysisError, Options};
 use crate::curve::{curve, CurveOptions};
 use crate::tree::{Duration, NodeId, NodeKind, Tree};
 
@@ -88,6 +99,8 @@ impl Param {
 /// How a derivative was computed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Scheme {
+    /// Exact: dual numbers through the node maps ([`exact`] module docs).
+    Exact,
     /// Richardson-extrapolated central differences, error O(h⁴).
     Central,
     /// Richardson-extrapolated one-sided differences (at a domain
@@ -98,8 +111,17 @@ pub enum Scheme {
 impl Scheme {
     pub fn name(&self) -> &'static str {
         match self {
+            Scheme::Exact => "exact",
             Scheme::Central => "richardson-central",
             Scheme::Forward => "richardson-forward",
+        }
+    }
+
+    /// `exact` or `richardson` (the JSON's `method`).
+    pub fn method(&self) -> &'static str {
+        match self {
+            Scheme::Exact => "exact",
+            Scheme::Central | Scheme::Forward => "richardson",
         }
     }
 }
@@ -283,13 +305,44 @@ pub fn richardson(
     }
 }
 
-/// Sensitivities of the root's `objective` to every leaf parameter.
+/// Sensitivities of the root's `objective` to every leaf parameter: exact
+/// where the node maps allow ([`exact`]), Richardson otherwise (each row
+/// says which).
 pub fn sensitivity(
     tree: &Tree,
     objective: Objective,
     options: &Options,
 ) -> Result<Sensitivity, SensitivityError> {
+    sensitivity_with(tree, objective, options, true)
+}
+
+/// [`sensitivity`] with every derivative by Richardson extrapolation (a
+/// cross-check of the exact derivatives).
+pub fn sensitivity_by_differences(
+    tree: &Tree,
+    objective: Objective,
+    options: &Options,
+) -> Result<Sensitivity, SensitivityError> {
+    sensitivity_with(tree, objective, options, false)
+}
+
+fn sensitivity_with(
+    tree: &Tree,
+    objective: Objective,
+    options: &Options,
+    exact: bool,
+) -> Result<Sensitivity, SensitivityError> {
     let value = objective_value(tree, objective, options)?;
+    // the analysis the exact derivatives start from: not for a curve's
+    // point, nor for a tree with Nav2 nodes (its leaves stand for several)
+    let analysis = if !exact
+        || matches!(objective, Objective::SuccessBy(_))
+        || primitive_view_for_figures(tree)?.is_some()
+    {
+        None
+    } else {
+        Some(analyze(tree, options)?)
+    };
     let mut rows = Vec::new();
     let mut skipped = Vec::new();
     for (id, node) in tree.nodes.iter().enumerate() {
@@ -297,6 +350,25 @@ pub fn sensitivity(
             continue;
         }
         for (param, x) in params_of(&node.kind) {
+            if let Some(d) = analysis
+                .as_ref()
+                .and_then(|a| exact_derivative(tree, a, id, param, objective))
+            {
+                if in_domain(&node.kind, param, x + 1e-9) || in_domain(&node.kind, param, x - 1e-9)
+                {
+                    let elasticity = (value != 0.0 && value.is_finite()).then(|| d * x / value);
+                    rows.push(Row {
+                        leaf: id,
+                        param,
+                        value: x,
+                        derivative: d,
+                        elasticity,
+                        scheme: Scheme::Exact,
+                        error: 0.0,
+                    });
+                    continue;
+                }
+            }
             let h0 = if x == 0.0 { 1e-3 } else { 1e-3 * x.abs() };
             let h = if param == Param::Ps { h0.min(1e-3) } else { h0 };
             let up = in_domain(&node.kind, param, x + h);
@@ -345,6 +417,26 @@ pub fn sensitivity(
         rows,
         skipped,
     })
+}
+
+/// The exact derivative of the root's `objective` along leaf `id`'s
+/// `param` ([`exact`]), or `None` where it is not available.
+fn exact_derivative(
+    tree: &Tree,
+    analysis: &Analysis,
+    id: NodeId,
+    param: Param,
+    objective: Objective,
+) -> Option<f64> {
+    let [ps, pf, ts, tf] = exact::root_tangent(tree, analysis, id, param)?;
+    let d = match objective {
+        Objective::Ps => ps.d,
+        Objective::Mtts => (ts.d * ps.v - ts.v * ps.d) / (ps.v * ps.v),
+        Objective::Mttf => (tf.d * pf.v - tf.v * pf.d) / (pf.v * pf.v),
+        Objective::MeanTime => ts.d + tf.d,
+        Objective::SuccessBy(_) => return None,
+    };
+    d.is_finite().then_some(d)
 }
 
 /// The change a sentence describes for a row: ps by ±0.1 (within [0, 1]),

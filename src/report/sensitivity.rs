@@ -70,7 +70,8 @@ pub fn write_table(
 }
 
 /// `{"objective", "deadline", "rows": [{"leaf", "path", "parameter",
-/// "value", "derivative", "elasticity"}]}`.
+/// "value", "derivative", "elasticity", "method"}]}`, `method` being
+/// `exact` or `richardson`.
 pub fn write_json(tree: &Tree, s: &Sensitivity, out: &mut dyn Write) -> io::Result<()> {
     let rows: Vec<_> = s
         .rows
@@ -83,6 +84,7 @@ pub fn write_json(tree: &Tree, s: &Sensitivity, out: &mut dyn Write) -> io::Resu
                 "value": r.value,
                 "derivative": r.derivative,
                 "elasticity": r.elasticity,
+                "method": r.scheme.method(),
             })
         })
         .collect();

@@ -1,0 +1,352 @@
+//! Exact derivatives of the root's figures by forward-mode dual numbers.
+//!
+//! Every node is summarised by `[P(S), P(F), E[T·1S], E[T·1F]]` (the time
+//! integrals rather than MTTS/MTTF, so that no division by a probability is
+//! needed below the root), each a dual number `(value, tangent)` along one
+//! leaf parameter. The tangent starts at the leaf (`d ps = 1`, `d pf = −1`,
+//! `d E[T·1S] = mean_S`, ...; a rate or time moves the mean of its outcome)
+//! and goes up the path to the root; every other node on the way is a
+//! constant. Each node's map is differentiated exactly:
+//!
+//! * Sequence, Fallback, Retry N, Repeat N (their MRG's DTMC) and flows (the
+//!   DTMC over their states): the absorption `h(i) = Σ_e p_e h(to_e)` and
+//!   the time integrals `g(i) = Σ_e (W_e h(to_e) + p_e g(to_e))` (with
+//!   `W_e = p_e·d_e` the child's `E[T·1{outcome}]`) are evaluated backwards
+//!   over the acyclic chain in dual numbers — the same as
+//!   `dx = (I − Q)⁻¹(dr + dQ·x)` for the solve;
+//! * inverter, force_success/force_failure, until_success/until_failure:
+//!   their closed forms (e.g. `E[T·1F]` of until_failure is
+//!   `(E[T·1S] + E[T·1F]) / pf` of the child);
+//! * a Parallel with the book's thresholds (`F ≥ N − M + 1`, strategy
+//!   `exact`): P(S), P(F) by the count programme, which is multilinear in
+//!   the children's ps/pf and run in dual numbers
+//!   ([`status_and_densities_by_counts`]); its mean times have no exact
+//!   tangent here (NaN).
+//!
+//! Anything else (the mean times of a Parallel, a Parallel whose two
+//! thresholds can both be met, strategy `book`'s Parallels) gives a NaN
+//! tangent, and the row falls back to Richardson.
+
+use crate::compile::counts::status_and_densities_by_counts;
+use crate::compile::mrg::{Mrg, Outcome, Policy, Status};
+use crate::compile::{Analysis, Figures, Method};
+use crate::tree::{Decorator, Duration, FlowNext, NodeId, NodeKind, Tree};
+
+use super::Param;
+
+/// A dual number: value and derivative along one parameter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct D {
+    pub v: f64,
+    pub d: f64,
+}
+
+impl D {
+    const ZERO: D = D { v: 0.0, d: 0.0 };
+    const ONE: D = D { v: 1.0, d: 0.0 };
+    fn c(v: f64) -> D {
+        D { v, d: 0.0 }
+    }
+    fn add(self, o: D) -> D {
+        D {
+            v: self.v + o.v,
+            d: self.d + o.d,
+        }
+    }
+    fn mul(self, o: D) -> D {
+        // a zero factor with a zero tangent contributes nothing, even
+        // against an unknown (NaN) tangent
+        let d = match (self.v == 0.0 && self.d == 0.0, o.v == 0.0 && o.d == 0.0) {
+            (true, _) | (_, true) => 0.0,
+            _ => self.d * o.v + self.v * o.d,
+        };
+        D { v: self.v * o.v, d }
+    }
+    fn div(self, o: D) -> D {
+        D {
+            v: self.v / o.v,
+            d: (self.d * o.v - self.v * o.d) / (o.v * o.v),
+        }
+    }
+}
+
+/// `[P(S), P(F), E[T·1S], E[T·1F]]` of a node, in dual numbers.
+pub(crate) type Node = [D; 4];
+
+fn constant(f: &Figures) -> Node {
+    [
+        D::c(f.ps),
+        D::c(f.pf),
+        D::c(f.ps * f.mtts.unwrap_or(0.0)),
+        D::c(f.pf * f.mttf.unwrap_or(0.0)),
+    ]
+}
+
+/// `(d mean / d rate, d mean / d cap)` of a duration, where defined.
+fn mean_derivatives(d: &Duration) -> (f64, f64) {
+    match *d {
+        Duration::Exponential { rate } => (-1.0 / (rate * rate), 0.0),
+        Duration::TruncatedExponential { rate, cap } => {
+            let e = (-rate * cap).exp();
+            // mean = (1 − e^{−λc})/λ
+            (cap * e / rate + (-rate * cap).exp_m1() / (rate * rate), e)
+        }
+        Duration::Fixed { .. } | Duration::PhaseType { .. } => (0.0, 0.0),
+    }
+}
+
+/// The tangent of a leaf's node along one of its parameters.
+fn leaf_tangent(kind: &NodeKind, f: &Figures, param: Param) -> Option<Node> {
+    let mut n = constant(f);
+    match kind {
+        NodeKind::Condition { .. } => {
+            n[0].d = 1.0;
+            n[1].d = -1.0;
+        }
+        NodeKind::Action(a) => {
+            let ms = a.success.map_or(0.0, |d| d.mean());
+            let mf = a.failure.map_or(0.0, |d| d.mean());
+            // the values from the parameters themselves (a mean defined at
+            // ps = 0 too)
+            n[2].v = a.ps * ms;
+            n[3].v = a.pf * mf;
+            let (dms, dmf) = match param {
+                Param::Ps => {
+                    n[0].d = 1.0;
+                    n[1].d = -1.0;
+                    n[2].d = ms;
+                    n[3].d = -mf;
+                    return Some(n);
+                }
+                Param::Mu => (mean_derivatives(a.success.as_ref()?).0, 0.0),
+                Param::Nu => (0.0, mean_derivatives(a.failure.as_ref()?).0),
+                Param::TauS | Param::TauF => {
+                    let (own, other) = if param == Param::TauS {
+                        (a.success, a.failure)
+                    } else {
+                        (a.failure, a.success)
+                    };
+                    let d_own = match own? {
+                        Duration::Fixed { .. } | Duration::PhaseType { .. } => 1.0,
+                        _ => 0.0,
+                    };
+                    let d_other = match other {
+                        Some(d @ Duration::TruncatedExponential { .. }) => mean_derivatives(&d).1,
+                        _ => 0.0,
+                    };
+                    if param == Param::TauS {
+                        (d_own, d_other)
+                    } else {
+                        (d_other, d_own)
+                    }
+                }
+            };
+            n[2].d = a.ps * dms;
+            n[3].d = a.pf * dmf;
+        }
+        _ => return None,
+    }
+    Some(n)
+}
+
+/// One transition of an acyclic chain whose edges are children's outcomes.
+struct Step {
+    from: usize,
+    child: usize,
+    success: bool,
+    to: FlowNext,
+}
+
+/// The node's `[P(S), P(F), E[T·1S], E[T·1F]]` from state 0 of the chain
+/// with `n` states (every step goes forward).
+fn absorb(n: usize, steps: &[Step], children: &[Node]) -> Option<Node> {
+    // per state: [h_S, h_F, g_S, g_F]
+    let mut at: Vec<Node> = vec![[D::ZERO; 4]; n];
+    let mut order: Vec<usize> = (0..steps.len()).collect();
+    order.sort_by_key(|&i| std::cmp::Reverse(steps[i].from));
+    for i in order {
+        let s = &steps[i];
+        let next = match s.to {
+            FlowNext::State(j) if j > s.from && j < n => at[j],
+            FlowNext::State(_) => return None,
+            FlowNext::Success => [D::ONE, D::ZERO, D::ZERO, D::ZERO],
+            FlowNext::Failure => [D::ZERO, D::ONE, D::ZERO, D::ZERO],
+        };
+        let c = &children[s.child];
+        let (p, w) = if s.success {
+            (c[0], c[2])
+        } else {
+            (c[1], c[3])
+        };
+        let h = &mut at[s.from];
+        h[0] = h[0].add(p.mul(next[0]));
+        h[1] = h[1].add(p.mul(next[1]));
+        h[2] = h[2].add(w.mul(next[0])).add(p.mul(next[2]));
+        h[3] = h[3].add(w.mul(next[1])).add(p.mul(next[3]));
+    }
+    Some(at[0])
+}
+
+/// The steps of an MRG (Sequence/Fallback of `n` children), markings
+/// renumbered densely as in the engine's chain.
+fn mrg_steps(policy: Policy, n: usize) -> (usize, Vec<Step>) {
+    let g = Mrg::build(policy, n);
+    let mut dense = vec![usize::MAX; g.status.len()];
+    let mut k = 0;
+    for (i, s) in g.status.iter().enumerate() {
+        if *s == Status::Running {
+            dense[i] = k;
+            k += 1;
+        }
+    }
+    let steps = g
+        .events
+        .iter()
+        .map(|e| Step {
+            from: dense[e.from],
+            child: e.child,
+            success: e.outcome == Outcome::Success,
+            to: match g.status[e.to] {
+                Status::Running => FlowNext::State(dense[e.to]),
+                Status::Success => FlowNext::Success,
+                Status::Failure => FlowNext::Failure,
+            },
+        })
+        .collect();
+    (k, steps)
+}
+
+const NAN: D = D {
+    v: f64::NAN,
+    d: f64::NAN,
+};
+
+/// Node `id`'s dual figures from its children's (in child order);
+/// `None` where the node's map has no exact tangent at all.
+fn node_map(
+    tree: &Tree,
+    id: NodeId,
+    method: Method,
+    fig: &Figures,
+    children: &[Node],
+) -> Option<Node> {
+    let kind = &tree.node(id).kind;
+    Some(match kind {
+        NodeKind::Sequence { .. } | NodeKind::Fallback { .. } => {
+            let policy = if matches!(kind, NodeKind::Sequence { .. }) {
+                Policy::Sequence
+            } else {
+                Policy::Fallback
+            };
+            let (n, steps) = mrg_steps(policy, children.len());
+            absorb(n, &steps, children)?
+        }
+        NodeKind::Flow(flow) => {
+            let steps: Vec<Step> = flow
+                .states
+                .iter()
+                .enumerate()
+                .flat_map(|(i, s)| {
+                    [(true, s.on_success), (false, s.on_failure)].map(|(success, to)| Step {
+                        from: i,
+                        child: s.child,
+                        success,
+                        to,
+                    })
+                })
+                .collect();
+            absorb(flow.states.len(), &steps, children)?
+        }
+        NodeKind::Decorator { decorator, .. } => {
+            let c = children[0];
+            match decorator.as_primitive() {
+                Decorator::Inverter => [c[1], c[0], c[3], c[2]],
+                Decorator::ForceSuccess => [D::ONE, D::ZERO, c[2].add(c[3]), D::ZERO],
+                Decorator::ForceFailure => [D::ZERO, D::ONE, D::ZERO, c[2].add(c[3])],
+                // E[T] of the loop = (E[T·1S] + E[T·1F]) / p_end of the child
+                Decorator::UntilFailure => [D::ZERO, D::ONE, D::ZERO, c[2].add(c[3]).div(c[1])],
+                Decorator::UntilSuccess => [D::ONE, D::ZERO, c[2].add(c[3]).div(c[0]), D::ZERO],
+                d @ (Decorator::Retry { attempts: n } | Decorator::Repeat { times: n }) => {
+                    let policy = if matches!(d, Decorator::Retry { .. }) {
+                        Policy::Fallback
+                    } else {
+                        Policy::Sequence
+                    };
+                    let (k, steps) = mrg_steps(policy, n);
+                    absorb(k, &steps, &vec![c; n])?
+                }
+                _ => return None,
+            }
+        }
+        NodeKind::Parallel {
+            success_threshold: m,
+            failure_threshold: f,
+            children: ids,
+        } => {
+            let n = ids.len();
+            if method != Method::Exact || *f <= n - m {
+                return None;
+            }
+            let points: Vec<[f64; 4]> = children
+                .iter()
+                .map(|c| [c[0].v, c[1].v, c[0].d, c[1].d])
+                .collect();
+            let [s, fl, ds, df] = status_and_densities_by_counts(&points, *m, n + 1 - m);
+            let mut out = constant(fig);
+            out[0] = D { v: s, d: ds };
+            out[1] = D { v: fl, d: df };
+            // the mean times: no exact tangent here
+            out[2] = D {
+                v: out[2].v,
+                d: NAN.d,
+            };
+            out[3] = D {
+                v: out[3].v,
+                d: NAN.d,
+            };
+            out
+        }
+        _ => return None,
+    })
+}
+
+/// The tangent of the root's `[P(S), P(F), E[T·1S], E[T·1F]]` along leaf
+/// `leaf`'s parameter `param`, from the analysis of `tree` (a primitive
+/// tree). `None` where some node on the path has no exact map, or where
+/// the dual values disagree with the engine's figures (then the caller
+/// differences instead). A component whose tangent is unknown is NaN.
+pub(crate) fn root_tangent(
+    tree: &Tree,
+    analysis: &Analysis,
+    leaf: NodeId,
+    param: Param,
+) -> Option<Node> {
+    let mut node = leaf_tangent(&tree.node(leaf).kind, &analysis.nodes[leaf], param)?;
+    let mut id = leaf;
+    while let Some(parent) = tree.node(id).parent {
+        let kids: Vec<Node> = tree
+            .node(parent)
+            .kind
+            .children()
+            .iter()
+            .map(|&c| {
+                if c == id {
+                    node
+                } else {
+                    constant(&analysis.nodes[c])
+                }
+            })
+            .collect();
+        let fig = &analysis.nodes[parent];
+        node = node_map(tree, parent, analysis.method, fig, &kids)?;
+        // the dual values must be the engine's figures (a check of the map)
+        let engine = constant(fig);
+        for (a, b) in node.iter().zip(engine.iter()) {
+            if (a.v - b.v).abs() > 1e-9 * b.v.abs().max(1.0) {
+                return None;
+            }
+        }
+        id = parent;
+    }
+    Some(node)
+}
