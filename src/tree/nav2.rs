@@ -192,6 +192,14 @@ pub struct View {
 ///   first.
 /// * A RoundRobin with `wrap_around` executed at most once per run of the
 ///   tree starts at index 0 and is a Fallback.
+/// * A RoundRobin whose index matters (without `wrap_around`, or with copies
+///   sharing its index: a RecoveryNode's retries) makes the lowest common
+///   ancestor of its copies one [`NodeKind::Flow`] over (place in that
+///   node's run, index): see `index_roots` and `Lowering::index_flow`.
+///   That ancestor is entered with the index at 0: it runs at most once per
+///   run of the tree (checked), and every run of the tree starts with the
+///   index at 0 — the simulator's assumption too (`sim::engine`, which resets
+///   the RoundRobins at every episode).
 /// * RateController and SingleTrigger outside those positions run their
 ///   child once (`repeat` 1, the identity).
 ///
@@ -815,8 +823,11 @@ struct IndexFlow<'a> {
     onpath: Vec<bool>,
     root: NodeId,
     states: Vec<FlowState>,
-    known: HashMap<(NodeId, (u8, usize), (u8, usize)), usize>,
+    known: HashMap<StateKey, usize>,
 }
+
+/// A state by its child and its two edges (see [`edge_key`]).
+type StateKey = (NodeId, (u8, usize), (u8, usize));
 
 fn edge_key(n: FlowNext) -> (u8, usize) {
     match n {
