@@ -476,3 +476,28 @@ fn the_cli_refuses_with_the_node_and_points_to_simulate() {
         "{out}"
     );
 }
+
+/// The RoundRobin below a Fallback with a condition, the main branch a
+/// Fallback: the flow keeps those nodes as its children; the simulator
+/// referees the figures (|z| < 5); `compare` refuses the flow.
+#[test]
+fn recovery_with_round_robin_behind_a_condition() {
+    let tree = xml(
+        "<RecoveryNode number_of_retries=\"2\" name=\"R\">\n\
+         <Fallback name=\"M\"><Main/><Main2/></Fallback>\n\
+         <Fallback name=\"F\"><Cond/><RoundRobin name=\"rr\"><A/><B/><C/></RoundRobin></Fallback>\n\
+         </RecoveryNode>",
+        "Main: {ps: 0.3, mu: 1, nu: 2}\nMain2: {ps: 0.5, mu: 0.3, nu: 1}\nCond: {ps: 0.2}\n\
+         A: {ps: 0.4, mu: 0.5, nu: 1}\nB: {ps: 0.6, mu: 2, nu: 0.5}\nC: {ps: 0.7, mu: 1, nu: 4}\n",
+    );
+    let f = analyze(&tree, &Options::default()).unwrap().nodes[0];
+    let r = sim_root(&tree, 200_000);
+    assert_within_z("ps", &r.nodes[0].ps, f.ps);
+    assert_within_z("MTTS", r.nodes[0].mtts.as_ref().unwrap(), f.mtts.unwrap());
+    assert_within_z("MTTF", r.nodes[0].mttf.as_ref().unwrap(), f.mttf.unwrap());
+    // the main branch's figures are its own (a Fallback of two actions)
+    let m = analyze(&tree, &Options::default()).unwrap().nodes[1];
+    assert!((m.ps - (1.0 - 0.7 * 0.5)).abs() < 1e-12);
+    let e = btrel::compare::compare(&tree, &Default::default()).unwrap_err();
+    assert!(e.to_string().contains("RoundRobin's index"), "{e}");
+}
