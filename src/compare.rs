@@ -507,6 +507,27 @@ pub fn compare_with_progress(
     };
     let view = compile::primitive_view(tree)?;
     if let Some(v) = &view {
+        // a RoundRobin whose index the analysis follows: its flow replaces
+        // the nodes between its copies, and the lowered tree's node ids
+        // are not the tree's
+        if let Some(id) = (0..tree.nodes.len()).find(|&i| {
+            matches!(v.tree.node(v.image[i]).kind, NodeKind::Flow(_))
+                && !matches!(tree.node(i).kind, NodeKind::Flow(_))
+        }) {
+            let node = tree.node(id);
+            return Err(CompareError::Analysis(AnalysisError::Nav2 {
+                node: node.name.clone(),
+                at: node
+                    .location
+                    .map_or(String::new(), |(l, c)| format!(", line {l}, column {c}")),
+                kind: node.kind.keyword(),
+                path: node.path.clone(),
+                reason: "it is part of the flow that follows a RoundRobin's index (without \
+                         wrap_around, or shared by a RecoveryNode's copies); reordering a tree \
+                         with such a flow is not supported"
+                    .into(),
+            }));
+        }
         // the Fallbacks as nodes of the lowered tree; one that a pipeline
         // re-runs has copies there, which an ordering would have to follow
         for n in &mut nodes {

@@ -226,13 +226,114 @@ fn round_robin_index_survives_the_recovery_retries() {
     // fails and the node with it, at 11 s
     let r = sim_root(&robin("", 3), 1000);
     assert_eq!(r.nodes[0].mttf.as_ref().unwrap().mean, 11.0);
-    // the analysis cannot follow the index yet
-    let e = analyze(&robin(" wrap_around=\"true\"", 3), &Options::default()).unwrap_err();
-    let msg = e.to_string();
-    assert!(
-        msg.contains("recovery 1/rr'") && msg.contains("is a copy of it"),
-        "{msg}"
-    );
+    // the analysis follows the index: deterministic times, the same sums
+    for (wrap, end) in [(" wrap_around=\"true\"", 12.0), ("", 11.0)] {
+        let f = analyze(&robin(wrap, 3), &Options::default()).unwrap().nodes[0];
+        assert_eq!(f.ps, 0.0);
+        assert!((f.mttf.unwrap() - end).abs() < 1e-12, "{wrap}: {f:?}");
+    }
+}
+
+/// `RecoveryNode(main, RoundRobin(a, b, c))` with `retries`, by the direct
+/// semantics of Nav2's code, independent of the flow: `(ps, E[T·1{S}],
+/// E[T·1{F}])` from retry `k` with the RoundRobin's index at `i`; leaves are
+/// `(ps, mean success time, mean failure time)`.
+fn recovery_robin_by_hand(
+    main: (f64, f64, f64),
+    kids: &[(f64, f64, f64)],
+    wrap: bool,
+    retries: usize,
+    k: usize,
+    i: usize,
+) -> (f64, f64, f64) {
+    let (pm, ms, mf) = main;
+    // the main branch succeeds
+    let mut out = (pm, pm * ms, 0.0);
+    let q = 1.0 - pm;
+    if k == retries {
+        out.2 += q * mf;
+        return out;
+    }
+    // the main branch failed (time mf), then the RoundRobin from index i
+    let m = kids.len();
+    let order: Vec<usize> = if wrap {
+        (0..m).map(|t| (i + t) % m).collect()
+    } else {
+        (i..m).collect()
+    };
+    // reach: probability of getting to this child; elapsed: E[T·1{reach}]
+    let (mut reach, mut elapsed) = (q, q * mf);
+    for &j in &order {
+        let (p, ts, tf) = kids[j];
+        // child j succeeds
+        let (w, wt) = (reach * p, elapsed * p + reach * p * ts);
+        if !wrap && j == m - 1 {
+            // Nav2 without wrap_around: the last child's Success is a Failure
+            out.2 += wt;
+        } else {
+            let (s, es, ef) = recovery_robin_by_hand(main, kids, wrap, retries, k + 1, (j + 1) % m);
+            out.0 += w * s;
+            out.1 += wt * s + w * es;
+            out.2 += wt * (1.0 - s) + w * ef;
+        }
+        // child j fails: on to the next
+        (reach, elapsed) = (reach * (1.0 - p), (elapsed + reach * tf) * (1.0 - p));
+    }
+    // all failed (index back to 0): the recovery fails, and the node
+    out.2 += elapsed;
+    out
+}
+
+#[test]
+fn recovery_with_round_robin_is_exact() {
+    let params = "Main: {ps: 0.3, mu: 1, nu: 2}\nA: {ps: 0.4, mu: 0.5, nu: 1}\n\
+                  B: {ps: 0.6, mu: 2, nu: 0.5}\nC: {ps: 0.7, mu: 1, nu: 4}\n";
+    let main = (0.3, 1.0, 0.5);
+    let kids = [(0.4, 2.0, 1.0), (0.6, 0.5, 2.0), (0.7, 1.0, 0.25)];
+    for retries in 2..=3 {
+        for (attr, wrap) in [(" wrap_around=\"true\"", true), ("", false)] {
+            let tree = xml(
+                &format!(
+                    "<RecoveryNode number_of_retries=\"{retries}\" name=\"R\">\n<Main/>\n\
+                     <RoundRobin name=\"rr\"{attr}><A/><B/><C/></RoundRobin>\n</RecoveryNode>"
+                ),
+                params,
+            );
+            let (ps, es, ef) = recovery_robin_by_hand(main, &kids, wrap, retries, 0, 0);
+            let f = analyze(&tree, &Options::default()).unwrap().nodes[0];
+            let what = format!("retries {retries}, wrap {wrap}");
+            assert!((f.ps - ps).abs() < 1e-12, "{what}: ps {} vs {ps}", f.ps);
+            assert!((f.mtts.unwrap() - es / ps).abs() < 1e-12, "{what}: {f:?}");
+            assert!(
+                (f.mttf.unwrap() - ef / (1.0 - ps)).abs() < 1e-12,
+                "{what}: {f:?}"
+            );
+            let r = sim_root(&tree, 100_000);
+            assert_within_z("ps", &r.nodes[0].ps, ps);
+            assert_within_z("MTTS", r.nodes[0].mtts.as_ref().unwrap(), es / ps);
+            assert_within_z("MTTF", r.nodes[0].mttf.as_ref().unwrap(), ef / (1.0 - ps));
+            // the curve is exact too: it tends to ps
+            let c = curve(&tree, 0, &[200.0], &CurveOptions::default()).unwrap();
+            assert!((c[0].success - ps).abs() < 1e-9, "{what}: curve {c:?}");
+        }
+    }
+    // a hand anchor: Main always fails after 1 s, A, B, C succeed after 1,
+    // 10, 100 s. With wrap_around and 3 retries: main, A, main, B, main, C,
+    // main: Failure at 115 s; without, C's Success is a Failure: at 114 s
+    let params = "Main: {ps: 0.0, tau_f: 1}\nA: {ps: 1.0, tau_s: 1}\n\
+                  B: {ps: 1.0, tau_s: 10}\nC: {ps: 1.0, tau_s: 100}\n";
+    for (attr, end) in [(" wrap_around=\"true\"", 115.0), ("", 114.0)] {
+        let tree = xml(
+            &format!(
+                "<RecoveryNode number_of_retries=\"3\" name=\"R\">\n<Main/>\n\
+                 <RoundRobin name=\"rr\"{attr}><A/><B/><C/></RoundRobin>\n</RecoveryNode>"
+            ),
+            params,
+        );
+        let f = analyze(&tree, &Options::default()).unwrap().nodes[0];
+        assert_eq!(f.ps, 0.0);
+        assert!((f.mttf.unwrap() - end).abs() < 1e-12, "{attr}: {f:?}");
+    }
 }
 
 #[test]
@@ -253,10 +354,16 @@ fn round_robin_run_once_is_a_fallback() {
     let tree = xml("<RoundRobin name=\"rr\"><A/><B/></RoundRobin>", params);
     let r = sim_root(&tree, 100_000);
     assert_within_z("ps", &r.nodes[0].ps, 0.3);
-    assert!(analyze(&tree, &Options::default())
-        .unwrap_err()
-        .to_string()
-        .contains("returns Failure when its last child succeeds"));
+    // exact: A's Success, or after A's Failure nothing (B's Success is a
+    // Failure): ps 0.3; E[T·1{F}] = 0.7·(0.5 + 0.6·2 + 0.4·4)
+    let f = analyze(&tree, &Options::default()).unwrap().nodes[0];
+    assert!((f.ps - 0.3).abs() < 1e-12);
+    assert!((f.mttf.unwrap() - (0.5 + 0.6 * 2.0 + 0.4 * 4.0)).abs() < 1e-12);
+    assert_within_z(
+        "MTTF",
+        r.nodes[0].mttf.as_ref().unwrap(),
+        0.5 + 0.6 * 2.0 + 0.4 * 4.0,
+    );
 }
 
 #[test]
@@ -327,12 +434,40 @@ fn attributes_are_checked_with_their_place() {
 
 #[test]
 fn the_cli_refuses_with_the_node_and_points_to_simulate() {
-    let (code, out, err) = run_btrel(&["report", "trees/nav2-replanning.xml"]);
+    // a RoundRobin below a Retry: its index carries over from one attempt
+    // to the next outside any flow btrel builds
+    let dir = std::env::temp_dir().join(format!("btrel-nav2-rr-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let xml_path = dir.join("rr.xml");
+    std::fs::write(
+        &xml_path,
+        "<root BTCPP_format=\"4\">\n<BehaviorTree ID=\"T\">\n\
+         <RetryUntilSuccessful num_attempts=\"3\">\n\
+         <RoundRobin name=\"rr\" wrap_around=\"true\"><A/><B/></RoundRobin>\n\
+         </RetryUntilSuccessful>\n</BehaviorTree>\n</root>\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("rr.params.yaml"),
+        "A: {ps: 0.3, mu: 1, nu: 2}\nB: {ps: 0.6, mu: 0.5, nu: 0.25}\n",
+    )
+    .unwrap();
+    let (code, out, err) = run_btrel(&["report", xml_path.to_str().unwrap()]);
+    std::fs::remove_dir_all(&dir).ok();
     assert_eq!(code, 1, "{err}");
     assert!(out.is_empty());
     assert!(
-        err.contains("has no exact analysis yet") && err.contains("btrel simulate"),
+        err.contains("has no exact analysis yet")
+            && err.contains("'rr'")
+            && err.contains("btrel simulate"),
         "{err}"
+    );
+    // the RecoveryNode's RoundRobin copies: exact
+    let (code, out, err) = run_btrel(&["report", "trees/nav2-replanning.xml"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains("NavigateRecovery/recovery 2/RecoveryActions"),
+        "{out}"
     );
     let (code, out, err) = run_btrel(&["simulate", "trees/nav2-replanning.xml", "--runs", "1000"]);
     assert_eq!(code, 0, "{err}");
@@ -340,4 +475,29 @@ fn the_cli_refuses_with_the_node_and_points_to_simulate() {
         out.contains("pipeline_sequence") && out.contains("round_robin"),
         "{out}"
     );
+}
+
+/// The RoundRobin below a Fallback with a condition, the main branch a
+/// Fallback: the flow keeps those nodes as its children; the simulator
+/// referees the figures (|z| < 5); `compare` refuses the flow.
+#[test]
+fn recovery_with_round_robin_behind_a_condition() {
+    let tree = xml(
+        "<RecoveryNode number_of_retries=\"2\" name=\"R\">\n\
+         <Fallback name=\"M\"><Main/><Main2/></Fallback>\n\
+         <Fallback name=\"F\"><Cond/><RoundRobin name=\"rr\"><A/><B/><C/></RoundRobin></Fallback>\n\
+         </RecoveryNode>",
+        "Main: {ps: 0.3, mu: 1, nu: 2}\nMain2: {ps: 0.5, mu: 0.3, nu: 1}\nCond: {ps: 0.2}\n\
+         A: {ps: 0.4, mu: 0.5, nu: 1}\nB: {ps: 0.6, mu: 2, nu: 0.5}\nC: {ps: 0.7, mu: 1, nu: 4}\n",
+    );
+    let f = analyze(&tree, &Options::default()).unwrap().nodes[0];
+    let r = sim_root(&tree, 200_000);
+    assert_within_z("ps", &r.nodes[0].ps, f.ps);
+    assert_within_z("MTTS", r.nodes[0].mtts.as_ref().unwrap(), f.mtts.unwrap());
+    assert_within_z("MTTF", r.nodes[0].mttf.as_ref().unwrap(), f.mttf.unwrap());
+    // the main branch's figures are its own (a Fallback of two actions)
+    let m = analyze(&tree, &Options::default()).unwrap().nodes[1];
+    assert!((m.ps - (1.0 - 0.7 * 0.5)).abs() < 1e-12);
+    let e = btrel::compare::compare(&tree, &Default::default()).unwrap_err();
+    assert!(e.to_string().contains("RoundRobin's index"), "{e}");
 }

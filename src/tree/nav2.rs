@@ -45,7 +45,9 @@
 //! runs back to back: after each Success it starts again at once, until one
 //! run fails (which fails the pipeline) or the pipeline ends.
 
-use super::{Decorator, Duration, NodeId, NodeKind, Tree};
+use std::collections::HashMap;
+
+use super::{Decorator, Duration, Flow, FlowNext, FlowState, NodeId, NodeKind, Tree};
 
 /// What ticking a child again after it returned Success does, when its
 /// parent (a PipelineSequence) does not reset it.
@@ -190,6 +192,14 @@ pub struct View {
 ///   first.
 /// * A RoundRobin with `wrap_around` executed at most once per run of the
 ///   tree starts at index 0 and is a Fallback.
+/// * A RoundRobin whose index matters (without `wrap_around`, or with copies
+///   sharing its index: a RecoveryNode's retries) makes the lowest common
+///   ancestor of its copies one [`NodeKind::Flow`] over (place in that
+///   node's run, index): see `index_roots` and `Lowering::index_flow`.
+///   That ancestor is entered with the index at 0: it runs at most once per
+///   run of the tree (checked), and every run of the tree starts with the
+///   index at 0 — the simulator's assumption too (`sim::engine`, which resets
+///   the RoundRobins at every episode).
 /// * RateController and SingleTrigger outside those positions run their
 ///   child once (`repeat` 1, the identity).
 ///
@@ -223,12 +233,14 @@ fn lower(tree: &Tree, figures: bool) -> Result<Option<View>, NotPrimitive> {
     if !tree.nodes.iter().any(|n| nav2(&n.kind)) {
         return Ok(None);
     }
+    let roots = index_roots(tree)?;
     let mut lower = Lowering {
         tree,
         out: Vec::with_capacity(tree.nodes.len()),
         image: vec![usize::MAX; tree.nodes.len()],
         copied: vec![false; tree.nodes.len()],
         figures,
+        roots,
     };
     lower.node(Tree::ROOT, None, 0, None)?;
     Ok(Some(View {
@@ -251,6 +263,9 @@ struct Lowering<'a> {
     copied: Vec<bool>,
     /// Lowering for the figures alone ([`primitive_view_for_figures`]).
     figures: bool,
+    /// The nodes that become one flow over a RoundRobin's index
+    /// ([`index_roots`]), each with the RoundRobin slot.
+    roots: HashMap<NodeId, usize>,
 }
 
 impl Lowering<'_> {
@@ -317,6 +332,9 @@ impl Lowering<'_> {
                 format!("{prefix}/{}", node.path),
             ),
         };
+        if let Some(&slot) = self.roots.get(&id) {
+            return self.index_flow(id, slot, parent, depth, copy, name, path);
+        }
         let kind = match &node.kind {
             NodeKind::Pipeline { children } => {
                 let seq = self.push(
@@ -334,11 +352,9 @@ impl Lowering<'_> {
                 self.set_children(seq, kids);
                 return Ok(seq);
             }
-            NodeKind::RoundRobin {
-                children,
-                wrap,
-                slot,
-            } => {
+            NodeKind::RoundRobin { children, slot, .. } => {
+                // a RoundRobin that needs no flow: wrapping, and with one
+                // child or executed once per run (index 0: a Fallback)
                 if copy.is_some() && children.len() > 1 {
                     return Err(NotPrimitive {
                         node: id,
@@ -350,25 +366,18 @@ impl Lowering<'_> {
                             .into(),
                     });
                 }
-                if !wrap && children.len() > 1 {
-                    return Err(NotPrimitive {
-                        node: id,
-                        reason: "without wrap_around=\"true\" it returns Failure when its last \
-                                 child succeeds (Nav2's round_robin_node.cpp leaves its loop \
-                                 before looking at that child's status), which the analysis \
-                                 does not model"
-                            .into(),
-                    });
-                }
-                if let Some(why) = repeated(tree, id, *slot) {
-                    return Err(NotPrimitive {
-                        node: id,
-                        reason: format!(
-                            "it is executed several times per run ({why}) and starts each \
-                             time after the child that last succeeded: its start index depends \
-                             on the earlier executions, which the analysis cannot follow yet"
-                        ),
-                    });
+                if children.len() > 1 {
+                    if let Some(why) = repeated(tree, id, *slot) {
+                        return Err(NotPrimitive {
+                            node: id,
+                            reason: format!(
+                                "it is executed several times per run ({why}) and starts each \
+                                 time after the child that last succeeded: its start index \
+                                 depends on the earlier executions, which the analysis cannot \
+                                 follow yet"
+                            ),
+                        });
+                    }
                 }
                 NodeKind::Fallback {
                     children: children.clone(),
@@ -684,4 +693,405 @@ fn repeated(tree: &Tree, id: NodeId, slot: usize) -> Option<String> {
         (below, up) = (a, tree.nodes[a].parent);
     }
     None
+}
+
+/// The most states of the flow that follows a RoundRobin's index.
+pub const MAX_INDEX_STATES: usize = 1 << 16;
+
+/// The RoundRobins that need a flow over their index, each by the node
+/// that becomes that flow: the lowest common ancestor of the copies of one
+/// RoundRobin (the RecoveryNode whose retries copied it, or the RoundRobin
+/// itself when it has one copy). A RoundRobin needs one when its start
+/// index matters: without `wrap_around` (the last child's Success is a
+/// Failure), or with several copies (they share one index) and more than
+/// one child.
+fn index_roots(tree: &Tree) -> Result<HashMap<NodeId, usize>, NotPrimitive> {
+    let mut copies: Vec<(usize, Vec<NodeId>, bool, usize)> = Vec::new();
+    for (id, n) in tree.nodes.iter().enumerate() {
+        if let NodeKind::RoundRobin {
+            children,
+            wrap,
+            slot,
+        } = &n.kind
+        {
+            match copies.iter_mut().find(|c| c.0 == *slot) {
+                Some(c) => c.1.push(id),
+                None => copies.push((*slot, vec![id], *wrap, children.len())),
+            }
+        }
+    }
+    let mut roots: HashMap<NodeId, usize> = HashMap::new();
+    for (slot, ids, wrap, m) in copies {
+        if wrap && (ids.len() == 1 || m == 1) {
+            continue;
+        }
+        let root = ids[1..]
+            .iter()
+            .fold(ids[0], |a, &b| common_ancestor(tree, a, b));
+        if let Some(why) = ancestor_repeats(tree, root) {
+            return Err(NotPrimitive {
+                node: ids[0],
+                reason: format!(
+                    "{why}, and the RoundRobin starts each time after the child that last \
+                     succeeded: its start index depends on the earlier executions, which the \
+                     analysis follows only within one execution of '{}'",
+                    tree.nodes[root].name
+                ),
+            });
+        }
+        if roots.insert(root, slot).is_some() {
+            return Err(NotPrimitive {
+                node: ids[0],
+                reason: "another RoundRobin's copies have the same lowest common ancestor; \
+                         the analysis follows one RoundRobin's index per node"
+                    .into(),
+            });
+        }
+    }
+    // one index per flow: no flow root inside another
+    for &r in roots.keys() {
+        let mut up = tree.nodes[r].parent;
+        while let Some(a) = up {
+            if roots.contains_key(&a) {
+                return Err(NotPrimitive {
+                    node: r,
+                    reason: format!(
+                        "its RoundRobin's index and the index of a RoundRobin around it \
+                         (below '{}') would both have to be followed; the analysis follows one \
+                         at a time",
+                        tree.nodes[a].name
+                    ),
+                });
+            }
+            up = tree.nodes[a].parent;
+        }
+    }
+    Ok(roots)
+}
+
+/// The lowest common ancestor of `a` and `b`.
+fn common_ancestor(tree: &Tree, a: NodeId, b: NodeId) -> NodeId {
+    let mut seen = std::collections::HashSet::new();
+    let mut x = Some(a);
+    while let Some(n) = x {
+        seen.insert(n);
+        x = tree.nodes[n].parent;
+    }
+    let mut y = b;
+    while !seen.contains(&y) {
+        y = tree.nodes[y].parent.unwrap_or(Tree::ROOT);
+    }
+    y
+}
+
+/// Why node `id` may run more than once per run of the root (an ancestor
+/// repeats it), if it may.
+fn ancestor_repeats(tree: &Tree, id: NodeId) -> Option<String> {
+    let (mut below, mut up) = (id, tree.nodes[id].parent);
+    while let Some(a) = up {
+        let again = match &tree.nodes[a].kind {
+            NodeKind::Flow(flow) => {
+                let at = flow.children.iter().position(|&c| c == below);
+                at.is_some_and(|k| flow.states.iter().filter(|s| s.child == k).count() > 1)
+            }
+            NodeKind::Decorator { decorator, .. } => match decorator {
+                Decorator::Retry { attempts } => *attempts > 1,
+                Decorator::Repeat { times } => *times > 1,
+                Decorator::UntilFailure | Decorator::UntilSuccess => true,
+                _ => false,
+            },
+            _ => false,
+        };
+        if again {
+            return Some(format!(
+                "'{}' runs several times per run: its ancestor '{}' repeats it",
+                tree.nodes[id].name, tree.nodes[a].name
+            ));
+        }
+        (below, up) = (a, tree.nodes[a].parent);
+    }
+    None
+}
+
+/// The states of a flow over a RoundRobin's index, built backwards (every
+/// edge goes to a state built earlier); `child` holds the original node.
+struct IndexFlow<'a> {
+    tree: &'a Tree,
+    /// The RoundRobin's slot.
+    slot: usize,
+    /// `onpath[k]`: node `root + k` holds a copy of the RoundRobin.
+    onpath: Vec<bool>,
+    root: NodeId,
+    states: Vec<FlowState>,
+    known: HashMap<StateKey, usize>,
+}
+
+/// A state by its child and its two edges (see [`edge_key`]).
+type StateKey = (NodeId, (u8, usize), (u8, usize));
+
+fn edge_key(n: FlowNext) -> (u8, usize) {
+    match n {
+        FlowNext::State(s) => (0, s),
+        FlowNext::Success => (1, 0),
+        FlowNext::Failure => (2, 0),
+    }
+}
+
+impl IndexFlow<'_> {
+    /// A state running original node `child` (shared with an identical one).
+    fn state(
+        &mut self,
+        child: NodeId,
+        on_success: FlowNext,
+        on_failure: FlowNext,
+    ) -> Result<FlowNext, NotPrimitive> {
+        let key = (child, edge_key(on_success), edge_key(on_failure));
+        if let Some(&s) = self.known.get(&key) {
+            return Ok(FlowNext::State(s));
+        }
+        if self.states.len() >= MAX_INDEX_STATES {
+            return Err(NotPrimitive {
+                node: self.root,
+                reason: format!(
+                    "following its RoundRobin's index takes more than {MAX_INDEX_STATES} flow \
+                     states"
+                ),
+            });
+        }
+        self.states.push(FlowState {
+            child,
+            on_success,
+            on_failure,
+        });
+        self.known.insert(key, self.states.len() - 1);
+        Ok(FlowNext::State(self.states.len() - 1))
+    }
+
+    /// The entry of node `id` for each start index, given where its
+    /// Success (`ks[i]`) and Failure (`kf[i]`) lead with the index then `i`.
+    fn entries(
+        &mut self,
+        id: NodeId,
+        ks: &[FlowNext],
+        kf: &[FlowNext],
+    ) -> Result<Vec<FlowNext>, NotPrimitive> {
+        let m = ks.len();
+        if !self.onpath[id - self.root] {
+            // the index does not change: one state per distinct continuation
+            return (0..m).map(|i| self.state(id, ks[i], kf[i])).collect();
+        }
+        let refuse = |why: &str| NotPrimitive {
+            node: id,
+            reason: format!(
+                "it holds a copy of a RoundRobin whose index the analysis follows through \
+                 Sequences, Fallbacks, the RoundRobin and one-run decorators only; {why}"
+            ),
+        };
+        match &self.tree.nodes[id].kind {
+            NodeKind::Sequence { children } => {
+                let mut cont = ks.to_vec();
+                for &c in children.iter().rev() {
+                    cont = self.entries(c, &cont, kf)?;
+                }
+                Ok(cont)
+            }
+            NodeKind::Fallback { children } => {
+                let mut cont = kf.to_vec();
+                for &c in children.iter().rev() {
+                    cont = self.entries(c, ks, &cont)?;
+                }
+                Ok(cont)
+            }
+            NodeKind::Decorator { decorator, child } => match decorator.as_primitive() {
+                Decorator::Inverter => self.entries(*child, kf, ks),
+                Decorator::ForceSuccess => self.entries(*child, ks, ks),
+                Decorator::ForceFailure => self.entries(*child, kf, kf),
+                Decorator::Retry { attempts: 1 } | Decorator::Repeat { times: 1 } => {
+                    self.entries(*child, ks, kf)
+                }
+                _ => Err(refuse("this decorator repeats it")),
+            },
+            NodeKind::RoundRobin {
+                children,
+                wrap,
+                slot,
+            } if *slot == self.slot => {
+                // Nav2's round_robin_node.cpp: the index moves past every
+                // child that returns; a Success returns Success with the
+                // index after that child; all failed (and, without wrap,
+                // passing the last child whatever its status) → Failure,
+                // index 0
+                let mut out = Vec::with_capacity(m);
+                for start in 0..m {
+                    let mut next = kf[0];
+                    let order: Vec<usize> = if *wrap {
+                        (0..m).map(|t| (start + t) % m).collect()
+                    } else {
+                        (start..m).collect()
+                    };
+                    for &j in order.iter().rev() {
+                        let on_success = if j + 1 < m {
+                            ks[j + 1]
+                        } else if *wrap {
+                            ks[0]
+                        } else {
+                            kf[0]
+                        };
+                        next = self.state(children[j], on_success, next)?;
+                    }
+                    out.push(next);
+                }
+                Ok(out)
+            }
+            NodeKind::RoundRobin { .. } => Err(refuse("another RoundRobin holds it")),
+            NodeKind::Parallel { .. } => Err(refuse("a Parallel holds it")),
+            NodeKind::Pipeline { .. } => Err(refuse("a PipelineSequence holds it")),
+            NodeKind::Flow(_) => Err(refuse("a flow (IfThenElse, Switch, ...) holds it")),
+            NodeKind::Action(_) | NodeKind::Condition { .. } => {
+                unreachable!("a leaf holds no RoundRobin")
+            }
+        }
+    }
+}
+
+impl Lowering<'_> {
+    /// Node `id`, the lowest common ancestor of the copies of RoundRobin
+    /// `slot`, as one flow over (place in `id`'s run, RoundRobin index):
+    /// its children are the subtrees without a copy (the RecoveryNode's
+    /// main-branch copies, the conditions around the RoundRobin, ...) and
+    /// the RoundRobin copies' children; the nodes between them (the
+    /// RecoveryNode's Fallbacks and Sequences, the RoundRobin copies) have
+    /// no run of their own in the flow and stand for the flow's.
+    #[allow(clippy::too_many_arguments)]
+    fn index_flow(
+        &mut self,
+        id: NodeId,
+        slot: usize,
+        parent: Option<NodeId>,
+        depth: usize,
+        copy: Option<&str>,
+        name: String,
+        path: String,
+    ) -> Result<NodeId, NotPrimitive> {
+        let tree = self.tree;
+        if copy.is_some() {
+            return Err(NotPrimitive {
+                node: id,
+                reason: "it lies in a PipelineSequence child that runs again while the later \
+                         children run, and holds a RoundRobin whose index carries over from one \
+                         run to the next, which the analysis cannot follow yet"
+                    .into(),
+            });
+        }
+        let range = tree.subtree(id);
+        let holds = |n: NodeId| {
+            tree.subtree(n).any(|k| {
+                matches!(&tree.nodes[k].kind, NodeKind::RoundRobin { slot: s, .. } if *s == slot)
+            })
+        };
+        let onpath: Vec<bool> = range.clone().map(holds).collect();
+        let m = tree
+            .subtree(id)
+            .find_map(|k| match &tree.nodes[k].kind {
+                NodeKind::RoundRobin {
+                    children, slot: s, ..
+                } if *s == slot => Some(children.len()),
+                _ => None,
+            })
+            .unwrap_or(1);
+        let mut flow = IndexFlow {
+            tree,
+            slot,
+            onpath,
+            root: id,
+            states: Vec::new(),
+            known: HashMap::new(),
+        };
+        let entry = flow.entries(id, &vec![FlowNext::Success; m], &vec![FlowNext::Failure; m])?[0];
+        let FlowNext::State(first) = entry else {
+            unreachable!("a node runs at least one state")
+        };
+        // the states reachable from the entry; every edge goes to a state
+        // built earlier, so the reverse of the building order is a
+        // topological order
+        let mut reach = vec![false; flow.states.len()];
+        let mut stack = vec![first];
+        while let Some(s) = stack.pop() {
+            if std::mem::replace(&mut reach[s], true) {
+                continue;
+            }
+            for next in [flow.states[s].on_success, flow.states[s].on_failure] {
+                if let FlowNext::State(t) = next {
+                    stack.push(t);
+                }
+            }
+        }
+        let order: Vec<usize> = (0..flow.states.len()).rev().filter(|&s| reach[s]).collect();
+        let mut number = vec![usize::MAX; flow.states.len()];
+        for (k, &s) in order.iter().enumerate() {
+            number[s] = k;
+        }
+        let mut kids: Vec<NodeId> = order.iter().map(|&s| flow.states[s].child).collect();
+        kids.sort_unstable();
+        kids.dedup();
+        // a child that several states run must keep no memory of its own
+        for &c in &kids {
+            if let Some(r) = tree.subtree(c).find(|&k| {
+                matches!(&tree.nodes[k].kind, NodeKind::RoundRobin { children, .. } if children.len() > 1)
+            }) {
+                return Err(NotPrimitive {
+                    node: r,
+                    reason: format!(
+                        "it lies in '{}', which the flow following the index of another \
+                         RoundRobin (in '{}') may run several times, and its own index would \
+                         carry over",
+                        tree.nodes[c].name, tree.nodes[id].name
+                    ),
+                });
+            }
+        }
+        let renumber = |n: FlowNext| match n {
+            FlowNext::State(s) => FlowNext::State(number[s]),
+            other => other,
+        };
+        let states: Vec<FlowState> = order
+            .iter()
+            .map(|&s| {
+                let st = flow.states[s];
+                FlowState {
+                    child: kids.binary_search(&st.child).unwrap_or(usize::MAX),
+                    on_success: renumber(st.on_success),
+                    on_failure: renumber(st.on_failure),
+                }
+            })
+            .collect();
+        let me = self.push(
+            name,
+            path,
+            parent,
+            depth,
+            NodeKind::Flow(Flow {
+                children: Vec::new(),
+                states: Vec::new(),
+            }),
+            id,
+        )?;
+        let mut lowered = Vec::with_capacity(kids.len());
+        for &c in &kids {
+            lowered.push(self.node(c, Some(me), depth + 1, None)?);
+        }
+        let built = Flow::new(lowered, states).map_err(|e| NotPrimitive {
+            node: id,
+            reason: format!("internal error: the flow over its RoundRobin's index: {e}"),
+        })?;
+        self.out[me].kind = NodeKind::Flow(built);
+        // the nodes between the flow and its children have no run of their
+        // own: they stand for the flow
+        for k in range {
+            if self.image[k] == usize::MAX {
+                self.image[k] = me;
+            }
+        }
+        Ok(me)
+    }
 }
