@@ -307,12 +307,14 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
         parsed.len() + limited.len() + nav2.len() + semantic.len() + invalid.len(),
         trees.len()
     );
-    // 86 analysed and 7 simulated (a Nav2 node without an exact analysis)
-    // when this was written; what remains refused: 5 Nav2 trees with timed
+    // 88 analysed and 5 simulated (a Nav2 node without an exact analysis)
+    // when this was written (the 2 SpeedController trees, whose first wait
+    // differs from the later ones, are analysed: the renewal method with a
+    // first cycle); what remains refused: 5 Nav2 trees with timed
     // actions in two children of a ReactiveSequence, 2 with a
     // SequenceWithMemory below a RecoveryNode, 1 with a count from the
     // blackboard that no source gives (`{num_samples}`)
-    assert!(parsed.len() >= 86, "{} analysed", parsed.len());
+    assert!(parsed.len() >= 88, "{} analysed", parsed.len());
     assert!(parsed.len() + nav2.len() >= 93);
     assert!(semantic.len() <= 8, "{} refused", semantic.len());
 }
