@@ -29,19 +29,36 @@ struct Path {
 /// `Λ′ = (b′(1 − a) + b a′)/(1 − a)²`, with `(e^{−xd} Π r/(r+x))′ = −(d +
 /// Σ 1/(r + x)) · itself`.
 fn loop_transform(d: f64, again: &[Path], end: &[Path], x: f64) -> (f64, f64) {
-    let side = |paths: &[Path]| {
-        paths.iter().fold((0.0, 0.0), |(v, dv), p| {
-            let val =
-                p.coef * (-x * d).exp() * p.rates.iter().map(|r| r / (r + x)).product::<f64>();
-            let slope = -(d + p.rates.iter().map(|r| 1.0 / (r + x)).sum::<f64>());
-            (v + val, dv + val * slope)
-        })
-    };
-    let (a, da) = side(again);
-    let (b, db) = side(end);
+    let (a, da) = round_side(d, again, x);
+    let (b, db) = round_side(d, end, x);
     let l = b / (1.0 - a);
     let dl = (db * (1.0 - a) + b * da) / (1.0 - a).powi(2);
     (l, dl)
+}
+
+/// `e^{−xd} Σ coef Π r/(r+x)` over `paths` and its derivative in x.
+fn round_side(d: f64, paths: &[Path], x: f64) -> (f64, f64) {
+    paths.iter().fold((0.0, 0.0), |(v, dv), p| {
+        let val = p.coef * (-x * d).exp() * p.rates.iter().map(|r| r / (r + x)).product::<f64>();
+        let slope = -(d + p.rates.iter().map(|r| 1.0 / (r + x)).sum::<f64>());
+        (v + val, dv + val * slope)
+    })
+}
+
+/// The transform of the process with a first round of its own (Nav2's
+/// SpeedController: `Sequence(wait d₀, C′₀, loop)`): the first round ends
+/// the process (`b₀`, C′₀'s Failure paths after the wait d₀) or is
+/// followed by an independent loop (`a₀`, its Success paths), so
+/// `Λ₀ = b₀ + a₀ Λ` and `Λ₀′ = b₀′ + a₀′ Λ + a₀ Λ′`.
+fn first_transform(
+    (d0, again0, end0): (f64, &[Path], &[Path]),
+    lam: &dyn Fn(f64) -> (f64, f64),
+    x: f64,
+) -> (f64, f64) {
+    let (a0, da0) = round_side(d0, again0, x);
+    let (b0, db0) = round_side(d0, end0, x);
+    let (l, dl) = lam(x);
+    (b0 + a0 * l, db0 + da0 * l + a0 * dl)
 }
 
 /// `∫ e^{−μt} P(L > t) dt = (1 − Λ(μ))/μ` and `∫ t e^{−μt} P(L > t) dt =
@@ -84,6 +101,17 @@ fn race_yaml(d: f64, rerun: &str, rest: &str) -> String {
         "tree: {{parallel: {{name: race, success_threshold: 1, failure_threshold: 1, children: [\
          {{until_failure: {{name: replan, child: {{sequence: {{children: [\
          {{action: {{name: wait, ps: 1.0, tau_s: {d}}}}}, {rerun}]}}}}}}}}, {rest}]}}}}"
+    )
+}
+
+/// The race with a first cycle of its own: `Sequence(wait d₀, C′₀,
+/// until_failure(Sequence(wait d, C′)))` against `rest`.
+fn first_race_yaml(d0: f64, first: &str, d: f64, rerun: &str, rest: &str) -> String {
+    format!(
+        "tree: {{parallel: {{name: race, success_threshold: 1, failure_threshold: 1, children: [\
+         {{sequence: {{name: replan, children: [{{action: {{name: first wait, ps: 1.0, tau_s: {d0}}}}}, \
+         {first}, {{until_failure: {{name: loop, child: {{sequence: {{children: [\
+         {{action: {{name: wait, ps: 1.0, tau_s: {d}}}}}, {rerun}]}}}}}}}}]}}}}, {rest}]}}}}"
     )
 }
 
@@ -182,6 +210,114 @@ fn long_series_match_the_renewal_closed_form() {
         "{sequence: {children: [{action: {ps: 1.0, mu: 0.1}}, {action: {ps: 1.0, mu: 0.03}}]}}",
     ));
     assert_figures("two in turn", root_figures(&t), want, 1e-9);
+}
+
+#[test]
+fn a_first_cycle_with_its_own_wait_matches_the_closed_form() {
+    // Nav2's SpeedController at full speed (min_rate 0.1, max_rate 1):
+    // the first re-plan 2/1.1 s after the first plan, the later ones 1 s
+    // after each; the planner fails 0.5% of the time (thousands of re-runs)
+    let plan = || {
+        (
+            vec![Path {
+                coef: 0.995,
+                rates: vec![2.0],
+            }],
+            vec![Path {
+                coef: 0.005,
+                rates: vec![4.0],
+            }],
+        )
+    };
+    let d0 = 2.0 / 1.1;
+    let (again, end) = plan();
+    let lam = |x: f64| loop_transform(1.0, &again, &end, x);
+    let (again0, end0) = plan();
+    let lam0 = |x: f64| first_transform((d0, &again0, &end0), &lam, x);
+    let want = one_action(&lam0, 0.85, 1.0 / 60.0, 0.05);
+    // the first re-plan comes later than with one period throughout (1 s)
+    // and earlier than with 2/1.1 s throughout: ps between theirs
+    let lam_long = |x: f64| loop_transform(d0, &again, &end, x);
+    let (short, long) = (
+        one_action(&lam, 0.85, 1.0 / 60.0, 0.05).0,
+        one_action(&lam_long, 0.85, 1.0 / 60.0, 0.05).0,
+    );
+    assert!(short < want.0 && want.0 < long, "{short} {want:?} {long}");
+    let planner = "{action: {ps: 0.995, mu: 2.0, nu: 4.0}}";
+    let t = tree(&first_race_yaml(
+        d0,
+        planner,
+        1.0,
+        planner,
+        "{action: {name: follow, ps: 0.85, mu: 0.016666666666666666, nu: 0.05}}",
+    ));
+    assert_figures("speed controller", root_figures(&t), want, 1e-9);
+    // the law is the loop's series: the curve is refused, naming the process
+    let e = curve(&t, 0, &[1.0], &CurveOptions::default()).unwrap_err();
+    assert!(
+        matches!(&e, btrel::AnalysisError::Unbounded { node } if node == "replan"),
+        "{e}"
+    );
+
+    // a first re-run unlike the later ones and a first wait shorter than
+    // the period: C′₀ one action, C′ two in turn, R two phases in turn
+    let (p1, a1, b1, p2, a2, b2) = (0.99, 1.5, 3.0, 0.98, 5.0, 0.7);
+    let again = [Path {
+        coef: p1 * p2,
+        rates: vec![a1, a2],
+    }];
+    let end = [
+        Path {
+            coef: 1.0 - p1,
+            rates: vec![b1],
+        },
+        Path {
+            coef: p1 * (1.0 - p2),
+            rates: vec![a1, b2],
+        },
+    ];
+    let lam = |x: f64| loop_transform(0.5, &again, &end, x);
+    let again0 = [Path {
+        coef: 0.9,
+        rates: vec![3.0],
+    }];
+    let end0 = [Path {
+        coef: 0.1,
+        rates: vec![1.0],
+    }];
+    let lam0 = |x: f64| first_transform((0.25, &again0, &end0), &lam, x);
+    let want = two_in_turn(&lam0, 0.1, 0.03);
+    let t = tree(&first_race_yaml(
+        0.25,
+        "{action: {ps: 0.9, mu: 3.0, nu: 1.0}}",
+        0.5,
+        "{sequence: {children: [{action: {ps: 0.99, mu: 1.5, nu: 3.0}}, \
+         {action: {ps: 0.98, mu: 5.0, nu: 0.7}}]}}",
+        "{sequence: {children: [{action: {ps: 1.0, mu: 0.1}}, {action: {ps: 1.0, mu: 0.03}}]}}",
+    ));
+    assert_figures("first re-run of its own", root_figures(&t), want, 1e-9);
+
+    // an instantaneous first re-run (a condition of ps 0.6, at d₀ = 3 s):
+    // its paths have no phases
+    let again0 = [Path {
+        coef: 0.6,
+        rates: vec![],
+    }];
+    let end0 = [Path {
+        coef: 0.4,
+        rates: vec![],
+    }];
+    let lam0 = |x: f64| first_transform((3.0, &again0, &end0), &lam, x);
+    let want = one_action(&lam0, 0.7, 0.2, 0.4);
+    let t = tree(&first_race_yaml(
+        3.0,
+        "{condition: {ps: 0.6}}",
+        0.5,
+        "{sequence: {children: [{action: {ps: 0.99, mu: 1.5, nu: 3.0}}, \
+         {action: {ps: 0.98, mu: 5.0, nu: 0.7}}]}}",
+        "{action: {ps: 0.7, mu: 0.2, nu: 0.4}}",
+    ));
+    assert_figures("instantaneous first re-run", root_figures(&t), want, 1e-9);
 }
 
 #[test]
@@ -290,6 +426,60 @@ fn short_series_agree_with_the_renewal_method() {
 }
 
 #[test]
+fn short_series_with_a_first_wait_agree_with_the_renewal_method() {
+    // (first wait, first re-run, wait, C′, R), re-runs succeeding with
+    // probability ≤ 0.7: the series path (the rest ended by a 1e-300 s
+    // action, see `with_series`) is an independent algorithm
+    let zero = "{action: {name: zero, ps: 1.0, tau_s: 1e-300}}";
+    let cases = [
+        (
+            1.8,
+            "{action: {ps: 0.7, mu: 2.0, nu: 1.0}}",
+            1.0,
+            "{action: {ps: 0.7, mu: 2.0, nu: 1.0}}",
+            "{action: {ps: 0.9, mu: 0.2, nu: 0.5}}",
+        ),
+        (
+            0.2,
+            "{fallback: {children: [{condition: {ps: 0.2}}, {action: {ps: 0.5, mu: 1.0, nu: 3.0}}]}}",
+            0.9,
+            "{sequence: {children: [{action: {ps: 0.9, mu: 3.0, nu: 1.0}}, \
+             {action: {ps: 0.7, mu: 1.0, nu: 2.0}}]}}",
+            "{fallback: {children: [{condition: {ps: 0.25}}, {action: {ps: 0.8, mu: 0.1, nu: 0.3}}]}}",
+        ),
+    ];
+    for (k, (d0, first, d, rerun, rest)) in cases.iter().enumerate() {
+        let renewal = tree(&first_race_yaml(*d0, first, *d, rerun, rest));
+        let series = tree(&first_race_yaml(
+            *d0,
+            first,
+            *d,
+            rerun,
+            &format!("{{sequence: {{children: [{rest}, {zero}]}}}}"),
+        ));
+        let (a, b) = (root_figures(&renewal), root_figures(&series));
+        for (name, x, y) in [
+            ("ps", a.ps, b.ps),
+            ("pf", a.pf, b.pf),
+            ("MTTS", a.mtts.unwrap(), b.mtts.unwrap()),
+            ("MTTF", a.mttf.unwrap(), b.mttf.unwrap()),
+        ] {
+            assert!(
+                (x - y).abs() <= 1e-9 * y.abs().max(1.0),
+                "case {k} {name}: renewal {x} vs series {y} (diff {:.2e})",
+                x - y
+            );
+        }
+    }
+    // and the simulator plays the race with its first wait (|z| < 5)
+    let (_, first, _, rerun, rest) = cases[1];
+    assert_root_matches_simulation(
+        &tree(&first_race_yaml(2.5, first, 0.4, rerun, rest)),
+        200_000,
+    );
+}
+
+#[test]
 fn either_child_order_gives_the_same_race() {
     let rerun = "{action: {ps: 0.99, mu: 2.0, nu: 1.0}}";
     let rest =
@@ -339,6 +529,59 @@ fn a_replanning_pipeline_with_a_long_series_is_reported_exactly_and_simulated() 
         msg.contains("'pipe'") && msg.contains("re-runs") && msg.contains("exact without it"),
         "{msg}"
     );
+}
+
+#[test]
+fn corpus_speed_controller_trees_match_the_closed_form_and_simulation() {
+    // nav2{,_humble}/navigate_w_replanning_speed.xml: PipelineSequence(
+    // [ControllerSelector, PlannerSelector,] SpeedController(Plan), Follow)
+    // at 0.26 m/s (= max_speed: rate max_rate = 1 Hz), first wait
+    // 2/(0.1 + 1.0) s; params: Plan ps 0.95, Exp(1) / Exp(0.5); Follow ps
+    // 0.85, Exp(0.0166667) / Exp(0.05); the selectors (jazzy only) ps 1,
+    // Exp(100) each, before everything
+    let Some(root) = corpus() else {
+        println!("note: the corpus is absent; skipping");
+        return;
+    };
+    let (ps_plan, mu_plan, nu_plan) = (0.95, 1.0, 0.5);
+    let (s, mu, nu) = (0.85, 0.0166667, 0.05);
+    let again = [Path {
+        coef: ps_plan,
+        rates: vec![mu_plan],
+    }];
+    let end = [Path {
+        coef: 1.0 - ps_plan,
+        rates: vec![nu_plan],
+    }];
+    let lam = |x: f64| loop_transform(1.0, &again, &end, x);
+    let lam0 = |x: f64| first_transform((2.0 / 1.1, &again, &end), &lam, x);
+    let (race_ps, race_mtts, race_mttf) = one_action(&lam0, s, mu, nu);
+    let scratch = tempfile::tempdir().expect("tempdir");
+    for (dir, selectors) in [("nav2", 2.0 / 100.0), ("nav2_humble", 0.0)] {
+        let dir = root.join(dir);
+        let xml = dir.join("navigate_w_replanning_speed.xml");
+        let params = scratch.path().join("speed.params.yaml");
+        let published = std::fs::read_to_string(xml.with_extension("params.yaml")).expect("params");
+        std::fs::write(
+            &params,
+            format!("{published}\n\"SpeedController/speed\": {{value: 0.26}}\n"),
+        )
+        .expect("writes");
+        let t = parse_xml_files(&xml, &params, &[dir.join("nav2_tree_nodes.xml")]).expect("reads");
+        // the root: the selectors, the first plan, then the race
+        let ps = ps_plan * race_ps;
+        let mtts = selectors + 1.0 / mu_plan + race_mtts;
+        let failed_plan = (1.0 - ps_plan) * (selectors + 1.0 / nu_plan);
+        let failed_race = ps_plan * (1.0 - race_ps) * (selectors + 1.0 / mu_plan + race_mttf);
+        let mttf = (failed_plan + failed_race) / (1.0 - ps);
+        assert_figures(
+            &dir.display().to_string(),
+            root_figures(&t),
+            (ps, mtts, mttf),
+            1e-9,
+        );
+        assert_root_matches_simulation(&t, 100_000);
+    }
 }
 
 /// The corpus (../shared/realworld, or BTREL_REALWORLD).

@@ -3,7 +3,9 @@
 //! PipelineSequence (`crate::tree::nav2::primitive_view` lowers a
 //! `RateController(hz)` over a planner `C` to
 //! `Parallel{M = 1, F = 1}(until_failure(Sequence(wait d, C′)), R)`, with
-//! `d = 1/hz` and `R` the rest of the pipeline).
+//! `d = 1/hz` and `R` the rest of the pipeline; a SpeedController, whose
+//! first wait `d₀` differs from the later ones, to the process
+//! `Sequence(wait d₀, C′₀, until_failure(Sequence(wait d, C′)))`).
 //!
 //! When `R` and `C′` have exact phase chains (generator `Q_R` over R's
 //! transient phases, exit vectors to Success and Failure, initial vector
@@ -35,6 +37,12 @@
 //! cycles together: `V = α_R (I − M)⁻¹`, `W = V M₁ (I − M)⁻¹` (the
 //! time-weighted visits: the block map `[[M, M₁], [0, M]]`), and
 //! `P(S) = α_S + V·a_S`, `E[T·1{S}] = W·a_S + V·b_S`, likewise Failure.
+//! A first cycle of its own (wait `d₀`, re-run `C′₀`: its maps `M⁰`, `M⁰₁`,
+//! `a⁰`, `b⁰` by the same passes) starts the loop at `v₁ = α_R M⁰` with
+//! time-weighted mass `w₁ = α_R M⁰₁`: then `V = v₁ (I − M)⁻¹`,
+//! `W = (w₁ + V M₁)(I − M)⁻¹`, and the first cycle adds `α_R·a⁰` and
+//! `α_R·b⁰` to the outcomes (its passes and exponential add to the cost).
+//!
 //! Both chains are acyclic, so `M` is upper triangular, the solves are
 //! substitutions, and its diagonal's complement
 //! `1 − M_kk = (1 − e^{−q_k d}) + e^{−q_k d}·P(C′ does not succeed while R
@@ -47,7 +55,7 @@
 //! chain's states or the numbers kept (8 a state) exceed the state budget.
 //!
 //! Ties: R returns at time 0 only (a phase chain has no atom later), before
-//! any re-run can fail (`d > 0`); `C′` fails at a cycle's start only at
+//! any re-run can fail (`d, d₀ > 0`); `C′` fails at a cycle's start only at
 //! instants where R has no atom. So BT.CPP's child order decides nothing
 //! here and either order of the Parallel's children is accepted.
 
@@ -77,17 +85,70 @@ pub(crate) enum Renewal {
 
 /// The parts of a renewal race.
 struct Parts {
-    /// The re-run process `until_failure(Sequence(wait, C′))`.
+    /// The re-run process: `until_failure(Sequence(wait, C′))`, or
+    /// `Sequence(wait d₀, C′₀, until_failure(Sequence(wait, C′)))`.
     process: NodeId,
     /// The fixed wait `d` (s).
     wait: f64,
     /// The re-run `C′`.
     rerun: NodeId,
+    /// A first cycle that differs: its wait `d₀` (s) and re-run `C′₀`.
+    first: Option<(f64, NodeId)>,
     /// The raced subtree `R`.
     rest: NodeId,
 }
 
-/// `Parallel{1, 1}(until_failure(Sequence(wait d, C′)), R)` (either order).
+/// The time of `w` when it is a wait: an action with ps 1 and a fixed
+/// success time in (0, ∞).
+fn wait_time(tree: &Tree, w: NodeId) -> Option<f64> {
+    match &tree.node(w).kind {
+        NodeKind::Action(a) if a.ps == 1.0 && a.pf == 0.0 => match a.success {
+            Some(Duration::Fixed { time }) if time > 0.0 && time.is_finite() => Some(time),
+            _ => None,
+        },
+        _ => None,
+    }
+}
+
+/// `until_failure(Sequence(wait d, C′))`: `(d, C′)`.
+fn renewal_loop(tree: &Tree, p: NodeId) -> Option<(f64, NodeId)> {
+    let NodeKind::Decorator {
+        decorator: Decorator::UntilFailure,
+        child,
+    } = tree.node(p).kind
+    else {
+        return None;
+    };
+    let NodeKind::Sequence { children } = &tree.node(child).kind else {
+        return None;
+    };
+    let [w, c] = children[..] else {
+        return None;
+    };
+    Some((wait_time(tree, w)?, c))
+}
+
+/// A re-run process: `(d, C′, first cycle)` (see [`Parts`]).
+type Process = (f64, NodeId, Option<(f64, NodeId)>);
+
+/// The re-run process `p` (see [`Parts`]).
+fn process(tree: &Tree, p: NodeId) -> Option<Process> {
+    if let Some((d, c)) = renewal_loop(tree, p) {
+        return Some((d, c, None));
+    }
+    // a first cycle of its own (Nav2's SpeedController), then the loop
+    let NodeKind::Sequence { children } = &tree.node(p).kind else {
+        return None;
+    };
+    let [w0, c0, l] = children[..] else {
+        return None;
+    };
+    let d0 = wait_time(tree, w0)?;
+    let (d, c) = renewal_loop(tree, l)?;
+    Some((d, c, Some((d0, c0))))
+}
+
+/// `Parallel{1, 1}(process, R)` (either order) with a re-run process.
 fn parts(tree: &Tree, id: NodeId) -> Option<Parts> {
     let NodeKind::Parallel {
         success_threshold: 1,
@@ -100,47 +161,18 @@ fn parts(tree: &Tree, id: NodeId) -> Option<Parts> {
     let [a, b] = children[..] else {
         return None;
     };
-    let process = |p: NodeId| -> Option<(f64, NodeId)> {
-        let NodeKind::Decorator {
-            decorator: Decorator::UntilFailure,
-            child,
-        } = tree.node(p).kind
-        else {
-            return None;
-        };
-        let NodeKind::Sequence { children } = &tree.node(child).kind else {
-            return None;
-        };
-        let [w, c] = children[..] else {
-            return None;
-        };
-        match &tree.node(w).kind {
-            NodeKind::Action(a)
-                if a.ps == 1.0
-                    && a.pf == 0.0
-                    && matches!(a.success, Some(Duration::Fixed { time }) if time > 0.0 && time.is_finite()) =>
-            {
-                let Some(Duration::Fixed { time }) = a.success else {
-                    return None;
-                };
-                Some((time, c))
-            }
-            _ => None,
-        }
+    let (p, rest) = if process(tree, a).is_some() {
+        (a, b)
+    } else {
+        (b, a)
     };
-    if let Some((wait, rerun)) = process(a) {
-        return Some(Parts {
-            process: a,
-            wait,
-            rerun,
-            rest: b,
-        });
-    }
-    process(b).map(|(wait, rerun)| Parts {
-        process: b,
+    let (wait, rerun, first) = process(tree, p)?;
+    Some(Parts {
+        process: p,
         wait,
         rerun,
-        rest: a,
+        first,
+        rest,
     })
 }
 
@@ -200,18 +232,37 @@ pub(crate) fn figures(
         Err(None) => return Ok(Renewal::NotApplicable),
         Err(Some(error)) => return Ok(Renewal::TooLarge { error, terms }),
     };
-    let (nr, nc) = (r.len(), c.len());
-    let product = nr as f64 * nc as f64;
-    let edges_c: usize = c.transitions.iter().map(Vec::len).sum::<usize>() + 3 * nc;
-    let edges_r: usize = r.transitions.iter().map(Vec::len).sum::<usize>() + 3 * nr;
-    // the passes: from each start phase, the product rows below it
-    let passes = nr as f64 * (edges_r as f64 * nc as f64 + edges_c as f64 * nr as f64);
-    let wait_work = match wait_method(&r, p.wait) {
-        Some(Exponential::Dense) => expm::dense_work(&r, &[p.wait]),
-        Some(Exponential::Uniformized) => uniformized_work(&r, p.wait),
-        None => f64::INFINITY,
+    let first = match p.first {
+        None => None,
+        Some((d0, c0)) => match chain(c0)? {
+            Ok(c0) => Some((d0, c0)),
+            Err(None) => return Ok(Renewal::NotApplicable),
+            Err(Some(error)) => return Ok(Renewal::TooLarge { error, terms }),
+        },
     };
-    let work = wait_work + passes + 4.0 * (nr as f64).powi(3);
+    let nr = r.len();
+    let edges_r: usize = r.transitions.iter().map(Vec::len).sum::<usize>() + 3 * nr;
+    // one cycle's work: its wait's exponential and the passes (from each
+    // start phase, the product rows below it)
+    let cycle_work = |c: &PhaseChain, d: f64| {
+        let nc = c.len();
+        let edges_c: usize = c.transitions.iter().map(Vec::len).sum::<usize>() + 3 * nc;
+        let passes = nr as f64 * (edges_r as f64 * nc as f64 + edges_c as f64 * nr as f64);
+        let wait_work = match wait_method(&r, d) {
+            Some(Exponential::Dense) => expm::dense_work(&r, &[d]),
+            Some(Exponential::Uniformized) => uniformized_work(&r, d),
+            None => f64::INFINITY,
+        };
+        wait_work + passes + 4.0 * (nr as f64).powi(3)
+    };
+    let mut work = cycle_work(&c, p.wait);
+    // the product chains' states (the first cycle's, when it has one, are
+    // freed before the loop's are kept)
+    let mut product = nr as f64 * c.len() as f64;
+    if let Some((d0, c0)) = &first {
+        work += cycle_work(c0, *d0);
+        product = product.max(nr as f64 * c0.len() as f64);
+    }
     let too_large = |states: f64, budget: usize| Renewal::TooLarge {
         error: AnalysisError::StateBudget {
             node: name.clone(),
@@ -235,7 +286,8 @@ pub(crate) fn figures(
             terms,
         });
     }
-    let f = solve(&r, &c, p.wait).ok_or_else(|| AnalysisError::Numerical {
+    let first = first.as_ref().map(|(d0, c0)| (c0, *d0));
+    let f = solve(&r, &c, p.wait, first).ok_or_else(|| AnalysisError::Numerical {
         node: name.clone(),
         what: "the renewal race of its re-runs gave a non-finite or negative figure".into(),
     })?;
@@ -276,14 +328,25 @@ fn absorption_dd(r: &PhaseChain) -> [Vec<Dd>; 4] {
     out
 }
 
-/// The figures of the race of R against the re-runs of C with wait `d`
-/// (module docs); `None` when a figure is not finite.
-fn solve(r: &PhaseChain, c: &PhaseChain, d: f64) -> Option<Figures> {
+/// One cycle (a wait `d`, then a run of C beside R) as maps of the row
+/// vector over R's phases at its start (module docs; `n = n_R`, row major).
+struct Cycle {
+    /// `M = E·G`: the phases at the next cycle's start.
+    mm: Vec<f64>,
+    /// `M₁ = E·(d·G + G₁)`: its time-weighted version.
+    m1: Vec<f64>,
+    /// The node's outcomes within the cycle per start phase: `[P(S), P(F)]`.
+    a: Vec<[f64; 2]>,
+    /// Their time integrals from the cycle's start.
+    b: Vec<[f64; 2]>,
+    /// `1 − M_kk` as non-negative terms.
+    stay: Vec<f64>,
+}
+
+/// The cycle of wait `d` and re-run C beside R (`r.len() > 0`); `None`
+/// when a phase has no exit.
+fn cycle(r: &PhaseChain, c: &PhaseChain, d: f64) -> Option<Cycle> {
     let (nr, nc) = (r.len(), c.len());
-    let (a_s0, a_f0) = (r.initial_success, r.initial_failure);
-    if nr == 0 {
-        return finish(a_s0, a_f0, 0.0, 0.0);
-    }
     // the wait: E, R's returns by d, and their time integrals
     let (e, wait_a) = match wait_method(r, d) {
         Some(Exponential::Dense) => dense_exponential(r, d),
@@ -392,10 +455,61 @@ fn solve(r: &PhaseChain, c: &PhaseChain, d: f64) -> Option<Figures> {
             gone + (1.0 - gone) * leave[k]
         })
         .collect();
+    Some(Cycle { mm, m1, a, b, stay })
+}
+
+/// The figures of the race of R against the re-runs of C with wait `d`,
+/// after a first cycle of its own when `first` = `(C₀, d₀)` is given (the
+/// process `Sequence(wait d₀, C₀, until_failure(Sequence(wait d, C)))`):
+/// module docs; `None` when a figure is not finite.
+///
+/// The first cycle maps R's initial vector `α` (at time 0) to
+/// `v₁ = α M₀` and the time-weighted `w₁ = α M₀₁`, with outcomes `α·a₀`,
+/// `α·b₀`; the cycles from there visit `V = v₁ (I − M)⁻¹` and
+/// `W = (w₁ + V M₁)(I − M)⁻¹` (`w_{n+1} = w_n M + v_n M₁`, summed).
+fn solve(
+    r: &PhaseChain,
+    c: &PhaseChain,
+    d: f64,
+    first: Option<(&PhaseChain, f64)>,
+) -> Option<Figures> {
+    let nr = r.len();
+    let (a_s0, a_f0) = (r.initial_success, r.initial_failure);
+    if nr == 0 {
+        return finish(a_s0, a_f0, 0.0, 0.0);
+    }
+    let mut alpha = vec![0.0f64; nr];
+    for &(i, w) in &r.initial {
+        alpha[i] += w;
+    }
+    let (mut ps, mut pf, mut ts, mut tf) = (a_s0, a_f0, 0.0, 0.0);
+    // the start of the loop's first cycle: mass and time-weighted mass
+    let mut start = alpha;
+    let mut start_w = vec![0.0f64; nr];
+    if let Some((c0, d0)) = first {
+        let f = cycle(r, c0, d0)?;
+        let mut v1 = vec![0.0f64; nr];
+        for (i, &x) in start.iter().enumerate() {
+            if x == 0.0 {
+                continue;
+            }
+            for j in i..nr {
+                v1[j] += x * f.mm[i * nr + j];
+                start_w[j] += x * f.m1[i * nr + j];
+            }
+            ps += x * f.a[i][0];
+            pf += x * f.a[i][1];
+            ts += x * f.b[i][0];
+            tf += x * f.b[i][1];
+        }
+        start = v1;
+    }
+    let Cycle { mm, m1, a, b, stay } = cycle(r, c, d)?;
     if stay.iter().any(|&s| s <= 0.0 || !s.is_finite()) {
         return None;
     }
-    // V (I − M) = α_R and W (I − M) = V M₁, by forward substitution
+    // V (I − M) = v₁ and W (I − M) = w₁ + V M₁ (v₁ = α_R, w₁ = 0 without
+    // a first cycle), by forward substitution
     let substitute = |rhs: &[f64]| -> Vec<f64> {
         let mut out = vec![0.0f64; nr];
         for j in 0..nr {
@@ -407,19 +521,14 @@ fn solve(r: &PhaseChain, c: &PhaseChain, d: f64) -> Option<Figures> {
         }
         out
     };
-    let mut alpha = vec![0.0f64; nr];
-    for &(i, w) in &r.initial {
-        alpha[i] += w;
-    }
-    let v = substitute(&alpha);
-    let mut u = vec![0.0f64; nr];
+    let v = substitute(&start);
+    let mut u = start_w;
     for i in 0..nr {
         for j in i..nr {
             u[j] += v[i] * m1[i * nr + j];
         }
     }
     let w = substitute(&u);
-    let (mut ps, mut pf, mut ts, mut tf) = (a_s0, a_f0, 0.0, 0.0);
     for k in 0..nr {
         ps += v[k] * a[k][0];
         pf += v[k] * a[k][1];
@@ -595,7 +704,7 @@ mod tests {
         let i = c.push_phase();
         c.exit_success[i] = 4.0;
         c.initial.push((i, 1.0));
-        let f = solve(&r, &c, 0.5).expect("finite");
+        let f = solve(&r, &c, 0.5, None).expect("finite");
         let a = crate::solve::transient::absorption_by_phase(&r);
         let (mut ps, mut ts, mut pf, mut tf) = (0.0, 0.0, 0.0, 0.0);
         for &(i, w) in &r.initial {

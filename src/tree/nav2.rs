@@ -177,7 +177,10 @@ pub struct View {
 ///   re-run process that never succeeds and fails when a re-run fails:
 ///   `until_failure(Sequence(wait T, c_k′))` for a RateController of period
 ///   `T` (`wait`: an action with ps 1 and tau_s `T`; `c_k′` a fresh copy of
-///   the RateController's child), `until_failure(c_k′)` for a control node
+///   the RateController's child; a SpeedController whose first wait `T₀`
+///   differs runs one cycle of its own first:
+///   `Sequence(wait T₀, c_k′, until_failure(Sequence(wait T, c_k′)))`, the
+///   copies fresh), `until_failure(c_k′)` for a control node
 ///   or decorator re-run back to back (`c_k′` a fresh copy of `c_k`). The
 ///   process lives until the pipeline ends, so it races the whole rest of
 ///   the pipeline, not each later phase on its own (it is memoryless only at
@@ -434,7 +437,7 @@ impl Lowering<'_> {
                 break;
             }
             let cname = &tree.nodes[c].name;
-            // what re-runs, and after which wait
+            // what re-runs, and after which waits (the first, the later)
             let (rerun, wait) = match retick(tree, c) {
                 Retick::Inert => continue,
                 Retick::Restart => (c, None),
@@ -442,23 +445,12 @@ impl Lowering<'_> {
                     let NodeKind::Decorator { child, decorator } = tree.nodes[c].kind else {
                         unreachable!("Rate is a decorator")
                     };
-                    if let Decorator::Rate { first, .. } = decorator {
-                        if first != period {
-                            // seconds to at most 6 decimals (1.818182, 1)
-                            let secs = |x: f64| format!("{}", (x * 1e6).round() / 1e6);
-                            let (first, period) = (secs(first), secs(period));
-                            return Err(NotPrimitive {
-                                node: c,
-                                reason: format!(
-                                    "its first re-run comes {first} s after its child's first \
-                                     Success and the later ones {period} s after each Success \
-                                     (Nav2's SpeedController starts with the period \
-                                     2/(min_rate + max_rate)); the analysis models one period"
-                                ),
-                            });
-                        }
-                    }
-                    (child, Some(period))
+                    // a SpeedController's first wait differs
+                    let first = match decorator {
+                        Decorator::Rate { first, .. } => first,
+                        _ => period,
+                    };
+                    (child, Some((first, period)))
                 }
                 Retick::Fail => {
                     return Err(NotPrimitive {
@@ -511,11 +503,52 @@ impl Lowering<'_> {
                 None => format!("{cname}/re-run"),
                 Some(prefix) => format!("{prefix}/{cname}/re-run"),
             };
+            // a first wait of its own: Sequence(first wait, first copy, loop)
+            let outer = match wait {
+                Some((first, period)) if first != period => {
+                    let outer = self.push(
+                        pname.clone(),
+                        format!("{race_path}/re-run"),
+                        Some(race),
+                        depth + 1,
+                        NodeKind::Sequence {
+                            children: Vec::new(),
+                        },
+                        c,
+                    )?;
+                    let w = self.push(
+                        format!("{pname}/first wait"),
+                        format!("{race_path}/re-run/first wait"),
+                        Some(outer),
+                        depth + 2,
+                        NodeKind::Action(super::Action {
+                            ps: 1.0,
+                            pf: 0.0,
+                            success: Some(super::Duration::Fixed { time: first }),
+                            failure: None,
+                        }),
+                        c,
+                    )?;
+                    let once = format!("{pname}/first");
+                    let again = self.node(rerun, Some(outer), depth + 2, Some(&once))?;
+                    Some((outer, vec![w, again]))
+                }
+                _ => None,
+            };
+            // the loop (below `outer` when there is one)
+            let (lname, lpath, ld) = match &outer {
+                Some(_) => (
+                    format!("{pname}/loop"),
+                    format!("{race_path}/re-run/loop"),
+                    depth + 2,
+                ),
+                None => (pname.clone(), format!("{race_path}/re-run"), depth + 1),
+            };
             let process = self.push(
-                pname.clone(),
-                format!("{race_path}/re-run"),
-                Some(race),
-                depth + 1,
+                lname,
+                lpath.clone(),
+                Some(outer.as_ref().map_or(race, |o| o.0)),
+                ld,
                 NodeKind::Decorator {
                     decorator: Decorator::UntilFailure,
                     child: usize::MAX,
@@ -523,13 +556,13 @@ impl Lowering<'_> {
                 c,
             )?;
             let body = match wait {
-                None => self.node(rerun, Some(process), depth + 2, Some(&pname))?,
-                Some(period) => {
+                None => self.node(rerun, Some(process), ld + 1, Some(&pname))?,
+                Some((_, period)) => {
                     let cycle = self.push(
                         format!("{pname}/cycle"),
-                        format!("{race_path}/re-run/cycle"),
+                        format!("{lpath}/cycle"),
                         Some(process),
-                        depth + 2,
+                        ld + 1,
                         NodeKind::Sequence {
                             children: Vec::new(),
                         },
@@ -537,9 +570,9 @@ impl Lowering<'_> {
                     )?;
                     let w = self.push(
                         format!("{pname}/wait"),
-                        format!("{race_path}/re-run/wait"),
+                        format!("{lpath}/wait"),
                         Some(cycle),
-                        depth + 3,
+                        ld + 2,
                         NodeKind::Action(super::Action {
                             ps: 1.0,
                             pf: 0.0,
@@ -548,12 +581,20 @@ impl Lowering<'_> {
                         }),
                         c,
                     )?;
-                    let again = self.node(rerun, Some(cycle), depth + 3, Some(&pname))?;
+                    let again = self.node(rerun, Some(cycle), ld + 2, Some(&pname))?;
                     self.set_children(cycle, vec![w, again]);
                     cycle
                 }
             };
             self.set_children(process, vec![body]);
+            let process = match outer {
+                Some((outer, mut kids)) => {
+                    kids.push(process);
+                    self.set_children(outer, kids);
+                    outer
+                }
+                None => process,
+            };
             let rest = self.push(
                 format!("{race_name}/rest"),
                 format!("{race_path}/rest"),
