@@ -13,7 +13,10 @@ mod common;
 use btrel::compile::{analyze, Figures, Options};
 use btrel::tree::xml::{is_unsupported, parse_xml_str};
 use btrel::tree::{Tree, TreeError};
-use common::{assert_root_matches_simulation, assert_within_z, root_curve_at, simulate_root};
+use common::{
+    assert_root_matches_simulation, assert_within_z, check_figures, close, root_curve_at,
+    simulate_root,
+};
 
 fn xml(body: &str, params: &str) -> Result<Tree, TreeError> {
     let src = format!(
@@ -39,20 +42,6 @@ fn err(body: &str, params: &str) -> TreeError {
     }
 }
 
-fn close(a: f64, b: f64) -> bool {
-    (a - b).abs() <= 1e-12 * a.abs().max(b.abs()).max(1.0)
-}
-
-fn check(f: Figures, ps: f64, mtts: Option<f64>, mttf: Option<f64>) {
-    assert!(close(f.ps, ps) && close(f.pf, 1.0 - ps), "{f:?} vs ps {ps}");
-    for (got, want) in [(f.mtts, mtts), (f.mttf, mttf)] {
-        match (got, want) {
-            (Some(g), Some(w)) => assert!(close(g, w), "{f:?}: {g} vs {w}"),
-            (g, w) => assert_eq!(g.is_some(), w.is_some(), "{f:?}"),
-        }
-    }
-}
-
 /// Action A: ps 1/2, success time Exp(1) (mean 1 s), failure time Exp(2)
 /// (mean 1/2 s).
 const A: &str = "A: {ps: 0.5, mu: 1, nu: 2}\n";
@@ -69,7 +58,7 @@ fn manual_selector_is_a_choice_with_the_params_probabilities() {
     // ps = 0.2·0.8 + 0.4·0.4 + 0.4·0.3 = 0.44
     // MTTS = (0.16·(1/2) + 0.16·1 + 0.12·0) / 0.44
     // MTTF = (0.04·1 + 0.24·(1/4) + 0.28·0) / 0.56
-    check(
+    check_figures(
         root(body, params),
         0.44,
         Some(0.24 / 0.44),
@@ -79,7 +68,7 @@ fn manual_selector_is_a_choice_with_the_params_probabilities() {
     // the type keys the predicates when there is no name
     let body = "<ManualSelector><X/><Y/></ManualSelector>";
     let f = root(body, "X: {ps: 0.8, mu: 2, nu: 1}\nY: {ps: 0.4, mu: 1, nu: 4}\n\"ManualSelector/select_1\": {ps: 0.25}\n");
-    check(
+    check_figures(
         f,
         0.25 * 0.8 + 0.75 * 0.4,
         Some((0.2 * 0.5 + 0.3) / 0.5),
@@ -87,14 +76,14 @@ fn manual_selector_is_a_choice_with_the_params_probabilities() {
     );
     // without children the user picks the status: a condition keyed like a
     // leaf
-    check(
+    check_figures(
         root("<ManualSelector name=\"Ask\"/>", "Ask: {ps: 0.3}"),
         0.3,
         Some(0.0),
         Some(0.0),
     );
     // one child: the child itself, no predicate
-    check(
+    check_figures(
         root("<ManualSelector><A/></ManualSelector>", A),
         0.5,
         Some(1.0),
@@ -134,7 +123,7 @@ fn consume_queue_and_foreach_run_the_child_once_per_element() {
         "<ConsumeQueue queue=\"{q}\" popped_item=\"{x}\"><A/></ConsumeQueue>",
         "<Decorator ID=\"ForEach\" vector_in=\"{q}\" out=\"{x}\" index=\"{i}\"><A/></Decorator>",
     ] {
-        check(root(body, &params), 0.125, Some(3.0), Some(mttf));
+        check_figures(root(body, &params), 0.125, Some(3.0), Some(mttf));
         // the success curve: 1/8 times the Erlang(3, 1) CDF
         let t = 2.0f64;
         let erlang = 1.0 - (-t).exp() * (1.0 + t + t * t / 2.0);
@@ -147,7 +136,7 @@ fn consume_queue_and_foreach_run_the_child_once_per_element() {
         "<ConsumeQueue queue=\"{q}\"><A/></ConsumeQueue>",
         "\"{q}\": {value: 0}\n",
     );
-    check(f, 1.0, Some(0.0), None);
+    check_figures(f, 1.0, Some(0.0), None);
     // ForEach on an empty vector: MoveIt Pro does not say; refused
     let e = err(
         "<ForEach vector_in=\"{q}\"><A/></ForEach>",
@@ -175,7 +164,7 @@ fn consume_queue_and_foreach_run_the_child_once_per_element() {
 fn repeat_unless_failure_each_tick_is_repeat() {
     // two Successes in a row: ps 1/4, MTTS 2
     let body = "<Decorator ID=\"RepeatUnlessFailureEachTick\" num_cycles=\"2\"><A/></Decorator>";
-    check(
+    check_figures(
         root(body, A),
         0.25,
         Some(2.0),
@@ -185,7 +174,7 @@ fn repeat_unless_failure_each_tick_is_repeat() {
     // the k-th with probability 2^-k, after k − 1 successes: MTTF
     // 1/2 + E[k − 1] = 1/2 + 1
     let body = "<RepeatUnlessFailureEachTick num_cycles=\"-1\"><A/></RepeatUnlessFailureEachTick>";
-    check(root(body, A), 0.0, None, Some(1.5));
+    check_figures(root(body, A), 0.0, None, Some(1.5));
 }
 
 #[test]
@@ -193,7 +182,7 @@ fn path_longer_on_approach_runs_its_child_when_the_path_got_longer() {
     // the path got longer with 0.3: A runs (ps 1/2), else Success at once
     let body = "<PathLongerOnApproach path=\"{path}\" prox_len=\"3.0\" length_factor=\"2.0\"><A/></PathLongerOnApproach>";
     let params = format!("{A}\"PathLongerOnApproach/longer\": {{ps: 0.3}}\n");
-    check(root(body, &params), 0.85, Some(0.15 / 0.85), Some(0.5));
+    check_figures(root(body, &params), 0.85, Some(0.15 / 0.85), Some(0.5));
     assert_root_matches_simulation(&tree(body, &params), 100_000);
     // the predicate is a parameter
     let e = err(body, A);
@@ -203,7 +192,7 @@ fn path_longer_on_approach_runs_its_child_when_the_path_got_longer() {
 #[test]
 fn goal_updated_controller_runs_its_child_once() {
     let body = "<GoalUpdatedController><A/></GoalUpdatedController>";
-    check(root(body, A), 0.5, Some(1.0), Some(0.5));
+    check_figures(root(body, A), 0.5, Some(1.0), Some(0.5));
     // an earlier pipeline child: re-ticked it returns RUNNING without
     // ticking its child, so the pipeline is a Sequence (ps 1/2 · 4/5)
     let body = "<PipelineSequence><GoalUpdatedController><A/></GoalUpdatedController><B/></PipelineSequence>";
@@ -236,7 +225,7 @@ fn replanning(tag: &str, attrs: &str, b: f64) -> (String, String) {
 fn distance_controller_is_a_rate_controller_of_period_distance_over_speed() {
     // outside a pipeline: its child once
     let params = format!("{A}\"DistanceController/speed\": {{value: 0.5}}\n");
-    check(
+    check_figures(
         root(
             "<DistanceController distance=\"1.0\"><A/></DistanceController>",
             &params,

@@ -6,8 +6,12 @@
 //! tests/btcpp/make_log.py (behaviortreepy, BTREL_PYTHON) from known
 //! parameters.
 
+mod common;
+
 use std::path::PathBuf;
 use std::process::Command;
+
+use common::behaviortree_python;
 
 fn bin() -> assert_cmd::Command {
     assert_cmd::Command::cargo_bin("btrel").expect("binary")
@@ -405,20 +409,6 @@ fn fitted_file_is_read_by_report() {
     assert!(o.status.success(), "{o:?}");
 }
 
-fn python() -> Option<PathBuf> {
-    match std::env::var_os("BTREL_PYTHON") {
-        Some(p) if !p.is_empty() => Some(PathBuf::from(p)),
-        _ => {
-            eprintln!(
-                "skipped: set BTREL_PYTHON to a Python with behaviortreepy (bash .ci/run \
-                 creates target/pyvenv from tests/python-requirements.txt) to fit real \
-                 BehaviorTree.CPP logs"
-            );
-            None
-        }
-    }
-}
-
 /// Real BT.CPP logs: the fitted ps and rates are within |z| < 4 of the
 /// parameters make_log.py drew from. The tick loop sees a completion up to
 /// one tick late (the script measures it and the test prints it: 67 µs on
@@ -427,7 +417,9 @@ fn python() -> Option<PathBuf> {
 /// quantisation is well inside the tolerance.
 #[test]
 fn real_btcpp_logs() {
-    let Some(py) = python() else { return };
+    let Some(py) = behaviortree_python() else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let log = dir.path().join("run.btlog");
     let o = Command::new(&py)

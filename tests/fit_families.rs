@@ -4,27 +4,16 @@
 //! BTREL_PYTHON) get those families, with rates near the truth, and the
 //! params file drives `report --params` on the tree embedded in the log.
 
-use std::path::PathBuf;
+mod common;
+
 use std::process::Command;
+
+use common::behaviortree_python;
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
 fn bin() -> assert_cmd::Command {
     assert_cmd::Command::cargo_bin("btrel").expect("binary")
-}
-
-fn python() -> Option<PathBuf> {
-    match std::env::var_os("BTREL_PYTHON") {
-        Some(p) if !p.is_empty() => Some(PathBuf::from(p)),
-        _ => {
-            eprintln!(
-                "skipped: set BTREL_PYTHON to a Python with behaviortreepy (bash .ci/run \
-                 creates target/pyvenv from tests/python-requirements.txt) to fit real \
-                 BehaviorTree.CPP logs"
-            );
-            None
-        }
-    }
 }
 
 /// 300 runs; the families differ by hundreds in BIC. Rates are compared
@@ -34,7 +23,9 @@ fn python() -> Option<PathBuf> {
 /// loaded 2-core machine against means of 5–20 ms).
 #[test]
 fn auto_timing_finds_the_families_of_a_real_btcpp_log() {
-    let Some(py) = python() else { return };
+    let Some(py) = behaviortree_python() else {
+        return;
+    };
     let dir = tempfile::tempdir().expect("tempdir");
     let log = dir.path().join("run.btlog");
     let o = Command::new(&py)

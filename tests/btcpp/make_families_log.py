@@ -16,9 +16,9 @@ usage: make_families_log.py OUT.btlog RUNS SEED
 import json
 import random
 import sys
-import time
 
 import behaviortreepy as bt
+from btlog_common import TimedActions, run_logged
 
 TREE = """
 <root BTCPP_format="4" main_tree_to_execute="Main">
@@ -44,44 +44,15 @@ def main():
         "Shift": lambda: (True, 0.010 + rng.expovariate(200.0)),
     }
     factory = bt.BehaviorTreeFactory()
-    state = {}
-    late = []
-
-    def make(draw):
-        def on_start(node):
-            ok, d = draw()
-            state[node.uid()] = (time.monotonic() + d, ok)
-            return bt.NodeStatus.RUNNING
-
-        def on_running(node):
-            deadline, ok = state[node.uid()]
-            now = time.monotonic()
-            if now < deadline:
-                return bt.NodeStatus.RUNNING
-            late.append(now - deadline)
-            return bt.NodeStatus.SUCCESS if ok else bt.NodeStatus.FAILURE
-
-        def on_halted(node):
-            state.pop(node.uid(), None)
-
-        return on_start, on_running, on_halted
-
+    actions = TimedActions()
     for name, draw in draws.items():
-        factory.register_simple_stateful_action(name, *make(draw))
-    tree = factory.create_tree_from_text(TREE)
-    logger = bt.FileLogger(tree, out)
-    for _ in range(runs):
-        while tree.tick_once() == bt.NodeStatus.RUNNING:
-            pass
-        tree.halt_tree()
-    logger.flush()
-    del logger
+        factory.register_simple_stateful_action(name, *actions.callbacks(draw))
+    run_logged(factory, TREE, out, runs)
     truth = {
         "Expo": {"family": "exponential", "ps": 0.7, "mu": 50.0, "nu": 100.0},
         "Erl": {"family": "Erlang-3", "rate": 200.0},
         "Shift": {"family": "shifted exponential", "shift": 0.010, "rate": 200.0},
-        "late_mean_s": sum(late) / max(len(late), 1),
-        "late_max_s": max(late, default=0.0),
+        **actions.late_stats(),
     }
     json.dump(truth, sys.stdout)
 

@@ -13,9 +13,9 @@ usage: make_log.py OUT.btlog RUNS SEED
 import json
 import random
 import sys
-import time
 
 import behaviortreepy as bt
+from btlog_common import TimedActions, run_logged
 
 # leaf ID -> (ps, mu, nu) in 1/s; conditions have ps only
 ACTIONS = {
@@ -56,32 +56,16 @@ def main():
     out, runs, seed = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
     rng = random.Random(seed)
     factory = bt.BehaviorTreeFactory()
-    state = {}
-    # how much later than drawn the tree saw each completion (tick quantisation)
-    late = []
+    actions = TimedActions()
 
-    def make(ps, mu, nu):
-        def on_start(node):
-            ok = rng.random() < ps
-            d = rng.expovariate(mu if ok else nu)
-            state[node.uid()] = (time.monotonic() + d, ok)
-            return bt.NodeStatus.RUNNING
-
-        def on_running(node):
-            deadline, ok = state[node.uid()]
-            now = time.monotonic()
-            if now < deadline:
-                return bt.NodeStatus.RUNNING
-            late.append(now - deadline)
-            return bt.NodeStatus.SUCCESS if ok else bt.NodeStatus.FAILURE
-
-        def on_halted(node):
-            state.pop(node.uid(), None)
-
-        return on_start, on_running, on_halted
+    def draw(ps, mu, nu):
+        ok = rng.random() < ps
+        return ok, rng.expovariate(mu if ok else nu)
 
     for name, (ps, mu, nu) in ACTIONS.items():
-        factory.register_simple_stateful_action(name, *make(ps, mu, nu))
+        factory.register_simple_stateful_action(
+            name, *actions.callbacks(lambda ps=ps, mu=mu, nu=nu: draw(ps, mu, nu))
+        )
     for name, ps in CONDITIONS.items():
         factory.register_simple_condition(
             name,
@@ -90,20 +74,10 @@ def main():
             else bt.NodeStatus.FAILURE,
         )
 
-    tree = factory.create_tree_from_text(TREE)
-    logger = bt.FileLogger(tree, out)
-    for _ in range(runs):
-        # tick without sleeping: the measured duration exceeds the drawn one
-        # by less than one tick (a few tens of microseconds)
-        while tree.tick_once() == bt.NodeStatus.RUNNING:
-            pass
-        tree.halt_tree()
-    logger.flush()
-    del logger
+    run_logged(factory, TREE, out, runs)
     truth = {k: {"ps": v[0], "mu": v[1], "nu": v[2]} for k, v in ACTIONS.items()}
     truth.update({k: {"ps": v} for k, v in CONDITIONS.items()})
-    truth["late_mean_s"] = sum(late) / max(len(late), 1)
-    truth["late_max_s"] = max(late, default=0.0)
+    truth.update(actions.late_stats())
     json.dump(truth, sys.stdout)
 
 

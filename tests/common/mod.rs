@@ -184,3 +184,38 @@ pub fn run_btrel(args: &[&str]) -> (i32, String, String) {
         String::from_utf8(out.stderr).expect("UTF-8 errors"),
     )
 }
+
+/// Whether `a` and `b` agree to 1e-12, relative (absolute below 1).
+pub fn close(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 1e-12 * a.abs().max(b.abs()).max(1.0)
+}
+
+/// Asserts that figures `f` have success probability `ps` (and failure
+/// probability 1 − ps) and the given mean times, `None` where the time is
+/// undefined, each to 1e-12 ([`close`]).
+pub fn check_figures(f: Figures, ps: f64, mtts: Option<f64>, mttf: Option<f64>) {
+    assert!(close(f.ps, ps) && close(f.pf, 1.0 - ps), "{f:?} vs ps {ps}");
+    for (got, want) in [(f.mtts, mtts), (f.mttf, mttf)] {
+        match (got, want) {
+            (Some(g), Some(w)) => assert!(close(g, w), "{f:?}: {g} vs {w}"),
+            (g, w) => assert_eq!(g.is_some(), w.is_some(), "{f:?}"),
+        }
+    }
+}
+
+/// The Python of `BTREL_PYTHON` (one with behaviortreepy), for the tests
+/// that fit real BehaviorTree.CPP logs; `None`, after saying how to set it,
+/// when unset (the test is skipped).
+pub fn behaviortree_python() -> Option<std::path::PathBuf> {
+    match std::env::var_os("BTREL_PYTHON") {
+        Some(p) if !p.is_empty() => Some(std::path::PathBuf::from(p)),
+        _ => {
+            eprintln!(
+                "skipped: set BTREL_PYTHON to a Python with behaviortreepy (bash .ci/run \
+                 creates target/pyvenv from tests/python-requirements.txt) to fit real \
+                 BehaviorTree.CPP logs"
+            );
+            None
+        }
+    }
+}

@@ -215,35 +215,9 @@ impl<'a> Builder<'a> {
     ) -> Result<usize, TreeError> {
         self.one_child(e, ty)?;
         let base = self.name_attr(e)?.unwrap_or_else(|| ty.to_string());
-        let kind = NodeKind::Flow(Flow {
-            children: Vec::new(),
-            states: Vec::new(),
-        });
-        let id = self.push(e, &base, prefix, parent, depth, path, kind)?;
-        let cond = self.predicate(e, ty, "longer", id, depth + 1, &format!("{path}.0"), prefix)?;
-        let child = self.node(
-            e.children[0],
-            Some(id),
-            depth + 1,
-            format!("{path}.1"),
-            prefix,
-            retry,
+        let id = self.guarded_child(
+            e, ty, "longer", &base, true, parent, depth, path, prefix, retry,
         )?;
-        let states = vec![
-            FlowState {
-                child: 0,
-                on_success: FlowNext::State(1),
-                on_failure: FlowNext::Success,
-            },
-            FlowState {
-                child: 1,
-                on_success: FlowNext::Success,
-                on_failure: FlowNext::Failure,
-            },
-        ];
-        self.nodes[id].kind = NodeKind::Flow(
-            Flow::new(vec![cond, child], states).expect("PathLongerOnApproach's flow is valid"),
-        );
         self.once.push((id, e.doc, e.loc, "PathLongerOnApproach"));
         Ok(id)
     }

@@ -197,6 +197,40 @@ impl<'a> Builder<'a> {
                 }
             },
         };
+        self.guarded_child(
+            e,
+            ty,
+            "if",
+            &base,
+            otherwise_success,
+            parent,
+            depth,
+            path,
+            prefix,
+            retry,
+        )
+    }
+
+    /// A predicate `<node>/<port>` guarding the one child of `e` (node name
+    /// `base`): the predicate at `{path}.0`, the child at `{path}.1`. A true
+    /// predicate runs the child and returns its status; a false one returns
+    /// Success when `otherwise_success` (the flow port → (S: child,
+    /// F: Success)), else Failure (Sequence(port, child)). Precondition and
+    /// Nav2's PathLongerOnApproach share it.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn guarded_child(
+        &mut self,
+        e: &'a Elem,
+        ty: &str,
+        port: &str,
+        base: &str,
+        otherwise_success: bool,
+        parent: Option<usize>,
+        depth: usize,
+        path: &str,
+        prefix: &str,
+        retry: Option<&'static str>,
+    ) -> Result<usize, TreeError> {
         let kind = if otherwise_success {
             NodeKind::Flow(Flow {
                 children: Vec::new(),
@@ -207,8 +241,8 @@ impl<'a> Builder<'a> {
                 children: Vec::new(),
             }
         };
-        let id = self.push(e, &base, prefix, parent, depth, path, kind)?;
-        let cond = self.predicate(e, ty, "if", id, depth + 1, &format!("{path}.0"), prefix)?;
+        let id = self.push(e, base, prefix, parent, depth, path, kind)?;
+        let cond = self.predicate(e, ty, port, id, depth + 1, &format!("{path}.0"), prefix)?;
         let child = self.node(
             e.children[0],
             Some(id),
@@ -231,7 +265,7 @@ impl<'a> Builder<'a> {
                 },
             ];
             self.nodes[id].kind = NodeKind::Flow(
-                Flow::new(vec![cond, child], states).expect("a Precondition's flow is valid"),
+                Flow::new(vec![cond, child], states).expect("a guarded child's flow is valid"),
             );
         } else {
             self.set_children(id, vec![cond, child]);
