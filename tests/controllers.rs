@@ -269,7 +269,7 @@ fn speed_controller_waits_two_over_the_rate_sum_first() {
     // cycle with the first wait, then the loop with the later one.
     let t = tree(&body, &params);
     let mttf = (0.5 * 0.5 + 0.25 * 2.0 + 0.125 * (2.0 + 7.0 / 6.0)) / 0.875;
-    check(root(&body, &params), 0.125, Some(4.1), Some(mttf));
+    check_figures(root(&body, &params), 0.125, Some(4.1), Some(mttf));
     let sim = simulate_root(&t, 40_000, &[]);
     assert_within_z("ps", &sim.nodes[0].ps, 0.125);
     // v = 0.5: rate 1 Hz = (0.5 + 1.5)/2, both waits 1 s: exact. Re-runs end
