@@ -3,17 +3,17 @@
 //!
 //! For every leaf parameter θ (a condition's `ps`; an action's `ps`, `mu`,
 //! `nu`, `tau_s`, `tau_f`) the derivative ∂O/∂θ of the root's objective O
-//! (ps, MTTS, MTTF, mean time E[T] = ps·MTTS + pf·MTTF, or P(Success by a
+//! (ps, MTTS, MTTF, mean time E\[T\] = ps·MTTS + pf·MTTF, or P(Success by a
 //! deadline)) and its elasticity ∂ln O/∂ln θ = θ/O · ∂O/∂θ (the % change of
 //! O per % change of θ). Changing an action's `ps` changes `pf = 1 − ps` with
 //! it; changing `tau_s` of a hybrid action (Def. 9.9) moves the cap of its
 //! exponential failure time with it (likewise `tau_f`).
 //!
-//! # Derivatives: exact where the algebra allows ([`exact`])
+//! # Derivatives: exact where the algebra allows (`sensitivity::exact`)
 //!
 //! Dual numbers carried from the leaf up to the root through the maps of
 //! Sequence, Fallback, flows, decorators and loops, and the count
-//! programme of a Parallel's P(S)/P(F) ([`exact`] module docs); every row
+//! programme of a Parallel's P(S)/P(F) (`sensitivity::exact` module docs); every row
 //! says which method gave it ([`Scheme`]). The rest (mean times through a
 //! Parallel, races, strategy `book`'s Parallels, trees with Nav2 nodes, and
 //! P(Success by a deadline)) is differenced:
@@ -42,7 +42,7 @@ pub enum Objective {
     Ps,
     Mtts,
     Mttf,
-    /// E[T] = ps·MTTS + pf·MTTF.
+    /// E\[T\] = ps·MTTS + pf·MTTF.
     MeanTime,
     /// P(root returned Success by the deadline).
     SuccessBy(f64),
@@ -99,7 +99,7 @@ impl Param {
 /// How a derivative was computed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Scheme {
-    /// Exact: dual numbers through the node maps ([`exact`] module docs).
+    /// Exact: dual numbers through the node maps (`sensitivity::exact` module docs).
     Exact,
     /// Richardson-extrapolated central differences, error O(h⁴).
     Central,
@@ -306,7 +306,7 @@ pub fn richardson(
 }
 
 /// Sensitivities of the root's `objective` to every leaf parameter: exact
-/// where the node maps allow ([`exact`]), Richardson otherwise (each row
+/// where the node maps allow (`sensitivity::exact`), Richardson otherwise (each row
 /// says which).
 pub fn sensitivity(
     tree: &Tree,
@@ -420,7 +420,7 @@ fn sensitivity_with(
 }
 
 /// The exact derivative of the root's `objective` along leaf `id`'s
-/// `param` ([`exact`]), or `None` where it is not available.
+/// `param` (`sensitivity::exact`), or `None` where it is not available.
 fn exact_derivative(
     tree: &Tree,
     analysis: &Analysis,

@@ -5,14 +5,14 @@
 //!   truncation bound, or, when that would take too many steps (a stiff
 //!   chain over a long horizon) and the chain is small, by dense
 //!   exponentials in double-double ([`solve::expm`](crate::solve::expm)); for subtrees whose actions all have deterministic
-//!   times, the exact finitely many return instants ([`compile::atoms`],
+//!   times, the exact finitely many return instants (`compile::atoms`,
 //!   Prop. 9.2's zero-order hold without rounding to a grid).
 //! * nodes whose chain exceeds the budget (wide Parallels and everything
 //!   above them): Parallels with the book's thresholds by counting their
 //!   children's curves, and every other node from composed outcome laws
 //!   (interpolated densities, `law`).
 //! * **book**: the chapter's recursion: the node's CTMC over its MRG with
-//!   every child replaced by an exponential ([`compile::book_ctmc`]).
+//!   every child replaced by an exponential (`compile::book_ctmc`).
 //! * **`Timing::Deterministic`**: every exponential time becomes a fixed
 //!   time `τ = 1/rate` first (the book's Figs. 9.20–9.21 comparison).
 

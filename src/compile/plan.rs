@@ -13,7 +13,7 @@
 //! reuse instead of rebuilding). `report` (figures), `curve`, `compare`,
 //! `plot`, `sensitivity` and `--ci` all query the same plan, so every
 //! command answers a node from the same representation, with the same tie
-//! rule (BehaviorTree.CPP's child order, [`super::race`]).
+//! rule (BehaviorTree.CPP's child order, `compile::race`).
 //!
 //! | # | rule (first match wins) | representation |
 //! |---|---|---|

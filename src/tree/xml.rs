@@ -54,7 +54,7 @@
 //!   the main branch of a `RecoveryNode`) it differs from a fresh Sequence:
 //!   that case is refused — except as the direct child of a
 //!   `RetryUntilSuccessful` without a retrying ancestor, which becomes one
-//!   flow over (failures so far, child index) ([`Builder::retry_with_memory`]).
+//!   flow over (failures so far, child index) (`Builder::retry_with_memory`).
 //! * `IfThenElse` (2 or 3 children) is the flow C → (Success: T, Failure: E
 //!   or Failure); `WhileDoElse` likewise when its condition child holds
 //!   conditions only (BT.CPP re-ticks it while a branch runs, which changes
