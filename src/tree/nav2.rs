@@ -712,28 +712,8 @@ fn repeated(tree: &Tree, id: NodeId, slot: usize) -> Option<String> {
     }) {
         return Some(format!("'{}' is a copy of it", other.1.name));
     }
-    let (mut below, mut up) = (id, tree.nodes[id].parent);
-    while let Some(a) = up {
-        let again = match &tree.nodes[a].kind {
-            // a flow may visit the same child from several states
-            NodeKind::Flow(flow) => {
-                let at = flow.children.iter().position(|&c| c == below);
-                at.is_some_and(|k| flow.states.iter().filter(|s| s.child == k).count() > 1)
-            }
-            NodeKind::Decorator { decorator, .. } => match decorator {
-                Decorator::Retry { attempts } => *attempts > 1,
-                Decorator::Repeat { times } => *times > 1,
-                Decorator::UntilFailure | Decorator::UntilSuccess => true,
-                _ => false,
-            },
-            _ => false,
-        };
-        if again {
-            return Some(format!("its ancestor '{}' repeats it", tree.nodes[a].name));
-        }
-        (below, up) = (a, tree.nodes[a].parent);
-    }
-    None
+    repeating_ancestor(tree, id)
+        .map(|a| format!("its ancestor '{}' repeats it", tree.nodes[a].name))
 }
 
 /// The most states of the flow that follows a RoundRobin's index.
@@ -828,9 +808,22 @@ fn common_ancestor(tree: &Tree, a: NodeId, b: NodeId) -> NodeId {
 /// Why node `id` may run more than once per run of the root (an ancestor
 /// repeats it), if it may.
 fn ancestor_repeats(tree: &Tree, id: NodeId) -> Option<String> {
+    repeating_ancestor(tree, id).map(|a| {
+        format!(
+            "'{}' runs several times per run: its ancestor '{}' repeats it",
+            tree.nodes[id].name, tree.nodes[a].name
+        )
+    })
+}
+
+/// The nearest ancestor of `id` that may run it more than once per run of
+/// the root: a flow visiting it from several states, a Retry or Repeat of
+/// more than one, a loop without a bound.
+fn repeating_ancestor(tree: &Tree, id: NodeId) -> Option<NodeId> {
     let (mut below, mut up) = (id, tree.nodes[id].parent);
     while let Some(a) = up {
         let again = match &tree.nodes[a].kind {
+            // a flow may visit the same child from several states
             NodeKind::Flow(flow) => {
                 let at = flow.children.iter().position(|&c| c == below);
                 at.is_some_and(|k| flow.states.iter().filter(|s| s.child == k).count() > 1)
@@ -844,10 +837,7 @@ fn ancestor_repeats(tree: &Tree, id: NodeId) -> Option<String> {
             _ => false,
         };
         if again {
-            return Some(format!(
-                "'{}' runs several times per run: its ancestor '{}' repeats it",
-                tree.nodes[id].name, tree.nodes[a].name
-            ));
+            return Some(a);
         }
         (below, up) = (a, tree.nodes[a].parent);
     }

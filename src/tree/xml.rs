@@ -2805,6 +2805,31 @@ fn too_large(file: &str, len: usize) -> TreeError {
     )
 }
 
+/// One error for every node of `problems` (none: `None`), located at the
+/// first, with `help`.
+fn unsupported_nodes(
+    b: &Builder,
+    sources: &[Source],
+    problems: &[Problem],
+    help: &str,
+) -> Option<TreeError> {
+    let first = problems.first()?;
+    let n = problems.len();
+    let refs: Vec<&Problem> = problems.iter().collect();
+    Some(
+        b.err_in(
+            first.doc,
+            first.loc,
+            format!(
+                "{UNSUPPORTED} {n} node{} of this tree:\n{}",
+                if n == 1 { "" } else { "s" },
+                problem_lines(sources, &refs)
+            ),
+        )
+        .with_help(help.to_string()),
+    )
+}
+
 /// Formats collected problems as `file:line:column: text` lines.
 fn problem_lines(sources: &[Source], ps: &[&Problem]) -> String {
     ps.iter()
@@ -3326,25 +3351,16 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
             });
         }
     }
-    if let Some(first) = restarts.first() {
-        let n = restarts.len();
-        let refs: Vec<&Problem> = restarts.iter().collect();
-        return Err(b
-            .err_in(
-                first.doc,
-                first.loc,
-                format!(
-                    "{UNSUPPORTED} {n} node{} of this tree:\n{}",
-                    if n == 1 { "" } else { "s" },
-                    problem_lines(&sources, &refs)
-                ),
-            )
-            .with_help(
-                "ReactiveSequence and ReactiveFallback are read as Sequence and Fallback when \
+    if let Some(e) = unsupported_nodes(
+        &b,
+        &sources,
+        &restarts,
+        "ReactiveSequence and ReactiveFallback are read as Sequence and Fallback when \
                  at most one child holds actions (conditions before it are re-ticked, which \
                  changes nothing while they keep their value); WhileDoElse is read as \
                  IfThenElse when its condition child holds conditions only",
-            ));
+    ) {
+        return Err(e);
     }
     let mut keys = vec![None; b.nodes.len()];
     for (node, key) in param_keys {
@@ -3386,24 +3402,15 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
             });
         }
     }
-    if let Some(first) = again.first() {
-        let n = again.len();
-        let refs: Vec<&Problem> = again.iter().collect();
-        return Err(b
-            .err_in(
-                first.doc,
-                first.loc,
-                format!(
-                    "{UNSUPPORTED} {n} node{} of this tree:\n{}",
-                    if n == 1 { "" } else { "s" },
-                    problem_lines(&sources, &refs)
-                ),
-            )
-            .with_help(
-                "as an earlier PipelineSequence child, GoalUpdatedController is read exactly when \
+    if let Some(e) = unsupported_nodes(
+        &b,
+        &sources,
+        &again,
+        "as an earlier PipelineSequence child, GoalUpdatedController is read exactly when \
                  its child is a leaf, takes no time or cannot fail, and PathLongerOnApproach when \
                  its child takes no time or cannot fail",
-            ));
+    ) {
+        return Err(e);
     }
     Ok(Keyed {
         tree: Tree {
