@@ -515,35 +515,23 @@ pub fn compare_with_progress(
                 && !matches!(tree.node(i).kind, NodeKind::Flow(_))
         }) {
             let node = tree.node(id);
-            return Err(CompareError::Analysis(AnalysisError::Nav2 {
-                node: node.name.clone(),
-                at: node
-                    .location
-                    .map_or(String::new(), |(l, c)| format!(", line {l}, column {c}")),
-                kind: node.kind.keyword(),
-                path: node.path.clone(),
-                reason: "it is part of the flow that follows a RoundRobin's index (without \
+            return Err(unreorderable(
+                node,
+                "it is part of the flow that follows a RoundRobin's index (without \
                          wrap_around, or shared by a RecoveryNode's copies); reordering a tree \
-                         with such a flow is not supported"
-                    .into(),
-            }));
+                         with such a flow is not supported",
+            ));
         }
         // the Fallbacks as nodes of the lowered tree; one that a pipeline
         // re-runs has copies there, which an ordering would have to follow
         for n in &mut nodes {
             if v.copied[*n] {
                 let node = tree.node(*n);
-                return Err(CompareError::Analysis(AnalysisError::Nav2 {
-                    node: node.name.clone(),
-                    at: node
-                        .location
-                        .map_or(String::new(), |(l, c)| format!(", line {l}, column {c}")),
-                    kind: node.kind.keyword(),
-                    path: node.path.clone(),
-                    reason: "it lies in a PipelineSequence child that runs again while the \
-                             later children run; reordering its re-runs is not supported"
-                        .into(),
-                }));
+                return Err(unreorderable(
+                    node,
+                    "it lies in a PipelineSequence child that runs again while the \
+                             later children run; reordering its re-runs is not supported",
+                ));
             }
             *n = v.image[*n];
         }
@@ -857,6 +845,20 @@ pub fn duration_text(s: f64) -> String {
     } else {
         format!("{:.1e} years", s / (86400.0 * 365.0))
     }
+}
+
+/// A Nav2 node whose place in the lowered tree `compare` cannot reorder,
+/// with why.
+fn unreorderable(node: &crate::tree::Node, reason: &str) -> CompareError {
+    CompareError::Analysis(AnalysisError::Nav2 {
+        node: node.name.clone(),
+        at: node
+            .location
+            .map_or(String::new(), |(l, c)| format!(", line {l}, column {c}")),
+        kind: node.kind.keyword(),
+        path: node.path.clone(),
+        reason: reason.to_string(),
+    })
 }
 
 #[cfg(test)]

@@ -147,30 +147,17 @@ impl Racer {
             },
             Representation::Atoms | Representation::Shifted => shifted(),
             Representation::Counted | Representation::Race => {
-                let NodeKind::Parallel {
-                    success_threshold: m,
-                    failure_threshold: f,
-                    children,
-                } = &node.kind
-                else {
-                    unreachable!("counted nodes and races are Parallel nodes")
-                };
-                let n = children.len();
-                let f = (*f).min(n + 1 - m);
-                let kids = children
-                    .iter()
-                    .map(|&c| Racer::build(plan, c))
-                    .collect::<Result<Vec<_>, _>>()?;
-                if !is_race(n, *m, f) {
+                let (m, f, kids) = parallel_racers(plan, id)?;
+                if !is_race(kids.len(), m, f) {
                     return Ok(Racer::Counted {
-                        m: *m,
+                        m,
                         f,
                         children: kids,
                     });
                 }
                 Ok(Racer::Race(Box::new(Race::new(
                     node.name.clone(),
-                    *m,
+                    m,
                     f,
                     kids,
                 )?)))
@@ -674,23 +661,28 @@ pub fn resolve_instant(rows: &[Row], m: usize, f: usize) -> (f64, f64) {
     (out_s, out_f)
 }
 
-/// The race node `id` (a Parallel whose thresholds can both be met).
-fn race_of(plan: &Plan, id: NodeId) -> Result<Race, AnalysisError> {
-    let node = plan.tree().node(id);
+/// The thresholds `(M, F capped at N − M + 1)` of Parallel `id` and its
+/// children's laws.
+fn parallel_racers(plan: &Plan, id: NodeId) -> Result<(usize, usize, Vec<Racer>), AnalysisError> {
     let NodeKind::Parallel {
         success_threshold: m,
         failure_threshold: f,
         children,
-    } = &node.kind
+    } = &plan.tree().node(id).kind
     else {
-        unreachable!("races are Parallel nodes")
+        unreachable!("counted nodes and races are Parallel nodes")
     };
-    let f = (*f).min(children.len() + 1 - m);
     let kids = children
         .iter()
         .map(|&c| Racer::build(plan, c))
         .collect::<Result<Vec<_>, _>>()?;
-    Race::new(node.name.clone(), *m, f, kids)
+    Ok((*m, (*f).min(children.len() + 1 - m), kids))
+}
+
+/// The race node `id` (a Parallel whose thresholds can both be met).
+fn race_of(plan: &Plan, id: NodeId) -> Result<Race, AnalysisError> {
+    let (m, f, kids) = parallel_racers(plan, id)?;
+    Race::new(plan.tree().node(id).name.clone(), m, f, kids)
 }
 
 /// Figures of race `id` (module docs); `child_figures` set the scale of the
