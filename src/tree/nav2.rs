@@ -1012,8 +1012,9 @@ impl IndexFlow<'_> {
         let refuse = |why: &str| NotPrimitive {
             node: id,
             reason: format!(
-                "it holds a copy of a RoundRobin whose index the analysis follows through \
-                 Sequences, Fallbacks, the RoundRobin and one-run decorators only; {why}"
+                "it holds a copy of a RoundRobin or SequenceWithMemory whose index the \
+                 analysis follows through Sequences, Fallbacks, that node, one-run decorators, \
+                 RetryUntilSuccessful and Repeat only; {why}"
             ),
         };
         match &self.tree.nodes[id].kind {
