@@ -203,6 +203,13 @@ pub struct View {
 ///   run of the tree (checked), and every run of the tree starts with the
 ///   index at 0 — the simulator's assumption too (`sim::engine`, which resets
 ///   the RoundRobins at every episode).
+/// * A SequenceWithMemory (read as one below a node that ticks it again
+///   after a Failure) whose index may be other than 0 when it starts — a
+///   child after the first can fail (the index stays there), or, in BT.CPP
+///   v4, a Parallel or PipelineSequence above may halt it while such a
+///   child runs — is followed like a RoundRobin's index: one flow at the
+///   lowest common ancestor of its copies, or at the RetryUntilSuccessful
+///   or Repeat above it; otherwise it is a Sequence.
 /// * RateController and SingleTrigger outside those positions run their
 ///   child once (`repeat` 1, the identity).
 ///
