@@ -517,9 +517,9 @@ pub fn compare_with_progress(
             let node = tree.node(id);
             return Err(unreorderable(
                 node,
-                "it is part of the flow that follows a RoundRobin's index (without \
-                         wrap_around, or shared by a RecoveryNode's copies); reordering a tree \
-                         with such a flow is not supported",
+                "it is part of the flow that follows a RoundRobin's or SequenceWithMemory's \
+                         index (without wrap_around, or shared by a RecoveryNode's copies); \
+                         reordering a tree with such a flow is not supported",
             ));
         }
         // the Fallbacks as nodes of the lowered tree; one that a pipeline

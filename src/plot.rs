@@ -382,7 +382,8 @@ pub fn time_scale(tree: &Tree, node: NodeId) -> f64 {
         NodeKind::Sequence { children }
         | NodeKind::Fallback { children }
         | NodeKind::Pipeline { children }
-        | NodeKind::RoundRobin { children, .. } => {
+        | NodeKind::RoundRobin { children, .. }
+        | NodeKind::SequenceWithMemory { children, .. } => {
             children.iter().map(|&c| time_scale(tree, c)).sum()
         }
         NodeKind::Parallel { children, .. } => children

@@ -220,6 +220,22 @@ fn cases() -> Vec<Case> {
             btcpp_ps: None,
             fresh_tree: true,
         },
+        // deeper below the Retry: C1 is evaluated afresh at every attempt,
+        // the SequenceWithMemory resumes at A2 after A2 failed
+        Case {
+            name: "retry over sequence holding memory",
+            xml: main_tree(
+                r#"<RetryUntilSuccessful num_attempts="3">
+                     <Sequence><C1/><SequenceWithMemory><A1/><A2/></SequenceWithMemory></Sequence>
+                   </RetryUntilSuccessful>"#,
+            ),
+            params: json!({"C1": c(0.7), "A1": a(0.5), "A2": a(0.4)}),
+            runs: 1500,
+            scale: fast,
+            steps: None,
+            btcpp_ps: None,
+            fresh_tree: true,
+        },
         Case {
             name: "subtree used twice",
             xml: r#"<root BTCPP_format="4" main_tree_to_execute="Main">

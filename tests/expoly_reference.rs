@@ -91,7 +91,9 @@ fn to_json(t: &Tree, id: NodeId) -> Option<Value> {
         } => json!({"parallel": {
             "m": success_threshold, "f": failure_threshold, "children": kids(children)?
         }}),
-        NodeKind::Pipeline { .. } | NodeKind::RoundRobin { .. } => return None,
+        NodeKind::Pipeline { .. }
+        | NodeKind::RoundRobin { .. }
+        | NodeKind::SequenceWithMemory { .. } => return None,
         NodeKind::Flow(f) => {
             let next = |n: FlowNext| match n {
                 FlowNext::State(i) => json!(i),

@@ -283,6 +283,28 @@ fn recovery_robin_by_hand(
     out.2 += elapsed;
     out
 }
+/// A RetryUntilSuccessful between the RecoveryNode and its RoundRobin
+/// copies: BT.CPP's RetryNode resets a child that returned without halting
+/// it, so the index carries over its attempts too. By hand (main fails at
+/// once; without wrap_around, a0 succeeds after 1 s, a1 after 10 s, which
+/// Nav2 returns as Failure): recovery 1 runs a0 (index 1); recovery 2 runs
+/// a1 (Failure, index 0), its Retry's second attempt a0 (index 1); then the
+/// main branch fails with no retries left: Failure at 12 s (fresh copies:
+/// 2 s).
+#[test]
+fn round_robin_index_carries_over_a_retry_below_the_recovery() {
+    let tree = xml(
+        "<RecoveryNode number_of_retries=\"2\" name=\"rec\">\n<Main/>\n\
+         <RetryUntilSuccessful num_attempts=\"2\"><RoundRobin name=\"rr\"><A0/><A1/></RoundRobin>\n\
+         </RetryUntilSuccessful></RecoveryNode>",
+        "Main: {ps: 0.0}\nA0: {ps: 1.0, tau_s: 1}\nA1: {ps: 1.0, tau_s: 10}\n",
+    );
+    let f = analyze(&tree, &Options::default()).unwrap().nodes[0];
+    assert_eq!(f.ps, 0.0);
+    assert!((f.mttf.unwrap() - 12.0).abs() < 1e-12, "{f:?}");
+    let r = sim_root(&tree, 1000);
+    assert_eq!(r.nodes[0].mttf.as_ref().unwrap().mean, 12.0);
+}
 
 #[test]
 fn recovery_with_round_robin_is_exact() {

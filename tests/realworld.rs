@@ -20,6 +20,11 @@ const INVALID_AS_PUBLISHED: &[(&str, &str)] = &[(
     "unknown node <inverter> with children (did you mean <Inverter>?)",
 )];
 
+/// Humble's goal-patience tree: its re-planning race's rest holds a fixed
+/// Wait, so the renewal method does not apply and the series is too long.
+const HUMBLE_GOAL_PATIENCE: &str =
+    "nav2_humble/navigate_to_pose_w_replanning_goal_patience_and_recovery.xml";
+
 /// Parameters the published params files predate: the probabilities of
 /// the predicates btrel reads since (Precondition's `if`, `_skipIf`,
 /// ManualSelector's `select_k`, PathLongerOnApproach's `longer`, keyed as
@@ -276,14 +281,24 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
         "read but not simulated:\n{}",
         unsimulated.join("\n")
     );
-    // the re-planning race is exact for the figures (the renewal method):
-    // no report is refused for the length of its re-run series
+    // the re-planning race is exact for the figures (the renewal method)
+    // where the rest of the pipeline is Markovian: no report is refused for
+    // the length of its re-run series, except Humble's goal-patience tree,
+    // whose rest holds the fixed 5 s Wait of `CancelingControlAndWait` (read
+    // since its SequenceStar below the RecoveryNode is followed; its
+    // children cannot fail, so it is a Sequence there)
     for (f, e) in &nav2 {
         assert!(
-            !e.contains("re-runs"),
+            !e.contains("re-runs") || f == HUMBLE_GOAL_PATIENCE,
             "{f} refused for its re-run series:\n{e}"
         );
     }
+    assert!(
+        !semantic
+            .iter()
+            .any(|(_, e)| e.contains("<SequenceWithMemory>") || e.contains("<SequenceStar>")),
+        "a tree is refused for its SequenceWithMemory"
+    );
     // Nav2's own node types, ManualSelector, the queue loops and MoveIt
     // Pro's loops are read now: no refusal names them
     for (f, e) in &semantic {
@@ -313,10 +328,12 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
     // this was written; 86 analysed before the RoundRobin's index became a
     // flow (5 RecoveryNode trees with a RoundRobin were simulated only) and
     // the renewal method took a first cycle (the 2 SpeedController trees,
-    // whose first wait differs from the later ones). What remains refused: 5
-    // Nav2 trees with timed actions in two children of a ReactiveSequence, 2
-    // with a SequenceWithMemory below a RecoveryNode, 1 with a count from the
-    // blackboard that no source gives (`{num_samples}`)
+    // whose first wait differs from the later ones). Simulated only: Humble's
+    // goal-patience tree (a fixed Wait in the re-planning race's rest). What
+    // remains refused: 6 Nav2 trees with timed actions in two children of a
+    // ReactiveSequence (Jazzy's goal-patience tree among them, whose
+    // SequenceWithMemory below the RecoveryNode is read now), 1 with a count
+    // from the blackboard that no source gives (`{num_samples}`)
     assert!(parsed.len() >= 92, "{} analysed", parsed.len());
     assert!(parsed.len() + nav2.len() + limited.len() >= 93);
     // no tree is refused for its RoundRobin any more
@@ -326,5 +343,5 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
             "{f} refused for its RoundRobin:\n{e}"
         );
     }
-    assert!(semantic.len() <= 8, "{} refused", semantic.len());
+    assert!(semantic.len() <= 7, "{} refused", semantic.len());
 }

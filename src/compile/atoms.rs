@@ -107,14 +107,17 @@ pub fn atoms(
         ]))),
         // Nav2 nodes reach here only as their primitive equivalents
         // (`tree::nav2::primitive_view`): a pipeline is a Sequence, a
-        // RoundRobin a Fallback
+        // RoundRobin a Fallback, a SequenceWithMemory (at index 0) a Sequence
         NodeKind::Sequence { children }
+        | NodeKind::SequenceWithMemory { children, .. }
         | NodeKind::Fallback { children }
         | NodeKind::Pipeline { children }
         | NodeKind::RoundRobin { children, .. } => {
             let cont = if matches!(
                 node.kind,
-                NodeKind::Sequence { .. } | NodeKind::Pipeline { .. }
+                NodeKind::Sequence { .. }
+                    | NodeKind::Pipeline { .. }
+                    | NodeKind::SequenceWithMemory { .. }
             ) {
                 Outcome::Success
             } else {

@@ -350,9 +350,9 @@ impl Builder<'_> {
                 self.counted(id, children, *success_threshold)
             }
             // Nav2 nodes as their primitive equivalents (`primitive_view`)
-            NodeKind::Sequence { children } | NodeKind::Pipeline { children } => {
-                self.in_turn(id, children, true)
-            }
+            NodeKind::Sequence { children }
+            | NodeKind::Pipeline { children }
+            | NodeKind::SequenceWithMemory { children, .. } => self.in_turn(id, children, true),
             NodeKind::Fallback { children } | NodeKind::RoundRobin { children, .. } => {
                 self.in_turn(id, children, false)
             }

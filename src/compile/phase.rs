@@ -136,6 +136,7 @@ pub fn combine(
         }
         // Nav2 nodes as their primitive equivalents (`primitive_view`)
         NodeKind::Sequence { .. }
+        | NodeKind::SequenceWithMemory { .. }
         | NodeKind::Fallback { .. }
         | NodeKind::Pipeline { .. }
         | NodeKind::RoundRobin { .. } => {
@@ -149,7 +150,9 @@ pub fn combine(
             }
             let sequence = matches!(
                 node.kind,
-                NodeKind::Sequence { .. } | NodeKind::Pipeline { .. }
+                NodeKind::Sequence { .. }
+                    | NodeKind::Pipeline { .. }
+                    | NodeKind::SequenceWithMemory { .. }
             );
             Ok(concatenate(chains, sequence))
         }

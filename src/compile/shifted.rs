@@ -266,9 +266,9 @@ pub fn shifted_law(
     };
     let law = match &node.kind {
         // Nav2 nodes as their primitive equivalents (`primitive_view`)
-        NodeKind::Sequence { .. } | NodeKind::Pipeline { .. } => {
-            in_turn(laws, true, tree, id, max_states)?
-        }
+        NodeKind::Sequence { .. }
+        | NodeKind::Pipeline { .. }
+        | NodeKind::SequenceWithMemory { .. } => in_turn(laws, true, tree, id, max_states)?,
         NodeKind::Fallback { .. } | NodeKind::RoundRobin { .. } => {
             in_turn(laws, false, tree, id, max_states)?
         }

@@ -94,6 +94,7 @@ fn node_lines(tree: &Tree, id: NodeId) -> (Vec<String>, &'static str) {
         NodeKind::Fallback { .. } => (vec!["?".to_string(), name], CONTROL),
         NodeKind::Pipeline { .. } => (vec!["→ (pipeline)".to_string(), name], CONTROL),
         NodeKind::RoundRobin { .. } => (vec!["? (round robin)".to_string(), name], CONTROL),
+        NodeKind::SequenceWithMemory { .. } => (vec!["→* (memory)".to_string(), name], CONTROL),
         NodeKind::Parallel {
             success_threshold: m,
             failure_threshold: f,

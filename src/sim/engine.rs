@@ -141,6 +141,12 @@ enum Op {
         first: u32,
         end: u32,
     },
+    /// BT.CPP SequenceWithMemory; its index is `Scratch::rr[slot]`.
+    SeqMemory {
+        first: u32,
+        end: u32,
+        slot: u32,
+    },
     /// Nav2 RoundRobin; its index is `Scratch::rr[slot]`.
     RoundRobin {
         first: u32,
@@ -206,7 +212,8 @@ pub(crate) struct Scratch {
     /// `(success, time)` of each child in child order (Parallels with an
     /// independent failure threshold, whose ties are replayed).
     order: Vec<(bool, f64)>,
-    /// Index of each RoundRobin slot (reset to 0 at every episode).
+    /// Index of each RoundRobin and SequenceWithMemory slot (reset to 0 at
+    /// every episode).
     rr: Vec<u32>,
     /// Earlier children of the PipelineSequences being run.
     reruns: Vec<Rerun>,
@@ -283,6 +290,17 @@ impl Program {
         }
     }
 
+    /// The scratch index of a tree's index slot.
+    fn slot(&mut self, slot: usize) -> u32 {
+        (match self.slots.iter().position(|&s| s == slot) {
+            Some(i) => i,
+            None => {
+                self.slots.push(slot);
+                self.slots.len() - 1
+            }
+        }) as u32
+    }
+
     fn compile(&mut self, tree: &Tree, id: NodeId) -> u32 {
         let (chain, children) = match &tree.nodes[id].kind {
             NodeKind::Action(a) => return self.push_leaf(Leaf::new(a.ps, a.success, a.failure)),
@@ -320,6 +338,12 @@ impl Program {
                 return self.push(Op::Decorator { child, kind, n });
             }
             NodeKind::Pipeline { children } => return self.pipeline(tree, children),
+            NodeKind::SequenceWithMemory { children, slot, .. } => {
+                let ids: Vec<u32> = children.iter().map(|&c| self.compile(tree, c)).collect();
+                let (first, end) = self.kids_range(ids);
+                let slot = self.slot(*slot);
+                return self.push(Op::SeqMemory { first, end, slot });
+            }
             NodeKind::RoundRobin {
                 children,
                 wrap,
@@ -327,13 +351,7 @@ impl Program {
             } => {
                 let ids: Vec<u32> = children.iter().map(|&c| self.compile(tree, c)).collect();
                 let (first, end) = self.kids_range(ids);
-                let slot = match self.slots.iter().position(|s| s == slot) {
-                    Some(i) => i,
-                    None => {
-                        self.slots.push(*slot);
-                        self.slots.len() - 1
-                    }
-                } as u32;
+                let slot = self.slot(*slot);
                 let wrap = *wrap;
                 return self.push(Op::RoundRobin {
                     first,
@@ -550,6 +568,24 @@ impl Program {
                 // all failed: halt() resets the index
                 scratch.rr[slot as usize] = 0;
                 (false, t)
+            }
+            Op::SeqMemory { first, end, slot } => {
+                // BT.CPP's sequence_with_memory_node.cpp: start at the kept
+                // index; a Failure keeps it at the failed child, the last
+                // child's Success resets it to 0
+                let kids = &self.kids[first as usize..end as usize];
+                let mut t = 0.0;
+                let start = scratch.rr[slot as usize] as usize;
+                for (i, &c) in kids.iter().enumerate().skip(start) {
+                    let (ok, d) = self.run(c, rng, scratch);
+                    t += d;
+                    if !ok {
+                        scratch.rr[slot as usize] = i as u32;
+                        return (false, t);
+                    }
+                }
+                scratch.rr[slot as usize] = 0;
+                (true, t)
             }
             Op::Flow { first, end } => {
                 let steps = &self.steps[first as usize..end as usize];

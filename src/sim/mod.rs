@@ -215,6 +215,15 @@ pub enum SimError {
          index); the simulator does not model that yet"
     )]
     HaltedRoundRobin(String, &'static str, String),
+    /// A SequenceWithMemory that a Parallel or a PipelineSequence above it
+    /// may halt while it runs, where the halt leaves an index other than
+    /// the one a finished run leaves (v4 keeps the running child's index;
+    /// v3 resets it to 0, which differs only after a later child fails).
+    #[error(
+        "SequenceWithMemory '{0}' is below {1} '{2}', which may halt it while it runs (the halt \
+         decides its index); the simulator does not model that yet"
+    )]
+    HaltedSequenceWithMemory(String, &'static str, String),
     /// The worker thread pool could not be created.
     #[error("cannot create the simulation thread pool: {0}")]
     ThreadPool(String),
@@ -233,7 +242,8 @@ fn endless_loop(tree: &Tree, root: NodeId) -> Option<NodeId> {
         can[id] = match &tree.node(id).kind {
             NodeKind::Action(a) => (a.ps > 0.0, a.pf > 0.0),
             NodeKind::Condition { ps } => (*ps > 0.0, *ps < 1.0),
-            NodeKind::Sequence { .. } => {
+            // a SequenceWithMemory passes a child only after its Success
+            NodeKind::Sequence { .. } | NodeKind::SequenceWithMemory { .. } => {
                 let all = kids.iter().all(|&c| can[c].0);
                 let fail = kids
                     .iter()
@@ -318,9 +328,24 @@ fn endless_loop(tree: &Tree, root: NodeId) -> Option<NodeId> {
 fn halted_round_robin(tree: &Tree, root: NodeId) -> Option<SimError> {
     use crate::tree::NodeKind;
     for id in tree.subtree(root) {
-        if !matches!(tree.node(id).kind, NodeKind::RoundRobin { .. }) {
-            continue;
-        }
+        let robin = match &tree.node(id).kind {
+            NodeKind::RoundRobin { .. } => true,
+            // a halt matters where it leaves another index than a finished
+            // run (which leaves 0 after a Success or a Failure of the first
+            // child)
+            NodeKind::SequenceWithMemory {
+                children,
+                halt_resets,
+                ..
+            } if !*halt_resets
+                || children[1..]
+                    .iter()
+                    .any(|&c| crate::tree::nav2::outcomes(tree, c).1) =>
+            {
+                false
+            }
+            _ => continue,
+        };
         let mut up = tree.node(id).parent;
         while let Some(a) = up.filter(|&a| a >= root) {
             let what = match tree.node(a).kind {
@@ -331,11 +356,12 @@ fn halted_round_robin(tree: &Tree, root: NodeId) -> Option<SimError> {
                     continue;
                 }
             };
-            return Some(SimError::HaltedRoundRobin(
-                tree.node(id).name.clone(),
-                what,
-                tree.node(a).name.clone(),
-            ));
+            let (name, by) = (tree.node(id).name.clone(), tree.node(a).name.clone());
+            return Some(if robin {
+                SimError::HaltedRoundRobin(name, what, by)
+            } else {
+                SimError::HaltedSequenceWithMemory(name, what, by)
+            });
         }
     }
     None

@@ -103,6 +103,27 @@ pub enum NodeKind {
         /// Identity of the index: nodes with the same slot share one index.
         slot: usize,
     },
+    /// BehaviorTree.CPP's SequenceWithMemory (v3: SequenceStar) where its
+    /// index may matter: below a node that ticks it again after a Failure
+    /// (a RecoveryNode's main branch, a RetryUntilSuccessful). A Sequence
+    /// that starts at the child where it last stopped: a child's Failure
+    /// returns Failure and keeps the index at that child (the next tick runs
+    /// it afresh); the last child's Success returns Success and resets the
+    /// index to 0 (`sequence_with_memory_node.cpp`). The index survives its
+    /// parent's reset (BT.CPP halts only RUNNING children) and is 0 at the
+    /// start of every run of the tree; copies of one XML element (a
+    /// RecoveryNode's retries) share `slot` with each other (and with no
+    /// RoundRobin). `halt_resets`: a halt while a child runs sets the index
+    /// to 0 (v3's `SequenceStarNode::halt`); v4's `SequenceWithMemory::halt`
+    /// keeps it.
+    SequenceWithMemory {
+        /// Children, in order (at least one).
+        children: Vec<NodeId>,
+        /// Identity of the index: nodes with the same slot share one index.
+        slot: usize,
+        /// Whether a halt resets the index (BT.CPP v3) or keeps it (v4).
+        halt_resets: bool,
+    },
     /// A flow: a finite acyclic graph of states, each running one child (a
     /// fresh, independent run at every visit), whose Success and Failure
     /// edges lead to a later state or to the node's own Success or Failure.
@@ -299,6 +320,7 @@ impl NodeKind {
             NodeKind::Parallel { .. } => "parallel",
             NodeKind::Pipeline { .. } => "pipeline_sequence",
             NodeKind::RoundRobin { .. } => "round_robin",
+            NodeKind::SequenceWithMemory { .. } => "sequence_with_memory",
             NodeKind::Flow(_) => "flow",
             NodeKind::Decorator { decorator, .. } => decorator.keyword(),
         }
@@ -311,6 +333,7 @@ impl NodeKind {
             | NodeKind::Fallback { children }
             | NodeKind::Pipeline { children }
             | NodeKind::RoundRobin { children, .. }
+            | NodeKind::SequenceWithMemory { children, .. }
             | NodeKind::Parallel { children, .. }
             | NodeKind::Flow(Flow { children, .. }) => children,
             NodeKind::Decorator { child, .. } => std::slice::from_ref(child),

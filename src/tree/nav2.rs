@@ -81,7 +81,7 @@ pub fn outcomes(tree: &Tree, id: NodeId) -> (bool, bool) {
     match &tree.nodes[id].kind {
         NodeKind::Action(a) => (a.ps > 0.0, a.pf > 0.0),
         NodeKind::Condition { ps } => (*ps > 0.0, *ps < 1.0),
-        NodeKind::Sequence { .. } => (all(s), any(f)),
+        NodeKind::Sequence { .. } | NodeKind::SequenceWithMemory { .. } => (all(s), any(f)),
         NodeKind::Pipeline { children } => {
             let trigger = children[..children.len() - 1]
                 .iter()
@@ -203,6 +203,13 @@ pub struct View {
 ///   run of the tree (checked), and every run of the tree starts with the
 ///   index at 0 — the simulator's assumption too (`sim::engine`, which resets
 ///   the RoundRobins at every episode).
+/// * A SequenceWithMemory (read as one below a node that ticks it again
+///   after a Failure) whose index may be other than 0 when it starts — a
+///   child after the first can fail (the index stays there), or, in BT.CPP
+///   v4, a Parallel or PipelineSequence above may halt it while such a
+///   child runs — is followed like a RoundRobin's index: one flow at the
+///   lowest common ancestor of its copies, or at the RetryUntilSuccessful
+///   or Repeat above it; otherwise it is a Sequence.
 /// * RateController and SingleTrigger outside those positions run their
 ///   child once (`repeat` 1, the identity).
 ///
@@ -227,6 +234,7 @@ fn lower(tree: &Tree, figures: bool) -> Result<Option<View>, NotPrimitive> {
             k,
             NodeKind::Pipeline { .. }
                 | NodeKind::RoundRobin { .. }
+                | NodeKind::SequenceWithMemory { .. }
                 | NodeKind::Decorator {
                     decorator: Decorator::Rate { .. } | Decorator::SingleTrigger,
                     ..
@@ -308,9 +316,9 @@ impl Lowering<'_> {
                 *children = ids
             }
             NodeKind::Fallback { children } => *children = ids,
-            NodeKind::Pipeline { children } | NodeKind::RoundRobin { children, .. } => {
-                *children = ids
-            }
+            NodeKind::Pipeline { children }
+            | NodeKind::RoundRobin { children, .. }
+            | NodeKind::SequenceWithMemory { children, .. } => *children = ids,
             NodeKind::Flow(flow) => flow.children = ids,
             NodeKind::Decorator { child, .. } => *child = ids[0],
             NodeKind::Action(_) | NodeKind::Condition { .. } => {}
@@ -383,6 +391,25 @@ impl Lowering<'_> {
                     }
                 }
                 NodeKind::Fallback {
+                    children: children.clone(),
+                }
+            }
+            NodeKind::SequenceWithMemory { children, slot, .. } => {
+                // one whose index needs no flow: it starts at 0 whenever it
+                // runs (module docs of `index_roots`)
+                if memory_matters(tree, id)
+                    && (copy.is_some() || repeated(tree, id, *slot).is_some())
+                {
+                    return Err(NotPrimitive {
+                        node: id,
+                        reason: "it runs again after a Failure (or a halt) and resumes at the \
+                                 child where it stopped, inside a node whose runs the flow over \
+                                 its index cannot follow (a PipelineSequence child that re-runs, \
+                                 or a child of another node's index flow)"
+                            .into(),
+                    });
+                }
+                NodeKind::Sequence {
                     children: children.clone(),
                 }
             }
@@ -690,6 +717,7 @@ fn extract(tree: &Tree, id: NodeId) -> Tree {
                 | NodeKind::Fallback { children }
                 | NodeKind::Pipeline { children }
                 | NodeKind::RoundRobin { children, .. }
+                | NodeKind::SequenceWithMemory { children, .. }
                 | NodeKind::Parallel { children, .. }
                 | NodeKind::Flow(super::Flow { children, .. }) => {
                     children.iter_mut().for_each(|c| *c -= id)
@@ -707,13 +735,57 @@ fn extract(tree: &Tree, id: NodeId) -> Tree {
 /// may: another node shares its index (a copy made by a RecoveryNode), or an
 /// ancestor repeats its child.
 fn repeated(tree: &Tree, id: NodeId, slot: usize) -> Option<String> {
-    if let Some(other) = tree.nodes.iter().enumerate().find(|(o, n)| {
-        *o != id && matches!(&n.kind, NodeKind::RoundRobin { slot: s, .. } if *s == slot)
-    }) {
+    if let Some(other) = tree
+        .nodes
+        .iter()
+        .enumerate()
+        .find(|(o, n)| *o != id && slot_of(&n.kind) == Some(slot))
+    {
         return Some(format!("'{}' is a copy of it", other.1.name));
     }
     repeating_ancestor(tree, id)
         .map(|a| format!("its ancestor '{}' repeats it", tree.nodes[a].name))
+}
+
+/// The index slot of a RoundRobin or SequenceWithMemory (the xml front
+/// end gives the two kinds distinct slots).
+fn slot_of(kind: &NodeKind) -> Option<usize> {
+    match kind {
+        NodeKind::RoundRobin { slot, .. } | NodeKind::SequenceWithMemory { slot, .. } => {
+            Some(*slot)
+        }
+        _ => None,
+    }
+}
+
+/// Whether the index of the SequenceWithMemory `id` may be other than 0
+/// when it starts a run: a Failure of a child after the first keeps the
+/// index there, and so does a halt while such a child runs in BT.CPP v4
+/// (a Parallel or PipelineSequence above it may halt it; v3's halt resets
+/// the index). Otherwise each run starts at 0 and it is a Sequence.
+fn memory_matters(tree: &Tree, id: NodeId) -> bool {
+    let NodeKind::SequenceWithMemory {
+        children,
+        halt_resets,
+        ..
+    } = &tree.nodes[id].kind
+    else {
+        return false;
+    };
+    if children.len() < 2 {
+        return false;
+    }
+    let fails = children[1..].iter().any(|&c| outcomes(tree, c).1);
+    let mut halted = false;
+    let mut up = tree.nodes[id].parent;
+    while let Some(a) = up {
+        halted |= matches!(
+            tree.nodes[a].kind,
+            NodeKind::Parallel { .. } | NodeKind::Pipeline { .. }
+        );
+        up = tree.nodes[a].parent;
+    }
+    fails || (halted && !halt_resets)
 }
 
 /// The most states of the flow that follows a RoundRobin's index.
@@ -727,44 +799,77 @@ pub const MAX_INDEX_STATES: usize = 1 << 16;
 /// Failure), or with several copies (they share one index) and more than
 /// one child.
 fn index_roots(tree: &Tree) -> Result<HashMap<NodeId, usize>, NotPrimitive> {
-    let mut copies: Vec<(usize, Vec<NodeId>, bool, usize)> = Vec::new();
+    // (slot, copies, needs no flow when executed once, children, index
+    // matters at all)
+    let mut copies: Vec<(usize, Vec<NodeId>, bool, usize, bool)> = Vec::new();
     for (id, n) in tree.nodes.iter().enumerate() {
-        if let NodeKind::RoundRobin {
-            children,
-            wrap,
-            slot,
-        } = &n.kind
-        {
-            match copies.iter_mut().find(|c| c.0 == *slot) {
-                Some(c) => c.1.push(id),
-                None => copies.push((*slot, vec![id], *wrap, children.len())),
+        let (slot, once_free, m, matters) = match &n.kind {
+            NodeKind::RoundRobin {
+                children,
+                wrap,
+                slot,
+            } => (*slot, *wrap, children.len(), true),
+            NodeKind::SequenceWithMemory { children, slot, .. } => {
+                (*slot, true, children.len(), memory_matters(tree, id))
             }
+            _ => continue,
+        };
+        match copies.iter_mut().find(|c| c.0 == slot) {
+            Some(c) => {
+                c.1.push(id);
+                c.4 |= matters;
+            }
+            None => copies.push((slot, vec![id], once_free, m, matters)),
         }
     }
     let mut roots: HashMap<NodeId, usize> = HashMap::new();
-    for (slot, ids, wrap, m) in copies {
-        if wrap && (ids.len() == 1 || m == 1) {
-            continue;
-        }
-        let root = ids[1..]
+    for (slot, ids, once_free, m, matters) in copies {
+        let robin = matches!(tree.nodes[ids[0]].kind, NodeKind::RoundRobin { .. });
+        let mut root = ids[1..]
             .iter()
             .fold(ids[0], |a, &b| common_ancestor(tree, a, b));
+        // a SequenceWithMemory's index carries over the runs of a
+        // RetryUntilSuccessful or Repeat above it: the flow starts there
+        while let Some(a) = repeating_ancestor(tree, root).filter(|_| !robin) {
+            match tree.nodes[a].kind {
+                NodeKind::Decorator {
+                    decorator: Decorator::Retry { .. } | Decorator::Repeat { .. },
+                    ..
+                } => root = a,
+                _ => break,
+            }
+        }
+        let once = ids.len() == 1 && root == ids[0];
+        if !matters || (once_free && (once || m == 1)) {
+            continue;
+        }
         if let Some(why) = ancestor_repeats(tree, root) {
             return Err(NotPrimitive {
                 node: ids[0],
-                reason: format!(
-                    "{why}, and the RoundRobin starts each time after the child that last \
-                     succeeded: its start index depends on the earlier executions, which the \
-                     analysis follows only within one execution of '{}'",
-                    tree.nodes[root].name
-                ),
+                reason: if robin {
+                    format!(
+                        "{why}, and the RoundRobin starts each time after the child that last \
+                         succeeded: its start index depends on the earlier executions, which the \
+                         analysis follows only within one execution of '{}'",
+                        tree.nodes[root].name
+                    )
+                } else {
+                    format!(
+                        "{why}, and the SequenceWithMemory resumes at the child where it \
+                         stopped (after a Failure, or a halt): its start index depends on the \
+                         earlier executions, which the analysis follows only within one \
+                         execution of '{}' (a RecoveryNode's retries, or a RetryUntilSuccessful \
+                         directly above it)",
+                        tree.nodes[root].name
+                    )
+                },
             });
         }
         if roots.insert(root, slot).is_some() {
             return Err(NotPrimitive {
                 node: ids[0],
-                reason: "another RoundRobin's copies have the same lowest common ancestor; \
-                         the analysis follows one RoundRobin's index per node"
+                reason: "another RoundRobin's or SequenceWithMemory's copies have the same \
+                         lowest common ancestor; the analysis follows one index per node"
                     .into(),
             });
         }
@@ -914,8 +1019,9 @@ impl IndexFlow<'_> {
         let refuse = |why: &str| NotPrimitive {
             node: id,
             reason: format!(
-                "it holds a copy of a RoundRobin whose index the analysis follows through \
-                 Sequences, Fallbacks, the RoundRobin and one-run decorators only; {why}"
+                "it holds a copy of a RoundRobin or SequenceWithMemory whose index the \
+                 analysis follows through Sequences, Fallbacks, that node, one-run decorators, \
+                 RetryUntilSuccessful and Repeat only; {why}"
             ),
         };
         match &self.tree.nodes[id].kind {
@@ -937,8 +1043,22 @@ impl IndexFlow<'_> {
                 Decorator::Inverter => self.entries(*child, kf, ks),
                 Decorator::ForceSuccess => self.entries(*child, ks, ks),
                 Decorator::ForceFailure => self.entries(*child, kf, kf),
-                Decorator::Retry { attempts: 1 } | Decorator::Repeat { times: 1 } => {
-                    self.entries(*child, ks, kf)
+                // BT.CPP's RetryNode and RepeatNode reset a child that
+                // returned without halting it: its index carries over to
+                // the next attempt
+                Decorator::Retry { attempts } => {
+                    let mut cont = kf.to_vec();
+                    for _ in 0..attempts {
+                        cont = self.entries(*child, ks, &cont)?;
+                    }
+                    Ok(cont)
+                }
+                Decorator::Repeat { times } => {
+                    let mut cont = ks.to_vec();
+                    for _ in 0..times {
+                        cont = self.entries(*child, &cont, kf)?;
+                    }
+                    Ok(cont)
                 }
                 _ => Err(refuse("this decorator repeats it")),
             },
@@ -974,7 +1094,25 @@ impl IndexFlow<'_> {
                 }
                 Ok(out)
             }
+            NodeKind::SequenceWithMemory { children, slot, .. } if *slot == self.slot => {
+                // BT.CPP's sequence_with_memory_node.cpp: from the kept
+                // index, child j's Failure returns Failure with the index
+                // left at j, its Success moves on; the last child's Success
+                // returns Success with the index back at 0
+                let mut out = Vec::with_capacity(m);
+                let mut next = ks[0];
+                let mut chain = vec![ks[0]; m];
+                for j in (0..m).rev() {
+                    next = self.state(children[j], next, kf[j])?;
+                    chain[j] = next;
+                }
+                out.extend(chain);
+                Ok(out)
+            }
             NodeKind::RoundRobin { .. } => Err(refuse("another RoundRobin holds it")),
+            NodeKind::SequenceWithMemory { .. } => {
+                Err(refuse("another SequenceWithMemory holds it"))
+            }
             NodeKind::Parallel { .. } => Err(refuse("a Parallel holds it")),
             NodeKind::Pipeline { .. } => Err(refuse("a PipelineSequence holds it")),
             NodeKind::Flow(_) => Err(refuse("a flow (IfThenElse, Switch, ...) holds it")),
@@ -1016,19 +1154,14 @@ impl Lowering<'_> {
         }
         let range = tree.subtree(id);
         let holds = |n: NodeId| {
-            tree.subtree(n).any(|k| {
-                matches!(&tree.nodes[k].kind, NodeKind::RoundRobin { slot: s, .. } if *s == slot)
-            })
+            tree.subtree(n)
+                .any(|k| slot_of(&tree.nodes[k].kind) == Some(slot))
         };
         let onpath: Vec<bool> = range.clone().map(holds).collect();
         let m = tree
             .subtree(id)
-            .find_map(|k| match &tree.nodes[k].kind {
-                NodeKind::RoundRobin {
-                    children, slot: s, ..
-                } if *s == slot => Some(children.len()),
-                _ => None,
-            })
+            .find(|&k| slot_of(&tree.nodes[k].kind) == Some(slot))
+            .map(|k| tree.nodes[k].kind.children().len())
             .unwrap_or(1);
         let mut flow = IndexFlow {
             tree,
@@ -1067,8 +1200,10 @@ impl Lowering<'_> {
         kids.dedup();
         // a child that several states run must keep no memory of its own
         for &c in &kids {
-            if let Some(r) = tree.subtree(c).find(|&k| {
-                matches!(&tree.nodes[k].kind, NodeKind::RoundRobin { children, .. } if children.len() > 1)
+            if let Some(r) = tree.subtree(c).find(|&k| match &tree.nodes[k].kind {
+                NodeKind::RoundRobin { children, .. } => children.len() > 1,
+                NodeKind::SequenceWithMemory { .. } => memory_matters(tree, k),
+                _ => false,
             }) {
                 return Err(NotPrimitive {
                     node: r,

@@ -52,9 +52,11 @@
 //!   child when ticked again after a failure, so below a node that ticks a
 //!   failed child again (`RetryUntilSuccessful` with more than one attempt,
 //!   the main branch of a `RecoveryNode`) it differs from a fresh Sequence:
-//!   that case is refused — except as the direct child of a
-//!   `RetryUntilSuccessful` without a retrying ancestor, which becomes one
-//!   flow over (failures so far, child index) (`Builder::retry_with_memory`).
+//!   there it is a `NodeKind::SequenceWithMemory` whose copies share one
+//!   index slot, followed as a flow by `tree::nav2` — except as the direct
+//!   child of a `RetryUntilSuccessful` without a retrying ancestor, which
+//!   becomes one flow over (failures so far, child index)
+//!   (`Builder::retry_with_memory`).
 //! * `IfThenElse` (2 or 3 children) is the flow C → (Success: T, Failure: E
 //!   or Failure); `WhileDoElse` likewise when its condition child holds
 //!   conditions only (BT.CPP re-ticks it while a branch runs, which changes
@@ -70,8 +72,9 @@
 //! * Nav2's `RecoveryNode(main, recovery) number_of_retries=n` (default 1,
 //!   0 to 1000): Fallback(main, Sequence(recovery, RecoveryNode(n − 1))) with
 //!   RecoveryNode(0) = main, built from fresh copies (named `R/recovery k/..`
-//!   and `R/attempt k/..`): Nav2's loop exactly, as long as the main branch
-//!   keeps no memory across its runs (checked).
+//!   and `R/attempt k/..`): Nav2's loop exactly; the index of a RoundRobin
+//!   or SequenceWithMemory in the main branch, which carries over the
+//!   retries, is followed as a flow (`tree::nav2`).
 //! * `AlwaysSuccess` / `AlwaysFailure`: conditions with ps 1 / 0.
 //! * `Script`, `SetBlackboard`, `UnsetBlackboard`: BT.CPP runs them at once
 //!   and they return Success: a condition with ps 1, unless the params file
@@ -1362,6 +1365,7 @@ impl<'a> Builder<'a> {
             | NodeKind::Fallback { children }
             | NodeKind::Pipeline { children }
             | NodeKind::RoundRobin { children, .. }
+            | NodeKind::SequenceWithMemory { children, .. }
             | NodeKind::Parallel { children, .. } => *children = ids,
             NodeKind::Decorator { child, .. } => *child = ids[0],
             // a flow is built whole once its children are known
@@ -1669,20 +1673,6 @@ impl<'a> Builder<'a> {
                     (true, _) => &["success_count", "failure_count"],
                 };
                 self.check_attrs(e, &attrs(keys), false)?;
-                if canon == "SequenceWithMemory" {
-                    if let Some(by) = retry {
-                        self.problem(
-                            e.doc,
-                            e.loc,
-                            format!(
-                                "<{ty}> below {by}: after a failure it resumes at the failed child \
-                                 when ticked again instead of starting afresh, which a fresh copy \
-                                 of the subtree (the SBT model of a retry) does not cover"
-                            ),
-                            true,
-                        );
-                    }
-                }
                 if e.children.is_empty() {
                     return Err(self
                         .err(e.loc, format!("<{ty}> has no children"))
@@ -1698,6 +1688,22 @@ impl<'a> Builder<'a> {
                         failure_threshold: 0,
                         children: Vec::new(),
                     },
+                    // ticked again after a Failure, it resumes at the failed
+                    // child: its index is followed (`tree::nav2`), shared by
+                    // the copies a RecoveryNode makes
+                    "SequenceWithMemory" if retry.is_some() => {
+                        let key = format!("memory|{ei}|{:?}", self.expanding);
+                        let next = self.slots.len();
+                        let slot = *self.slots.entry(key).or_insert(next);
+                        NodeKind::SequenceWithMemory {
+                            children: Vec::new(),
+                            slot,
+                            // v3's SequenceStarNode::halt resets the index,
+                            // v4's SequenceWithMemory::halt keeps it
+                            halt_resets: ty == "SequenceStar"
+                                || self.sources[e.doc].format == Format::V3,
+                        }
+                    }
                     _ => NodeKind::Sequence {
                         children: Vec::new(),
                     },
