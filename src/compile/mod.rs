@@ -28,6 +28,7 @@ pub mod phase;
 pub mod plan;
 pub(crate) mod race;
 mod renewal;
+mod renewal_curve;
 pub(crate) mod shifted;
 
 use crate::solve::chain::{AbsorbingChain, Edge, Target};

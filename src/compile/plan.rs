@@ -404,6 +404,18 @@ impl<'t> Plan<'t> {
     ) -> Result<Vec<CurvePoint>, AnalysisError> {
         debug_assert_eq!(options.timing, Timing::AsGiven);
         let node = self.tree.node(id);
+        // a race against a renewal process of re-runs (or the Sequence that
+        // starts it): exact by levels of its wait, without a series
+        if self.method != Method::Book
+            && matches!(
+                node.kind,
+                NodeKind::Parallel { .. } | NodeKind::Sequence { .. }
+            )
+        {
+            if let Some(points) = super::renewal_curve::curve(self.tree, id, times, options)? {
+                return Ok(points);
+            }
+        }
         let points = |f: &dyn Fn(f64) -> (f64, f64)| -> Vec<CurvePoint> {
             times
                 .iter()
