@@ -486,21 +486,28 @@ pub(crate) fn curve(
         win.left + win.weights.len()
     };
     let steps = steps_of(lambda_all, lv.c);
-    let work = levels as f64 * steps as f64 * stack as f64 * lv.nnz() as f64;
-    if std::env::var_os("BTREL_DEBUG_RENEWAL").is_some() {
-        eprintln!("levels {levels} depth {depth} steps {steps} dim {} nnz {} c {} lambda {lambda_all} work {work:.3e}", lv.dim, lv.nnz(), lv.c);
-    }
+    // the prefix's phases run out: the later levels step at the rate of
+    // the race's own states (the work is counted as it is done too)
+    let lambda_race = lv.q[lv.np..].iter().copied().fold(0.0, f64::max);
+    let c_race = lv.flux[lv.np..].iter().copied().fold(0.0, f64::max);
+    let per_step = stack as f64 * lv.nnz() as f64;
+    let early_levels = levels.min(2) as f64;
+    let work = per_step
+        * (early_levels * steps as f64
+            + (levels as f64 - early_levels) * steps_of(lambda_race, c_race) as f64);
     let cells = (levels as f64 + 4.0 * stack as f64 + 2.0 * steps as f64) * lv.dim as f64;
     if cells / CELLS_PER_STATE > max_states as f64 {
         return Err(too_large(cells / CELLS_PER_STATE));
     }
+    let stiff = |work: f64| AnalysisError::Stiff {
+        node: name.clone(),
+        work,
+        limit: MAX_WORK,
+    };
     if work > MAX_WORK {
-        return Err(AnalysisError::Stiff {
-            node: name.clone(),
-            work,
-            limit: MAX_WORK,
-        });
+        return Err(stiff(work));
     }
+    let mut done = 0.0f64;
     let mut out: Vec<Option<CurvePoint>> = vec![None; times.len()];
     // before level 0 (a first wait of its own): R alone
     let early: Vec<usize> = (0..times.len()).filter(|&k| times[k] < lv.t0).collect();
@@ -557,6 +564,11 @@ pub(crate) fn curve(
             .max(1e-300);
         let c = lv.flux[live_p..].iter().copied().fold(0.0, f64::max);
         let n_steps = steps_of(lambda, c);
+        done += n_steps as f64 * per_step;
+        if done > 2.0 * MAX_WORK {
+            // the prefix lived longer than the estimate assumed
+            return Err(stiff(done / (level + 1) as f64 * levels as f64));
+        }
         rec.clear();
         rec.reserve(n_steps * 2 * dim);
         let top = (stack - 1) * dim;
