@@ -198,7 +198,7 @@ fn a_prefix_starts_the_race_at_a_random_time() {
         let pt = curve(&t, 0, &[tt], &CurveOptions::default()).unwrap()[0];
         // P(Exp(3) + Exp(0.5) ≤ t) = 1 − (3e^{−0.5t} − 0.5e^{−3t})/2.5
         let both = 1.0 - (3.0 * (-0.5 * tt).exp() - 0.5 * (-3.0 * tt).exp()) / 2.5;
-        let a_fails = 0.1 * (1.0 - (-1.0 * tt).exp());
+        let a_fails = 0.1 * (1.0 - (-tt).exp());
         let want = (0.9 * 0.8 * both, a_fails + 0.9 * 0.2 * both);
         assert_curve(&format!("t = {tt}"), (pt.success, pt.failure), want, 1e-12);
     }

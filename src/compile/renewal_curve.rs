@@ -49,8 +49,10 @@
 //! run needs a phase change of `C′` unless it succeeds at once (probability
 //! `p₀`), and `C′`'s phase changes in a time `d` are at most Poisson(`q_C
 //! d`) (`q_C` its fastest phase), so the mass left out per level is at
-//! most `P(Poisson(q_C d) ≥ Binomial(m − 1, 1 − p₀))`, which fixes `M` for
-//! 1e-16 (no truncation when the stack reaches time 0). Per level the
+//! most `P(Poisson(q_C d) ≥ Binomial(m − 1, 1 − p₀))`; and as each of the
+//! `m − 1` fresh runs must succeed within `d`, also at most `g^{m−1}`, `g =
+//! P(C′ succeeds within d)`. The smaller bound fixes `M` for 1e-16 (no
+//! truncation when the stack reaches time 0). Per level the
 //! error is at most that plus the Poisson windows' 1e-17 (1e-20 per point),
 //! so at most `K·2e-16` after `K` levels, whatever the number of re-runs;
 //! prefix phases whose mass fell below 1e-30 are dropped (they only set
@@ -174,6 +176,9 @@ struct Levels {
     base: [f64; 2],
     /// `(q_C d, p₀)` for the stack's truncation.
     stack: (f64, f64),
+    /// `g = P(C′ succeeds within d)`: also `P(m − 1 fresh runs in a time
+    /// d) ≤ g^{m−1}` (each must).
+    succeeds_within: f64,
 }
 
 impl Levels {
@@ -323,7 +328,14 @@ impl Levels {
                     .flat_map(|(_, c0)| (0..c0.len()).map(|j| c0.total_rate(j))),
             )
             .fold(0.0, f64::max);
+        let succeeds_within = if nc == 0 {
+            c.initial_success
+        } else {
+            let (_, ca) = renewal::wait_exponential(c, d)?;
+            c.initial_success + c.initial.iter().map(|&(j, x)| x * ca[j][0]).sum::<f64>()
+        };
         Some(Levels {
+            succeeds_within: succeeds_within.min(1.0),
             d,
             t0,
             dim,
@@ -405,8 +417,11 @@ impl Levels {
         let tail_at = |b: usize| tail.get(b).copied().unwrap_or(0.0);
         // dist: Binomial(m − 1, 1 − p₀) over the fresh runs that take time
         let mut dist = vec![1.0f64];
+        let g = self.succeeds_within;
         for m in 1..=cap {
             let out: f64 = dist.iter().enumerate().map(|(b, &x)| x * tail_at(b)).sum();
+            // m − 1 fresh runs, each succeeding within d: at most g^{m−1}
+            let out = out.min(g.powi(m as i32 - 1));
             if out <= STACK_EPS {
                 return m;
             }
