@@ -1,7 +1,9 @@
 //! `curve` goals: 1,000 time points of search-and-grasp; 1,000 points of a
-//! 10k-leaf tree; a stiff tree (rates 1e-4..1e5) over a 1e7 s horizon.
+//! 10k-leaf tree; a stiff tree (rates 1e-4..1e5) over a 1e7 s horizon;
+//! 1,000 points of one attempt of Nav2's default tree (re-planning at 1 Hz
+//! raced by the follower: the renewal levels) over 300 s.
 //!
-//! Run: `cargo bench --bench curve`
+//! Run: `cargo bench --bench curve` (one: `cargo bench --bench curve -- nav2`)
 
 use std::path::Path;
 
@@ -44,6 +46,17 @@ fn curves(c: &mut Criterion) {
     let times = grid(1e7, 1000);
     group.bench_function("stiff_horizon_1e7_1000_points", |b| {
         b.iter(|| curve(&stiff, 0, &times, &CurveOptions::default()).expect("curve"))
+    });
+
+    let nav2 = btrel::tree::xml::parse_xml_files(
+        Path::new("trees/nav2-default-attempt.xml"),
+        Path::new("trees/nav2-default-attempt.params.yaml"),
+        &[],
+    )
+    .expect("tree");
+    let times = grid(300.0, 1000);
+    group.bench_function("nav2_default_attempt_1000_points", |b| {
+        b.iter(|| curve(&nav2, 0, &times, &CurveOptions::default()).expect("curve"))
     });
     group.finish();
 }

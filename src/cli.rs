@@ -743,6 +743,12 @@ fn analysis_failure(cmd: Cmd, method: Method) -> impl Fn(AnalysisError) -> Failu
                 fixes.push(simulate);
             }
             AnalysisError::Unbounded { .. } | AnalysisError::Nav2 { .. } => fixes.push(simulate),
+            AnalysisError::RenewalInside { start, .. } => {
+                if cmd == Cmd::Curve {
+                    fixes.push(format!("`--node '{start}'` (its exact curve)"));
+                }
+                fixes.push(simulate);
+            }
             AnalysisError::Numerical { .. } | AnalysisError::NeverReturns { .. } => {}
         }
         if cmd == Cmd::Plot && !matches!(e, AnalysisError::NeverReturns { .. }) {

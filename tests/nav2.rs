@@ -97,17 +97,9 @@ fn rate_controller_replanning_races_the_follower() {
     // 306 re-runs (0.9^306 ≤ 1e-14); the figures need none (the renewal
     // method), and equal the closed form
     check_exact(&tree, exact);
-    // the curve needs the series: refused, naming the node, its place and
-    // the size, and saying that the figures are exact
-    let e = curve(&tree, 0, &[1.0], &CurveOptions::default()).unwrap_err();
-    let msg = e.to_string();
-    assert!(
-        msg.contains("'pipe'")
-            && msg.contains("line 3, column 1")
-            && msg.contains("306 re-runs")
-            && msg.contains("are exact without it"),
-        "{msg}"
-    );
+    // the curve needs no series either (`compile::renewal_curve`): it tends
+    // to the closed form's ps and matches the simulated tick semantics
+    check_curve(&tree, exact);
     // with ps 0.7 (91 re-runs) the lowering is analysed, exactly
     let tree = xml(
         "<PipelineSequence name=\"pipe\">\n<Sel/>\n<RateController hz=\"0.5\"><Plan/></RateController>\n<Follow/>\n</PipelineSequence>",
@@ -116,11 +108,36 @@ fn rate_controller_replanning_races_the_follower() {
     let exact = race(100.0, 0.7, 2.0, 4.0, 2.0, 0.8, 0.05, 0.1);
     check_race(&tree, exact, 100_000);
     check_exact(&tree, exact);
-    // the curve of a Sequence around a race with a fixed wait needs the
-    // convolution of a race's law, which the engine does not have: refused
-    // with the lowered node named
-    let e = curve(&tree, 0, &[1.0], &CurveOptions::default()).unwrap_err();
-    assert!(e.to_string().contains("RateController/re-run/wait"), "{e}");
+    // the curve of the Sequence that starts the race (the pipeline) is
+    // exact too, whatever the series' length
+    check_curve(&tree, exact);
+}
+
+/// The pipeline's curve: its limit is the closed form's ps, and at a few
+/// times it matches the simulation of Nav2's tick semantics (|z| < 5).
+fn check_curve(tree: &Tree, exact: (f64, f64, f64)) {
+    let late = curve(tree, 0, &[3000.0], &CurveOptions::default()).expect("curve")[0];
+    assert!(
+        (late.success - exact.0).abs() < 1e-9,
+        "{late:?} vs {exact:?}"
+    );
+    assert!(
+        (late.failure - (1.0 - exact.0)).abs() < 1e-9,
+        "{late:?} vs {exact:?}"
+    );
+    let times = [1.0, 5.0, 20.0, 60.0];
+    let pts = curve(tree, 0, &times, &CurveOptions::default()).expect("curve");
+    let opts = SimOptions {
+        runs: 50_000,
+        per_node: false,
+        times: times.to_vec(),
+        ..Default::default()
+    };
+    let sim = simulate(tree, &opts, None).expect("simulates");
+    for (p, e) in pts.iter().zip(&sim.curve) {
+        assert_within_z(&format!("S({})", p.t), &e.success, p.success);
+        assert_within_z(&format!("F({})", p.t), &e.failure, p.failure);
+    }
 }
 
 /// `report` of the lowered pipeline equals the closed form to 1e-9.

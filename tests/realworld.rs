@@ -168,6 +168,9 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
     // analysed trees with a PipelineSequence (the re-planning ones by the
     // renewal method)
     let mut pipelines = 0;
+    // of those, the trees where every PipelineSequence has its curve
+    let mut pipeline_curves = 0;
+    let mut no_pipeline_curve = Vec::new();
     // read, but a Nav2 node has no exact analysis yet: simulated instead
     let mut nav2 = Vec::new();
     let mut unsimulated = Vec::new();
@@ -200,12 +203,28 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
         match parse_xml_files(&xml, &params, &includes) {
             Ok(tree) => match analyze(&tree, &Options::default()) {
                 Ok(_) => {
-                    if tree
-                        .nodes
-                        .iter()
-                        .any(|n| matches!(n.kind, btrel::tree::NodeKind::Pipeline { .. }))
-                    {
+                    let pipes: Vec<usize> = (0..tree.nodes.len())
+                        .filter(|&id| {
+                            matches!(tree.nodes[id].kind, btrel::tree::NodeKind::Pipeline { .. })
+                        })
+                        .collect();
+                    if !pipes.is_empty() {
                         pipelines += 1;
+                        // every PipelineSequence's own curve (the re-planning
+                        // ones by the renewal levels, `compile::renewal_curve`)
+                        let mut refused = Vec::new();
+                        for &id in &pipes {
+                            if let Err(e) =
+                                btrel::curve::curve(&tree, id, &[100.0], &Default::default())
+                            {
+                                refused.push(format!("'{}': {e}", tree.nodes[id].name));
+                            }
+                        }
+                        if refused.is_empty() {
+                            pipeline_curves += 1;
+                        } else {
+                            no_pipeline_curve.push((row.file.clone(), refused.join("; ")));
+                        }
                     }
                     let t_end = 100.0;
                     if btrel::curve::curve(&tree, 0, &[t_end], &Default::default()).is_ok() {
@@ -256,6 +275,21 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
         nav2.len(),
         semantic.len(),
         invalid.len()
+    );
+    println!(
+        "{pipeline_curves} of the {pipelines} trees with a PipelineSequence have the curve of \
+         every PipelineSequence (the re-planning race by the renewal levels)"
+    );
+    for (f, e) in &no_pipeline_curve {
+        println!("  no pipeline curve: {f}: {e}");
+    }
+    // the re-planning pipelines have their curve (the renewal levels): all
+    // but SpeedController's (a first wait of its own after a random start,
+    // off the period's grid) and follow_point's (a follower looped by
+    // KeepRunningUntilFailure: hundreds of phases, over the work limit)
+    assert!(
+        pipeline_curves >= 12,
+        "{pipeline_curves} of {pipelines} trees with a PipelineSequence have its curve"
     );
     for (f, e) in &limited {
         println!("  analysis limit: {f}: {e}");

@@ -28,6 +28,7 @@ pub mod phase;
 pub mod plan;
 pub(crate) mod race;
 mod renewal;
+mod renewal_curve;
 pub(crate) mod shifted;
 
 use crate::solve::chain::{AbsorbingChain, Edge, Target};
@@ -190,6 +191,20 @@ pub enum AnalysisError {
     Unbounded {
         /// The loop node.
         node: String,
+    },
+    /// A subtree around a race against a renewal process of re-runs (Nav2's
+    /// re-planning), where the curve of the node starting the race is exact
+    /// but its law composed with the rest is not.
+    #[error(
+        "node '{node}' holds '{start}', whose re-runs race its later children (a renewal process \
+         of re-plans): the curve of '{start}' is exact, but its law composed with the rest of \
+         the tree around it is not supported yet (the figures of every node are exact)"
+    )]
+    RenewalInside {
+        /// The node whose curve was asked.
+        node: String,
+        /// The node that starts the race (the lowered PipelineSequence).
+        start: String,
     },
     /// A Nav2 node (PipelineSequence, RoundRobin, ...) that is not exactly
     /// one of the primitives where it stands ([`crate::tree::nav2::primitive_view`]).

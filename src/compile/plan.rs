@@ -41,6 +41,7 @@ use super::mrg::{self, Mrg, Policy};
 use super::{atoms, book_ctmc, counts, flow, law, phase, race, AnalysisError, Figures, Method};
 use crate::solve::chain::PhaseChain;
 use crate::solve::solve_absorbing;
+use crate::tree::nav2::MAX_RERUN_TERMS;
 use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
 
 /// How the engine represents one node's outcome law (the planner's table,
@@ -190,6 +191,9 @@ pub struct Plan<'t> {
     pub(crate) laws: law::LawMemo,
     /// The book's figures of every node (strategy `book`, curves).
     book: OnceCell<Vec<Figures>>,
+    /// Races against a renewal process whose loop's series is long:
+    /// `(race, process)`, in pre-order.
+    long_renewals: OnceCell<Vec<(NodeId, NodeId)>>,
 }
 
 impl<'t> Plan<'t> {
@@ -207,6 +211,7 @@ impl<'t> Plan<'t> {
             over_budget: RefCell::default(),
             laws: law::LawMemo::default(),
             book: OnceCell::new(),
+            long_renewals: OnceCell::new(),
         }
     }
 
@@ -404,6 +409,42 @@ impl<'t> Plan<'t> {
     ) -> Result<Vec<CurvePoint>, AnalysisError> {
         debug_assert_eq!(options.timing, Timing::AsGiven);
         let node = self.tree.node(id);
+        // a race against a renewal process of re-runs (or the Sequence that
+        // starts it): exact by levels of its wait, without a series
+        if self.method != Method::Book
+            && matches!(
+                node.kind,
+                NodeKind::Parallel { .. } | NodeKind::Sequence { .. }
+            )
+        {
+            if let Some(points) = super::renewal_curve::curve(self.tree, id, times, options)? {
+                return Ok(points);
+            }
+        }
+        // a subtree around such a race needs its law convolved (the loop's
+        // long series otherwise): refused at once, naming the loop
+        let long = self.long_renewals();
+        let inside = if long.is_empty() {
+            0..0
+        } else {
+            self.tree.subtree(id)
+        };
+        if let Some(&(race, _)) = long.iter().find(|(race, _)| inside.contains(race)) {
+            // the node that starts the race: the Sequence it ends
+            let start = match self.tree.node(race).parent {
+                Some(p)
+                    if matches!(&self.tree.node(p).kind,
+                        NodeKind::Sequence { children } if children.last() == Some(&race)) =>
+                {
+                    p
+                }
+                _ => race,
+            };
+            return Err(AnalysisError::RenewalInside {
+                node: node.name.clone(),
+                start: self.tree.node(start).name.clone(),
+            });
+        }
         let points = |f: &dyn Fn(f64) -> (f64, f64)| -> Vec<CurvePoint> {
             times
                 .iter()
@@ -485,6 +526,20 @@ impl<'t> Plan<'t> {
                 curve_query::solve_chain(&chain, times, options, &node.name)
             }
         }
+    }
+
+    /// The races against a renewal process whose loop's series exceeds
+    /// what the series path computes (found once).
+    fn long_renewals(&self) -> &[(NodeId, NodeId)] {
+        self.long_renewals.get_or_init(|| {
+            (0..self.tree.nodes.len())
+                .filter(|&id| matches!(self.tree.node(id).kind, NodeKind::Parallel { .. }))
+                .filter_map(|id| {
+                    let (process, terms) = super::renewal::series(self.tree, id, self.max_states)?;
+                    (terms > MAX_RERUN_TERMS as f64).then_some((id, process))
+                })
+                .collect()
+        })
     }
 
     /// `π(t)` of a counted Parallel (success threshold `m`) from its

@@ -84,18 +84,18 @@ pub(crate) enum Renewal {
 }
 
 /// The parts of a renewal race.
-struct Parts {
+pub(super) struct Parts {
     /// The re-run process: `until_failure(Sequence(wait, C′))`, or
     /// `Sequence(wait d₀, C′₀, until_failure(Sequence(wait, C′)))`.
-    process: NodeId,
+    pub(super) process: NodeId,
     /// The fixed wait `d` (s).
-    wait: f64,
+    pub(super) wait: f64,
     /// The re-run `C′`.
-    rerun: NodeId,
+    pub(super) rerun: NodeId,
     /// A first cycle that differs: its wait `d₀` (s) and re-run `C′₀`.
-    first: Option<(f64, NodeId)>,
+    pub(super) first: Option<(f64, NodeId)>,
     /// The raced subtree `R`.
-    rest: NodeId,
+    pub(super) rest: NodeId,
 }
 
 /// The time of `w` when it is a wait: an action with ps 1 and a fixed
@@ -149,7 +149,7 @@ fn process(tree: &Tree, p: NodeId) -> Option<Process> {
 }
 
 /// `Parallel{1, 1}(process, R)` (either order) with a re-run process.
-fn parts(tree: &Tree, id: NodeId) -> Option<Parts> {
+pub(super) fn parts(tree: &Tree, id: NodeId) -> Option<Parts> {
     let NodeKind::Parallel {
         success_threshold: 1,
         failure_threshold: 1,
@@ -536,6 +536,16 @@ fn solve(
         tf += w[k] * a[k][1] + v[k] * b[k][1];
     }
     finish(ps, pf, ts, tf)
+}
+
+/// `E` (R's phases after a wait `d`, row major) and `[P_i(S by d),
+/// P_i(F by d)]` by the cheaper exact method; `None` when both exceed the
+/// work limit (the renewal curve's use, `super::renewal_curve`).
+pub(super) fn wait_exponential(r: &PhaseChain, d: f64) -> Option<(Vec<f64>, Vec<[f64; 2]>)> {
+    match wait_method(r, d)? {
+        Exponential::Dense => Some(dense_exponential(r, d)),
+        Exponential::Uniformized => Some(uniformized_exponential(r, d)),
+    }
 }
 
 /// How `e^{Q_R d}` is computed.

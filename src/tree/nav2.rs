@@ -490,8 +490,14 @@ impl Lowering<'_> {
                 }
             };
             let renewal = wait.is_some() && renewal_applies(tree, rerun, &children[k + 1..]);
-            if let Some(terms) =
-                long_series(tree, rerun, wait.is_some()).filter(|_| !(renewal && self.figures))
+            // its curve too when the wait is periodic (no first wait of its
+            // own) and the earlier children are Markovian
+            // (`crate::compile::renewal_curve`)
+            let curve = renewal
+                && wait.is_some_and(|(first, period)| first == period)
+                && renewal_applies(tree, rerun, &children[..=k]);
+            if let Some(terms) = long_series(tree, rerun, wait.is_some())
+                .filter(|_| !(renewal && (self.figures || curve)))
             {
                 let exact = if renewal {
                     " (the figures — ps, pf, MTTS, MTTF — are exact without it; the \

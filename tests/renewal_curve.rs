@@ -1,0 +1,250 @@
+//! `π(t)` of the race of a subtree against a renewal process of re-runs
+//! with a fixed wait (Nav2's re-planning, `compile::renewal_curve`):
+//! against closed forms derived by hand, against the exact figures of
+//! `report` (the curve's limit), and against simulation of the published
+//! PipelineSequence with its real tick semantics (|z| < 5).
+
+mod common;
+use common::*;
+
+use btrel::compile::curve::{curve, CurveOptions};
+use btrel::tree::xml::parse_xml_files;
+use std::path::Path;
+
+fn race_yaml(d: f64, rerun: &str, rest: &str) -> String {
+    format!(
+        "tree: {{parallel: {{name: race, success_threshold: 1, failure_threshold: 1, children: [\
+         {{until_failure: {{name: replan, child: {{sequence: {{children: [\
+         {{action: {{name: wait, ps: 1.0, tau_s: {d}}}}}, {rerun}]}}}}}}}}, {rest}]}}}}"
+    )
+}
+
+/// `P(Poisson(λ) ≥ n)` as a sum of non-negative terms.
+fn poisson_upper(n: usize, lambda: f64) -> f64 {
+    if n == 0 {
+        return 1.0;
+    }
+    // P(k) from log-space, then the tail term by term
+    let ln_fact: f64 = (1..=n).map(|k| (k as f64).ln()).sum();
+    let mut term = (n as f64 * lambda.ln() - lambda - ln_fact).exp();
+    let mut sum = 0.0;
+    let mut k = n;
+    while term > 1e-300 && (term > 1e-20 * sum || (k as f64) < lambda) {
+        sum += term;
+        k += 1;
+        term *= lambda / k as f64;
+    }
+    sum
+}
+
+/// Gauss–Legendre nodes and weights on [−1, 1] (Newton on P_n).
+fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
+    (0..n)
+        .map(|i| {
+            let mut x = (std::f64::consts::PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
+            let mut dp = 0.0;
+            for _ in 0..100 {
+                let (mut p0, mut p1) = (1.0, x);
+                for k in 2..=n {
+                    let p2 = ((2 * k - 1) as f64 * x * p1 - (k - 1) as f64 * p0) / k as f64;
+                    p0 = p1;
+                    p1 = p2;
+                }
+                dp = n as f64 * (x * p1 - p0) / (x * x - 1.0);
+                let step = p1 / dp;
+                x -= step;
+                if step.abs() < 1e-16 {
+                    break;
+                }
+            }
+            (x, 2.0 / ((1.0 - x * x) * dp * dp))
+        })
+        .collect()
+}
+
+/// `∫_a^b f` by 30-point Gauss–Legendre on panels of width ≤ 0.25 cut at
+/// the multiples of `cut` (where the integrand kinks).
+fn integrate(f: &dyn Fn(f64) -> f64, a: f64, b: f64, cut: f64) -> f64 {
+    let rule = gauss_legendre(30);
+    let mut edges = vec![a];
+    let mut k = (a / cut).floor() + 1.0;
+    while k * cut < b {
+        edges.push(k * cut);
+        k += 1.0;
+    }
+    edges.push(b);
+    let mut total = 0.0;
+    for w in edges.windows(2) {
+        let pieces = ((w[1] - w[0]) / 0.25).ceil().max(1.0) as usize;
+        let h = (w[1] - w[0]) / pieces as f64;
+        for p in 0..pieces {
+            let (lo, hi) = (w[0] + p as f64 * h, w[0] + (p + 1) as f64 * h);
+            let (mid, half) = ((lo + hi) / 2.0, (hi - lo) / 2.0);
+            total += rule
+                .iter()
+                .map(|&(x, wt)| wt * f(mid + half * x))
+                .sum::<f64>()
+                * half;
+        }
+    }
+    total
+}
+
+/// The curve of a race whose rest R is one action (Success w.p. `s` after
+/// Exp(μ), else Failure after Exp(ν)) against a re-run process whose
+/// failure time L is independent of R, with `P(L > x)` given: the node
+/// succeeds by t iff R's Success time X ≤ t comes before L, so `S(t) = s
+/// ∫_0^t μ e^{−μx} P(L > x) dx`, and it is still running at t iff both
+/// are, `P(X > t) P(L > t)`.
+fn against_one_action(
+    survive: &dyn Fn(f64) -> f64,
+    (s, mu, nu): (f64, f64, f64),
+    d: f64,
+    t: f64,
+) -> (f64, f64) {
+    let success = s * integrate(&|x| mu * (-mu * x).exp() * survive(x), 0.0, t, d);
+    let running = (s * (-mu * t).exp() + (1.0 - s) * (-nu * t).exp()) * survive(t);
+    (success, 1.0 - success - running)
+}
+
+fn assert_curve(what: &str, got: (f64, f64), want: (f64, f64), tol: f64) {
+    assert!(
+        (got.0 - want.0).abs() <= tol && (got.1 - want.1).abs() <= tol,
+        "{what}: curve {got:?} vs hand {want:?} (diff {:.2e}, {:.2e})",
+        got.0 - want.0,
+        got.1 - want.1
+    );
+}
+
+#[test]
+fn a_bernoulli_replan_every_period_matches_the_closed_form() {
+    // the re-plan is a condition: at d, 2d, 3d, … it fails (and fails the
+    // node) w.p. 1 − p, so P(L > x) = p^⌊x/d⌋; a failure at t = kd counts
+    // at t. p = 0.97 at 2 Hz: the loop's series would need
+    // ln(1e-14)/ln(0.97) ≈ 1,060 re-runs.
+    let (p, d): (f64, f64) = (0.97, 0.5);
+    let rest = (0.8, 0.05, 0.02);
+    let t = tree(&race_yaml(
+        d,
+        &format!("{{condition: {{name: plan, ps: {p}}}}}"),
+        "{action: {name: follow, ps: 0.8, mu: 0.05, nu: 0.02}}",
+    ));
+    let survive = |x: f64| p.powi((x / d + 1e-12).floor() as i32);
+    let times = [0.0, 0.2, 0.5, 1.3, 7.0, 30.25, 100.0, 400.0];
+    let pts = curve(&t, 0, &times, &CurveOptions::default()).expect("curve");
+    for (pt, &tt) in pts.iter().zip(&times) {
+        let want = against_one_action(&survive, rest, d, tt);
+        assert_curve(&format!("t = {tt}"), (pt.success, pt.failure), want, 1e-10);
+    }
+    // the limit is report's figures
+    let f = root_figures(&t);
+    let late = curve(&t, 0, &[2000.0], &CurveOptions::default()).unwrap()[0];
+    assert!((late.success - f.ps).abs() < 1e-10, "{late:?} vs {f:?}");
+    assert!((late.failure - f.pf).abs() < 1e-10, "{late:?} vs {f:?}");
+}
+
+#[test]
+fn an_exponential_replan_matches_the_closed_form() {
+    // the re-plan succeeds w.p. p after Exp(a), else fails after Exp(b):
+    // the process fails after n successful cycles at L = (n + 1)d + E_n(a)
+    // + Exp(b) (E_n an Erlang), w.p. pⁿ(1 − p); with a > b,
+    // P(E_n(a) + Exp(b) ≤ y) = P(E_n(a) ≤ y) − e^{−by} (a/(a − b))ⁿ
+    // P(E_n(a − b) ≤ y), P(E_n(r) ≤ y) = P(Poisson(ry) ≥ n).
+    let (p, a, b, d): (f64, f64, f64, f64) = (0.9, 2.0, 0.5, 1.0);
+    let rest = (0.8, 0.5, 0.25);
+    let t = tree(&race_yaml(
+        d,
+        &format!("{{action: {{name: plan, ps: {p}, mu: {a}, nu: {b}}}}}"),
+        "{action: {name: follow, ps: 0.8, mu: 0.5, nu: 0.25}}",
+    ));
+    let fails_by = |x: f64| -> f64 {
+        let mut total = 0.0;
+        let mut n = 0;
+        while (n as f64 + 1.0) * d < x {
+            let y = x - (n as f64 + 1.0) * d;
+            let h = poisson_upper(n, a * y)
+                - (-b * y).exp() * (a / (a - b)).powi(n as i32) * poisson_upper(n, (a - b) * y);
+            total += p.powi(n as i32) * (1.0 - p) * h;
+            n += 1;
+        }
+        total
+    };
+    let survive = |x: f64| 1.0 - fails_by(x);
+    let times = [0.3, 1.0, 1.7, 2.5, 4.0, 9.9, 20.0];
+    let pts = curve(&t, 0, &times, &CurveOptions::default()).expect("curve");
+    for (pt, &tt) in pts.iter().zip(&times) {
+        let want = against_one_action(&survive, rest, d, tt);
+        assert_curve(&format!("t = {tt}"), (pt.success, pt.failure), want, 1e-10);
+    }
+}
+
+#[test]
+fn a_prefix_starts_the_race_at_a_random_time() {
+    // Sequence(A, race): the race starts when A succeeds (Exp(3), w.p.
+    // 0.9); with a re-plan that always succeeds the race is R alone, so
+    // the node is A then R in turn: S(t) = 0.9·0.8·P(Exp(3) + Exp(0.5) ≤ t)
+    let yaml = race_yaml(
+        1.0,
+        "{action: {name: plan, ps: 1.0, mu: 2.0}}",
+        "{action: {name: follow, ps: 0.8, mu: 0.5, nu: 0.5}}",
+    )
+    .replacen(
+        "tree: {parallel:",
+        "tree: {sequence: {name: seq, children: [{action: {name: A, ps: 0.9, mu: 3.0, nu: 1.0}}, {parallel:",
+        1,
+    ) + "]}}";
+    let t = tree(&yaml);
+    for tt in [0.5, 1.0, 2.2, 6.0] {
+        let pt = curve(&t, 0, &[tt], &CurveOptions::default()).unwrap()[0];
+        // P(Exp(3) + Exp(0.5) ≤ t) = 1 − (3e^{−0.5t} − 0.5e^{−3t})/2.5
+        let both = 1.0 - (3.0 * (-0.5 * tt).exp() - 0.5 * (-3.0 * tt).exp()) / 2.5;
+        let a_fails = 0.1 * (1.0 - (-tt).exp());
+        let want = (0.9 * 0.8 * both, a_fails + 0.9 * 0.2 * both);
+        assert_curve(&format!("t = {tt}"), (pt.success, pt.failure), want, 1e-12);
+    }
+}
+
+/// Nav2's default attempt as published (`trees/nav2-default-attempt.xml`).
+fn nav2_attempt() -> btrel::tree::Tree {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("trees");
+    parse_xml_files(
+        &dir.join("nav2-default-attempt.xml"),
+        &dir.join("nav2-default-attempt.params.yaml"),
+        &[],
+    )
+    .expect("the attempt parses")
+}
+
+#[test]
+fn nav2_default_attempt_curve_tends_to_the_report() {
+    let t = nav2_attempt();
+    let f = root_figures(&t);
+    let late = curve(&t, 0, &[1500.0], &CurveOptions::default()).expect("curve")[0];
+    assert!(late.running < 1e-12, "{late:?}");
+    assert!((late.success - f.ps).abs() < 1e-10, "{late:?} vs {f:?}");
+    assert!((late.failure - f.pf).abs() < 1e-10, "{late:?} vs {f:?}");
+    // MTTS from the curve: E[T·1{S}] = ∫ (P(S) − S(t)) dt over the levels
+    let times: Vec<f64> = (0..=15000).map(|k| k as f64 * 0.1).collect();
+    let pts = curve(&t, 0, &times, &CurveOptions::default()).expect("curve");
+    // trapezoid on a 0.1 s grid: a check of the order of 1e-3 relative
+    let tail: f64 = pts
+        .windows(2)
+        .map(|w| 0.05 * ((f.ps - w[0].success) + (f.ps - w[1].success)))
+        .sum();
+    let mtts = tail / f.ps;
+    assert!(
+        (mtts - f.mtts.unwrap()).abs() < 1e-3 * f.mtts.unwrap(),
+        "{mtts} vs {f:?}"
+    );
+}
+
+#[test]
+fn nav2_default_attempt_curve_matches_simulation() {
+    // the simulator runs the published PipelineSequence and RateController
+    // with their tick semantics, not the lowering
+    let t = nav2_attempt();
+    let times = [2.0, 10.0, 30.0, 60.0, 120.0];
+    let pts = curve(&t, 0, &times, &CurveOptions::default()).expect("curve");
+    let sim = simulate_root(&t, 100_000, &times);
+    assert_root_and_curve_within_z("attempt", root_figures(&t), &pts, &sim);
+}
