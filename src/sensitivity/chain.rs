@@ -765,6 +765,10 @@ pub(crate) struct CountedGrid {
     curves: Vec<Vec<(f64, f64)>>,
     /// Per child: `(s_h, f_h)`, the probabilities of its outcomes.
     totals: Vec<(f64, f64)>,
+    /// The node's `[E[T·1S], E[T·1F]]` on this grid.
+    values: [f64; 2],
+    /// Per child: its weighted partials (`CountedGrid::partials`).
+    partials: RefCell<HashMap<usize, Rc<[Vec<[f64; 3]>; 2]>>>,
 }
 
 /// Points of the Gauss–Legendre rule per panel.
@@ -854,13 +858,16 @@ impl CountedGrid {
                 nodes.extend(rule.nodes.iter().map(|x| c + h * x));
                 weights.extend(rule.weights.iter().map(|w| w * h));
             }
-            let grid = CountedGrid {
+            let mut grid = CountedGrid {
                 curves: curves_at(&nodes)?,
                 nodes,
                 weights,
                 totals: totals.clone(),
+                values: [0.0; 2],
+                partials: RefCell::default(),
             };
-            let total = grid.integral(m, true, None) + grid.integral(n + 1 - m, false, None);
+            grid.values = [grid.integral(m, true), grid.integral(n + 1 - m, false)];
+            let total = grid.values[0] + grid.values[1];
             if let Some((before, _)) = &previous {
                 if (total - before).abs() <= 1e-13 * total.abs() {
                     return Some(grid);
@@ -878,32 +885,54 @@ impl CountedGrid {
 
     /// `∫ g` of one side (threshold `m`): `g(t) = P(K_t < m ≤ K_∞)` over
     /// the children's done / pending / never weights (`compile::counts`);
-    /// with `tangent = Some((h, curve, total))` the integral of its
-    /// derivative instead, child `h`'s weights replaced by their tangents
-    /// (`g` is linear in each child's weights).
-    fn integral(&self, m: usize, success: bool, tangent: Option<(usize, &[[D; 2]], D)>) -> f64 {
+    /// with `unit = Some((h, j))` child `h`'s weights replaced by the `j`-th
+    /// unit vector instead: the partial derivative of `g` in that weight
+    /// (`g` is linear in each child's weights), per node, times its weight.
+    fn terms(&self, m: usize, success: bool, unit: Option<(usize, usize)>) -> Vec<f64> {
         let side = |x: (f64, f64)| if success { x.0 } else { x.1 };
         let mut scratch = Vec::new();
-        let mut sum = 0.0;
-        for (k, w) in self.weights.iter().enumerate() {
-            let weights = self
-                .curves
-                .iter()
-                .zip(&self.totals)
-                .enumerate()
-                .map(|(h, (c, t))| {
-                    let (done, total) = (side(c[k]), side(*t));
-                    match tangent {
-                        Some((p, curve, dt)) if p == h => {
-                            let dd = curve[k][usize::from(!success)].d;
-                            (dd, dt.d - dd, -dt.d)
-                        }
-                        _ => (done, (total - done).max(0.0), 1.0 - total),
-                    }
-                });
-            sum += w * pending_by_counts(weights, m, &mut scratch);
+        self.weights
+            .iter()
+            .enumerate()
+            .map(|(k, w)| {
+                let weights =
+                    self.curves
+                        .iter()
+                        .zip(&self.totals)
+                        .enumerate()
+                        .map(|(h, (c, t))| {
+                            let (done, total) = (side(c[k]), side(*t));
+                            match unit {
+                                Some((p, j)) if p == h => {
+                                    let e = |i: usize| f64::from(u8::from(i == j));
+                                    (e(0), e(1), e(2))
+                                }
+                                _ => (done, (total - done).max(0.0), 1.0 - total),
+                            }
+                        });
+                w * pending_by_counts(weights, m, &mut scratch)
+            })
+            .collect()
+    }
+
+    fn integral(&self, m: usize, success: bool) -> f64 {
+        self.terms(m, success, None).iter().sum()
+    }
+
+    /// Child `h`'s weighted partials `∂g/∂(done, pending, never)` at every
+    /// node, per side (computed once per child, shared by the parameters
+    /// below it).
+    fn partials(&self, h: usize, m: usize, n: usize) -> Rc<[Vec<[f64; 3]>; 2]> {
+        if let Some(p) = self.partials.borrow().get(&h) {
+            return p.clone();
         }
-        sum
+        let side = |m: usize, success: bool| {
+            let [a, b, c] = [0, 1, 2].map(|j| self.terms(m, success, Some((h, j))));
+            (0..a.len()).map(|k| [a[k], b[k], c[k]]).collect::<Vec<_>>()
+        };
+        let p = Rc::new([side(m, true), side(n + 1 - m, false)]);
+        self.partials.borrow_mut().insert(h, p.clone());
+        p
     }
 }
 
@@ -936,15 +965,27 @@ pub(crate) fn counted_means(ctx: &mut Ctx, id: NodeId, m: usize, path: usize) ->
     let [s, f, _, _] = absorb(&child)?;
     let curve = dual_curve(&child, &grid.nodes, max_work)?;
     let n = children.len();
-    let value = |m: usize, success: bool| grid.integral(m, success, None);
+    let partials = grid.partials(path, m, n);
+    // d∫g = Σ_k ∂g/∂done·d done + ∂g/∂pending·d pending + ∂g/∂never·d never,
+    // with done = S(t), pending = s − S(t), never = 1 − s
+    let derivative = |side: usize, total: D| {
+        partials[side]
+            .iter()
+            .zip(&curve)
+            .map(|(p, c)| {
+                let dd = c[side].d;
+                p[0] * dd + p[1] * (total.d - dd) - p[2] * total.d
+            })
+            .sum::<f64>()
+    };
     Some([
         D {
-            v: value(m, true),
-            d: grid.integral(m, true, Some((path, &curve, s))),
+            v: grid.values[0],
+            d: derivative(0, s),
         },
         D {
-            v: value(n + 1 - m, false),
-            d: grid.integral(n + 1 - m, false, Some((path, &curve, f))),
+            v: grid.values[1],
+            d: derivative(1, f),
         },
     ])
 }
