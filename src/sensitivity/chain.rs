@@ -768,8 +768,12 @@ pub(crate) struct CountedGrid {
     /// The node's `[E[T·1S], E[T·1F]]` on this grid.
     values: [f64; 2],
     /// Per child: its weighted partials (`CountedGrid::partials`).
-    partials: RefCell<HashMap<usize, Rc<[Vec<[f64; 3]>; 2]>>>,
+    partials: RefCell<HashMap<usize, Rc<Partials>>>,
 }
+
+/// One child's weighted partials `∂g/∂(done, pending, never)` at every
+/// node, for the Success and the Failure side.
+type Partials = [Vec<[f64; 3]>; 2];
 
 /// Points of the Gauss–Legendre rule per panel.
 const RULE_POINTS: usize = 16;
@@ -922,7 +926,7 @@ impl CountedGrid {
     /// Child `h`'s weighted partials `∂g/∂(done, pending, never)` at every
     /// node, per side (computed once per child, shared by the parameters
     /// below it).
-    fn partials(&self, h: usize, m: usize, n: usize) -> Rc<[Vec<[f64; 3]>; 2]> {
+    fn partials(&self, h: usize, m: usize, n: usize) -> Rc<Partials> {
         if let Some(p) = self.partials.borrow().get(&h) {
             return p.clone();
         }
