@@ -13,10 +13,15 @@
 //!
 //! Dual numbers carried from the leaf up to the root through the maps of
 //! Sequence, Fallback, flows, decorators and loops, and the count
-//! programme of a Parallel's P(S)/P(F) (`sensitivity::exact` module docs); every row
-//! says which method gave it ([`Scheme`]). The rest (mean times through a
-//! Parallel, races, strategy `book`'s Parallels, trees with Nav2 nodes, and
-//! P(Success by a deadline)) is differenced:
+//! programme of a Parallel's P(S)/P(F) (`sensitivity::exact` module docs);
+//! through a Parallel's product phase chain and a counted Parallel's
+//! quadrature of its mean times by the engine's chains rebuilt in dual
+//! numbers, and P(Success by a deadline) of a phase chain by uniformising
+//! its doubled chain (`sensitivity::chain` module docs). Every row says
+//! which method gave it ([`Scheme`]). The rest (races and counted Parallels
+//! over deterministic, hybrid or shifted leaves, strategy `book`'s
+//! Parallels, trees with Nav2 nodes, P(Success by a deadline) of a tree
+//! that is not one phase chain) is differenced:
 //!
 //! # Richardson-extrapolated differences through the engine
 //!

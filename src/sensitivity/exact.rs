@@ -17,15 +17,19 @@
 //! * inverter, force_success/force_failure, until_success/until_failure:
 //!   their closed forms (e.g. `E[T·1F]` of until_failure is
 //!   `(E[T·1S] + E[T·1F]) / pf` of the child);
-//! * a Parallel with the book's thresholds (`F ≥ N − M + 1`, strategy
+//! * a Parallel solved as a product phase chain (any thresholds; or
+//!   conditions only): the absorption of its chain rebuilt in dual numbers
+//!   (`sensitivity::chain`);
+//! * a counted Parallel (the book's thresholds `F ≥ N − M + 1`, strategy
 //!   `exact`): P(S), P(F) by the count programme, which is multilinear in
 //!   the children's ps/pf and run in dual numbers
-//!   ([`status_and_densities_by_counts`]); its mean times have no exact
-//!   tangent here (NaN).
+//!   ([`status_and_densities_by_counts`]); its mean times by the count
+//!   quadrature in dual numbers when every child has a phase chain
+//!   (`sensitivity::chain::counted_means`), else NaN.
 //!
-//! Anything else (the mean times of a Parallel, a Parallel whose two
-//! thresholds can both be met, strategy `book`'s Parallels) gives a NaN
-//! tangent, and the row falls back to Richardson.
+//! Anything else (a race over deterministic, hybrid or shifted leaves,
+//! strategy `book`'s Parallels) gives no tangent or a NaN one, and the row
+//! falls back to Richardson.
 
 use crate::compile::counts::status_and_densities_by_counts;
 use crate::compile::mrg::{Mrg, Outcome, Policy, Status};
