@@ -116,9 +116,11 @@ For every leaf parameter (ps, mu, nu, tau_s, tau_f; the shift of a shifted `succ
 the derivative of the root's figure and
 its elasticity d ln O / d ln θ, ranked by |elasticity|; the table ends with sentences for the
 top entries (ps changed by 0.1, other parameters by 10%, the new figure computed again).
-Derivatives: exact (dual numbers through Sequence, Fallback, flows, decorators, loops, and
-the P(S)/P(F) of Parallels with the book's thresholds) where the algebra allows; otherwise
-(mean times through a Parallel, races, --strategy book Parallels, Nav2 trees, success-by)
+Derivatives: exact (dual numbers through Sequence, Fallback, flows, decorators, loops, the
+P(S)/P(F) of Parallels with the book's thresholds, product phase chains and the count
+quadrature of wide Parallels; success-by of a phase chain by uniformising the doubled chain);
+otherwise (mixed-timing races and Parallels, --strategy book Parallels, Nav2 trees, success-by
+of a tree with deterministic, hybrid or shifted times or a wide Parallel)
 Richardson-extrapolated central differences through the engine (one-sided at ps = 0 or 1 and
 at a time of 0), with an error estimate. Each row's method column (JSON: \"method\") says
 which: exact or richardson. Changing an action's ps

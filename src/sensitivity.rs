@@ -13,10 +13,15 @@
 //!
 //! Dual numbers carried from the leaf up to the root through the maps of
 //! Sequence, Fallback, flows, decorators and loops, and the count
-//! programme of a Parallel's P(S)/P(F) (`sensitivity::exact` module docs); every row
-//! says which method gave it ([`Scheme`]). The rest (mean times through a
-//! Parallel, races, strategy `book`'s Parallels, trees with Nav2 nodes, and
-//! P(Success by a deadline)) is differenced:
+//! programme of a Parallel's P(S)/P(F) (`sensitivity::exact` module docs);
+//! through a Parallel's product phase chain and a counted Parallel's
+//! quadrature of its mean times by the engine's chains rebuilt in dual
+//! numbers, and P(Success by a deadline) of a phase chain by uniformising
+//! its doubled chain (`sensitivity::chain` module docs). Every row says
+//! which method gave it ([`Scheme`]). The rest (races and counted Parallels
+//! over deterministic, hybrid or shifted leaves, strategy `book`'s
+//! Parallels, trees with Nav2 nodes, P(Success by a deadline) of a tree
+//! that is not one phase chain) is differenced:
 //!
 //! # Richardson-extrapolated differences through the engine
 //!
@@ -30,9 +35,10 @@
 //! The engine's figures are exact up to rounding (and the truncation
 //! tolerance of π(t)), so the error is dominated by the extrapolation.
 
+mod chain;
 mod exact;
 
-use crate::compile::{analyze, primitive_view_for_figures, Analysis, AnalysisError, Options};
+use crate::compile::{analyze, primitive_view_for_figures, Analysis, AnalysisError, Options, Plan};
 use crate::curve::{curve, CurveOptions};
 use crate::tree::{Duration, NodeId, NodeKind, Tree};
 
@@ -333,15 +339,15 @@ fn sensitivity_with(
     exact: bool,
 ) -> Result<Sensitivity, SensitivityError> {
     let value = objective_value(tree, objective, options)?;
-    // the analysis the exact derivatives start from: not for a curve's
-    // point, nor for a tree with Nav2 nodes (its leaves stand for several)
-    let analysis = if !exact
-        || matches!(objective, Objective::SuccessBy(_))
-        || primitive_view_for_figures(tree)?.is_some()
-    {
-        None
-    } else {
+    // the plan and analysis the exact derivatives start from: not for a
+    // tree with Nav2 nodes (its leaves stand for several)
+    let primitive = exact && primitive_view_for_figures(tree)?.is_none();
+    let plan = primitive.then(|| Plan::new(tree, options.method, options.max_states));
+    let grids = exact::Grids::default();
+    let analysis = if primitive && !matches!(objective, Objective::SuccessBy(_)) {
         Some(analyze(tree, options)?)
+    } else {
+        None
     };
     let mut rows = Vec::new();
     let mut skipped = Vec::new();
@@ -350,10 +356,9 @@ fn sensitivity_with(
             continue;
         }
         for (param, x) in params_of(&node.kind) {
-            if let Some(d) = analysis
-                .as_ref()
-                .and_then(|a| exact_derivative(tree, a, id, param, objective))
-            {
+            if let Some(d) = plan.as_ref().and_then(|p| {
+                exact_derivative(p, &grids, analysis.as_ref(), id, param, objective, value)
+            }) {
                 if in_domain(&node.kind, param, x + 1e-9) || in_domain(&node.kind, param, x - 1e-9)
                 {
                     let elasticity = (value != 0.0 && value.is_finite()).then(|| d * x / value);
@@ -420,21 +425,30 @@ fn sensitivity_with(
 }
 
 /// The exact derivative of the root's `objective` along leaf `id`'s
-/// `param` (`sensitivity::exact`), or `None` where it is not available.
+/// `param` (`sensitivity::exact`, `sensitivity::chain`), or `None` where it
+/// is not available. `value` is the engine's objective: a dual value that
+/// disagrees with it beyond rounding falls back to differences.
 fn exact_derivative(
-    tree: &Tree,
-    analysis: &Analysis,
+    plan: &Plan,
+    grids: &exact::Grids,
+    analysis: Option<&Analysis>,
     id: NodeId,
     param: Param,
     objective: Objective,
+    value: f64,
 ) -> Option<f64> {
-    let [ps, pf, ts, tf] = exact::root_tangent(tree, analysis, id, param)?;
+    if let Objective::SuccessBy(t) = objective {
+        let max_work = CurveOptions::default().max_work;
+        let p = exact::success_by_tangent(plan, grids, id, param, t, max_work)?;
+        return ((p.v - value).abs() <= 1e-9 && p.d.is_finite()).then_some(p.d);
+    }
+    let [ps, pf, ts, tf] = exact::root_tangent(plan, grids, analysis?, id, param)?;
     let d = match objective {
         Objective::Ps => ps.d,
         Objective::Mtts => (ts.d * ps.v - ts.v * ps.d) / (ps.v * ps.v),
         Objective::Mttf => (tf.d * pf.v - tf.v * pf.d) / (pf.v * pf.v),
         Objective::MeanTime => ts.d + tf.d,
-        Objective::SuccessBy(_) => return None,
+        Objective::SuccessBy(_) => unreachable!("handled above"),
     };
     d.is_finite().then_some(d)
 }

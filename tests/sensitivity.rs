@@ -125,6 +125,7 @@ fn success_by_a_deadline() {
     close("d/d ps", row(&s, &tree, "a", Param::Ps).0, 1.0 - e);
     close("d/d mu", row(&s, &tree, "a", Param::Mu).0, 0.5 * t * e);
     close("d/d nu", row(&s, &tree, "a", Param::Nu).0, 0.0);
+    assert!(s.rows.iter().all(|r| r.scheme == Scheme::Exact), "{s:?}");
 }
 
 #[test]
@@ -211,7 +212,28 @@ fn cli_table_sentences_and_json() {
     .unwrap();
     assert_eq!(v["objective"], "success-by");
     assert_eq!(v["deadline"], 2.0);
-    // a point of the curve is differenced
+    // a point of the curve of a phase chain: exact (the doubled chain)
+    assert!(v["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|r| r["method"] == "exact"));
+    // a deterministic time: the curve's atoms are differenced
+    let fixed = dir.path().join("fixed.yaml");
+    std::fs::write(
+        &fixed,
+        "tree:\n  sequence:\n    children:\n      - action: {name: a, ps: 0.9, tau_s: 1.0, tau_f: 0.5}\n      - action: {name: b, ps: 0.8, mu: 2.0, nu: 5.0}\n",
+    )
+    .unwrap();
+    let v: Value = serde_json::from_str(&run(&[
+        "sensitivity",
+        fixed.to_str().unwrap(),
+        "--deadline",
+        "2",
+        "--format",
+        "json",
+    ]))
+    .unwrap();
     assert!(v["rows"]
         .as_array()
         .unwrap()
@@ -297,7 +319,7 @@ fn loops_retry_flows_and_counted_parallels_by_hand() {
     );
 
     // a Parallel with the book's thresholds, M = 1 of 2: ps = 1 - pf1 pf2
-    // exactly by counting; its MTTS is differenced, and says so
+    // exactly by counting
     let tree = common::tree(
         "tree:\n  parallel:\n    success_threshold: 1\n    children:\n      - action: {name: a, ps: 0.3, mu: 1.0, nu: 2.0}\n      - action: {name: b, ps: 0.6, mu: 0.5, nu: 1.0}\n",
     );
@@ -305,37 +327,184 @@ fn loops_retry_flows_and_counted_parallels_by_hand() {
     let (d, _, _, scheme) = row(&s, &tree, "a", Param::Ps);
     close("d ps / d ps_a", d, 0.4);
     assert_eq!(scheme, Scheme::Exact);
+}
+
+/// A Parallel M = 1 of two exponential actions (its product phase chain):
+/// the mean times and P(success by t) and their derivatives by hand.
+///
+/// Each action is a success type (prob. p_i, Exp(mu_i) then Success) or a
+/// failure type (q_i = 1 − p_i, Exp(nu_i) then Failure). The node succeeds
+/// at the first success; it fails only when both have failed. So
+/// E[T·1S] = p1 p2/(mu1 + mu2) + p1 q2/mu1 + q1 p2/mu2, ps = 1 − q1 q2,
+/// MTTF = E[max(Y1, Y2)] = 1/nu1 + 1/nu2 − 1/(nu1 + nu2), and it has
+/// succeeded by t iff a child has: P = 1 − (1 − p1 F1)(1 − p2 F2) with
+/// F_i = 1 − e^{−mu_i t}.
+#[test]
+fn product_chain_parallel_by_hand() {
+    let o = Options::default();
+    let (p1, m1, n1) = (0.3, 1.0, 2.0);
+    let (p2, m2, n2) = (0.6, 0.5, 1.0);
+    let (q1, q2) = (1.0 - p1, 1.0 - p2);
+    let tree = common::tree(&format!(
+        "tree:\n  parallel:\n    success_threshold: 1\n    children:\n      - action: {{name: a, ps: {p1}, mu: {m1}, nu: {n1}}}\n      - action: {{name: b, ps: {p2}, mu: {m2}, nu: {n2}}}\n"
+    ));
+    let ts = p1 * p2 / (m1 + m2) + p1 * q2 / m1 + q1 * p2 / m2;
+    let ps = 1.0 - q1 * q2;
     let s = sensitivity(&tree, Objective::Mtts, &o).unwrap();
-    assert!(s.rows.iter().all(|r| r.scheme == Scheme::Central), "{s:?}");
+    close("MTTS", s.value, ts / ps);
+    assert!(s.rows.iter().all(|r| r.scheme == Scheme::Exact), "{s:?}");
+    // d MTTS / d mu1 = (−p1 p2/(mu1 + mu2)² − p1 q2/mu1²)/ps
+    close(
+        "d MTTS / d mu_a",
+        row(&s, &tree, "a", Param::Mu).0,
+        (-p1 * p2 / (m1 + m2).powi(2) - p1 * q2 / (m1 * m1)) / ps,
+    );
+    // d MTTS / d p1 = (dts·ps − ts·q2)/ps² with dts = p2/(mu1+mu2) + q2/mu1 − p2/mu2
+    let dts = p2 / (m1 + m2) + q2 / m1 - p2 / m2;
+    close(
+        "d MTTS / d ps_a",
+        row(&s, &tree, "a", Param::Ps).0,
+        (dts * ps - ts * q2) / (ps * ps),
+    );
+    close("d MTTS / d nu_a", row(&s, &tree, "a", Param::Nu).0, 0.0);
+    let s = sensitivity(&tree, Objective::Mttf, &o).unwrap();
+    close("MTTF", s.value, 1.0 / n1 + 1.0 / n2 - 1.0 / (n1 + n2));
+    close(
+        "d MTTF / d nu_a",
+        row(&s, &tree, "a", Param::Nu).0,
+        -1.0 / (n1 * n1) + 1.0 / (n1 + n2).powi(2),
+    );
+    // E[T] = E[T·1S] + q1 q2 E[max]: d/dp1 = dts − q2 E[max]
+    let s = sensitivity(&tree, Objective::MeanTime, &o).unwrap();
+    let emax = 1.0 / n1 + 1.0 / n2 - 1.0 / (n1 + n2);
+    close("E[T]", s.value, ts + q1 * q2 * emax);
+    close(
+        "d E[T] / d ps_a",
+        row(&s, &tree, "a", Param::Ps).0,
+        dts - q2 * emax,
+    );
+    assert!(s.rows.iter().all(|r| r.scheme == Scheme::Exact), "{s:?}");
+    // P(success by t): d/dmu1 = p1 t e^{−mu1 t}(1 − p2 F2), d/dp1 = F1 (1 − p2 F2)
+    let t = 1.7;
+    let (f1, f2) = (1.0 - (-m1 * t).exp(), 1.0 - (-m2 * t).exp());
+    let s = sensitivity(&tree, Objective::SuccessBy(t), &o).unwrap();
+    close(
+        "P(S by t)",
+        s.value,
+        1.0 - (1.0 - p1 * f1) * (1.0 - p2 * f2),
+    );
+    assert!(s.rows.iter().all(|r| r.scheme == Scheme::Exact), "{s:?}");
+    close(
+        "d P / d mu_a",
+        row(&s, &tree, "a", Param::Mu).0,
+        p1 * t * (-m1 * t).exp() * (1.0 - p2 * f2),
+    );
+    close(
+        "d P / d ps_b",
+        row(&s, &tree, "b", Param::Ps).0,
+        f2 * (1.0 - p1 * f1),
+    );
+    close("d P / d nu_b", row(&s, &tree, "b", Param::Nu).0, 0.0);
+}
+
+/// A counted Parallel (M = 1 of 10 identical exponential actions: its
+/// product bound 4¹⁰ is over the limit, so the engine counts): the mean
+/// times' derivatives along child 1's parameters by hand, and exact.
+///
+/// With A the set of success-type children, the node succeeds at
+/// min_{i∈A} X_i: E[T·1S] = Σ_{A≠∅} P(A)/μ(A) (μ(A) = Σ_{i∈A} μ_i), so
+/// d/dμ₁ = −Σ_{A∋1} P(A)/μ(A)² = −Σ_{k≥1} C(N−1, k−1) p^k q^{N−k}/(kμ)², and
+/// d/dp₁ = Σ_j C(N−1, j) p^j q^{N−1−j} [1/((j+1)μ) − 1{j≥1}/(jμ)]. It fails
+/// when all have failed, at the maximum: MTTF = E[max Y_i] and
+/// d/dν₁ = −∫ t e^{−νt}(1 − e^{−νt})^{N−1} dt = −Σ_j C(N−1, j)(−1)^j/((j+1)ν)².
+#[test]
+fn counted_parallel_by_hand() {
+    let o = Options::default();
+    let (n, p, mu, nu) = (10usize, 0.3, 1.5, 0.5);
+    let q = 1.0 - p;
+    let kids: String = (0..n)
+        .map(|i| format!("      - action: {{name: a{i}, ps: {p}, mu: {mu}, nu: {nu}}}\n"))
+        .collect();
+    let tree = common::tree(&format!(
+        "tree:\n  parallel:\n    success_threshold: 1\n    children:\n{kids}"
+    ));
+    let choose = |n: usize, k: usize| -> f64 {
+        (0..k).fold(1.0, |c, i| c * (n - i) as f64 / (i + 1) as f64)
+    };
+    let pw = |x: f64, k: usize| x.powi(k as i32);
+    let ts: f64 = (1..=n)
+        .map(|k| choose(n, k) * pw(p, k) * pw(q, n - k) / (k as f64 * mu))
+        .sum();
+    let ps = 1.0 - pw(q, n);
+    let d_mu: f64 = -(1..=n)
+        .map(|k| choose(n - 1, k - 1) * pw(p, k) * pw(q, n - k) / (k as f64 * mu).powi(2))
+        .sum::<f64>();
+    let d_p: f64 = (0..n)
+        .map(|j| {
+            let w = choose(n - 1, j) * pw(p, j) * pw(q, n - 1 - j);
+            let lose = if j >= 1 { 1.0 / (j as f64 * mu) } else { 0.0 };
+            w * (1.0 / ((j + 1) as f64 * mu) - lose)
+        })
+        .sum();
+    let s = sensitivity(&tree, Objective::Mtts, &o).unwrap();
+    close("MTTS", s.value, ts / ps);
+    assert!(s.rows.iter().all(|r| r.scheme == Scheme::Exact), "{s:?}");
+    close(
+        "d MTTS / d mu_1",
+        row(&s, &tree, "a0", Param::Mu).0,
+        d_mu / ps,
+    );
+    // dps/dp1 = q^{N−1}
+    close(
+        "d MTTS / d ps_1",
+        row(&s, &tree, "a0", Param::Ps).0,
+        (d_p * ps - ts * pw(q, n - 1)) / (ps * ps),
+    );
+    let s = sensitivity(&tree, Objective::Mttf, &o).unwrap();
+    let d_nu: f64 = -(0..n)
+        .map(|j| {
+            choose(n - 1, j) * if j % 2 == 0 { 1.0 } else { -1.0 } / ((j + 1) as f64 * nu).powi(2)
+        })
+        .sum::<f64>();
+    assert!(s.rows.iter().all(|r| r.scheme == Scheme::Exact), "{s:?}");
+    close("d MTTF / d nu_1", row(&s, &tree, "a0", Param::Nu).0, d_nu);
 }
 
 /// Exact derivatives agree with the Richardson-extrapolated differences on
-/// random trees (every node kind, every leaf timing).
+/// random trees (every node kind, every leaf timing; Parallels and curves
+/// over the same shapes with exponential times only, where every row must
+/// be exact).
 #[test]
 fn exact_matches_richardson_on_random_trees() {
     let o = Options::default();
-    let mut exact_rows = 0;
+    let (mut exact_rows, mut curve_rows, mut parallel_time_rows) = (0, 0, 0);
     for seed in 0..200 {
-        let yaml = common::random_mixed_tree(seed, 3);
-        let tree = common::tree(&yaml);
+        let mixed = common::random_mixed_tree(seed, 3);
+        // the same shape with exponential times only (a fixed time as a
+        // rate): phase chains, whose Parallels and curves are differentiated
+        // exactly (the differences of mixed-timing races are slow)
+        let exponential = mixed.replace("tau_s:", "mu:").replace("tau_f:", "nu:");
+        let tree_mixed = common::tree(&mixed);
+        let tree_exponential = common::tree(&exponential);
         for objective in [
             Objective::Ps,
             Objective::Mtts,
             Objective::Mttf,
             Objective::MeanTime,
+            Objective::SuccessBy(1.3),
         ] {
-            // a Parallel's mean times are differenced either way, and the
-            // differences of its mixed-timing races are slow (its P(S) is
-            // checked by hand above)
-            if yaml.contains("parallel") {
-                continue;
-            }
-            let Ok(s) = sensitivity(&tree, objective, &o) else {
+            let (yaml, tree) =
+                if mixed.contains("parallel") || matches!(objective, Objective::SuccessBy(_)) {
+                    (&exponential, &tree_exponential)
+                } else {
+                    (&mixed, &tree_mixed)
+                };
+            let Ok(s) = sensitivity(tree, objective, &o) else {
                 continue;
             };
             // a perturbed tree's analysis may fail where the exact pass
             // does not (e.g. the stiff solver's error bound)
-            let Ok(r) = sensitivity_by_differences(&tree, objective, &o) else {
+            let Ok(r) = sensitivity_by_differences(tree, objective, &o) else {
                 continue;
             };
             for a in &s.rows {
@@ -345,11 +514,24 @@ fn exact_matches_richardson_on_random_trees() {
                     .find(|b| b.leaf == a.leaf && b.param == a.param)
                     .unwrap();
                 if a.scheme != Scheme::Exact {
+                    // every derivative of a tree of exponential leaves is exact
+                    assert!(
+                        !std::ptr::eq(tree, &tree_exponential),
+                        "seed {seed} {objective:?} {} {:?} differenced",
+                        tree.nodes[a.leaf].path,
+                        a.param
+                    );
                     // the same differences
                     assert_eq!(a.derivative, b.derivative);
                     continue;
                 }
                 exact_rows += 1;
+                match objective {
+                    Objective::SuccessBy(_) => curve_rows += 1,
+                    Objective::Ps => {}
+                    _ if yaml.contains("parallel") => parallel_time_rows += 1,
+                    _ => {}
+                }
                 let scale = a.derivative.abs().max(1.0);
                 assert!(
                     (a.derivative - b.derivative).abs() <= 1e-7 * scale + 2.0 * b.error,
@@ -364,4 +546,47 @@ fn exact_matches_richardson_on_random_trees() {
         }
     }
     assert!(exact_rows > 300, "{exact_rows}");
+    assert!(curve_rows > 100, "{curve_rows}");
+    assert!(parallel_time_rows > 50, "{parallel_time_rows}");
+}
+
+/// A counted Parallel inside a mission (its product bound 6⁶ = 46,656 is
+/// over the limit): every mean-time derivative is exact (the count
+/// quadrature in dual numbers) and agrees with the differences.
+#[test]
+fn counted_parallel_matches_differences() {
+    let o = Options::default();
+    let kids: String = (0..6)
+        .map(|i| {
+            format!(
+                "            - sequence: {{children: [{{action: {{name: f{i}, ps: 0.9{i}, mu: 0.{}, nu: 0.2}}}}, {{action: {{name: s{i}, ps: 0.8, mu: 0.1, nu: 0.5}}}}]}}\n",
+                i + 2
+            )
+        })
+        .collect();
+    let tree = common::tree(&format!(
+        "tree:\n  sequence:\n    children:\n      - action: {{name: check, ps: 0.99, mu: 0.2, nu: 0.5}}\n      - parallel:\n          success_threshold: 4\n          children:\n{kids}"
+    ));
+    for objective in [Objective::Mtts, Objective::Mttf, Objective::MeanTime] {
+        let s = sensitivity(&tree, objective, &o).unwrap();
+        let r = sensitivity_by_differences(&tree, objective, &o).unwrap();
+        assert_eq!(s.rows.len(), 3 + 6 * 2 * 3);
+        for a in &s.rows {
+            assert_eq!(a.scheme, Scheme::Exact, "{objective:?} {a:?}");
+            let b = r
+                .rows
+                .iter()
+                .find(|b| b.leaf == a.leaf && b.param == a.param)
+                .unwrap();
+            assert!(
+                (a.derivative - b.derivative).abs()
+                    <= 1e-7 * a.derivative.abs().max(1.0) + 2.0 * b.error,
+                "{objective:?} {}: exact {} vs differences {} ({})",
+                tree.nodes[a.leaf].name,
+                a.derivative,
+                b.derivative,
+                b.error
+            );
+        }
+    }
 }

@@ -17,43 +17,50 @@
 //! * inverter, force_success/force_failure, until_success/until_failure:
 //!   their closed forms (e.g. `E[T·1F]` of until_failure is
 //!   `(E[T·1S] + E[T·1F]) / pf` of the child);
-//! * a Parallel with the book's thresholds (`F ≥ N − M + 1`, strategy
+//! * a Parallel solved as a product phase chain (any thresholds; or
+//!   conditions only): the absorption of its chain rebuilt in dual numbers
+//!   (`sensitivity::chain`);
+//! * a counted Parallel (the book's thresholds `F ≥ N − M + 1`, strategy
 //!   `exact`): P(S), P(F) by the count programme, which is multilinear in
 //!   the children's ps/pf and run in dual numbers
-//!   ([`status_and_densities_by_counts`]); its mean times have no exact
-//!   tangent here (NaN).
+//!   ([`status_and_densities_by_counts`]); its mean times by the count
+//!   quadrature in dual numbers when every child has a phase chain
+//!   (`sensitivity::chain::counted_means`), else NaN.
 //!
-//! Anything else (the mean times of a Parallel, a Parallel whose two
-//! thresholds can both be met, strategy `book`'s Parallels) gives a NaN
-//! tangent, and the row falls back to Richardson.
+//! Anything else (a race over deterministic, hybrid or shifted leaves,
+//! strategy `book`'s Parallels) gives no tangent or a NaN one, and the row
+//! falls back to Richardson.
 
 use crate::compile::counts::status_and_densities_by_counts;
 use crate::compile::mrg::{Mrg, Outcome, Policy, Status};
-use crate::compile::{Analysis, Figures, Method};
+use crate::compile::{Analysis, Figures, Method, Plan, Representation};
+
+pub(crate) use super::chain::Grids;
+use super::chain::{self, success_by, Ctx};
 use crate::tree::{Decorator, Duration, FlowNext, NodeId, NodeKind, Tree};
 
 use super::Param;
 
 /// A dual number: value and derivative along one parameter.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub(crate) struct D {
     pub v: f64,
     pub d: f64,
 }
 
 impl D {
-    const ZERO: D = D { v: 0.0, d: 0.0 };
-    const ONE: D = D { v: 1.0, d: 0.0 };
-    fn c(v: f64) -> D {
+    pub(crate) const ZERO: D = D { v: 0.0, d: 0.0 };
+    pub(crate) const ONE: D = D { v: 1.0, d: 0.0 };
+    pub(crate) fn c(v: f64) -> D {
         D { v, d: 0.0 }
     }
-    fn add(self, o: D) -> D {
+    pub(crate) fn add(self, o: D) -> D {
         D {
             v: self.v + o.v,
             d: self.d + o.d,
         }
     }
-    fn mul(self, o: D) -> D {
+    pub(crate) fn mul(self, o: D) -> D {
         // a zero factor with a zero tangent contributes nothing, even
         // against an unknown (NaN) tangent
         let d = match (self.v == 0.0 && self.d == 0.0, o.v == 0.0 && o.d == 0.0) {
@@ -62,7 +69,7 @@ impl D {
         };
         D { v: self.v * o.v, d }
     }
-    fn div(self, o: D) -> D {
+    pub(crate) fn div(self, o: D) -> D {
         D {
             v: self.v / o.v,
             d: (self.d * o.v - self.v * o.d) / (o.v * o.v),
@@ -229,6 +236,7 @@ fn node_map(
     method: Method,
     fig: &Figures,
     children: &[Node],
+    ctx: &mut Ctx,
 ) -> Option<Node> {
     let kind = &tree.node(id).kind;
     Some(match kind {
@@ -284,7 +292,20 @@ fn node_map(
             children: ids,
         } => {
             let n = ids.len();
-            if method != Method::Exact || *f <= n - m {
+            if method != Method::Exact {
+                return None;
+            }
+            // a product phase chain (or instantaneous outcomes only, the
+            // atoms of conditions): its absorption in dual numbers
+            if matches!(
+                ctx.plan.representation(id).ok()?,
+                Representation::Chain | Representation::Atoms
+            ) {
+                if let Some(c) = ctx.chain(id) {
+                    return chain::absorb(&c);
+                }
+            }
+            if *f <= n - m {
                 return None;
             }
             let points: Vec<[f64; 4]> = children
@@ -295,15 +316,19 @@ fn node_map(
             let mut out = constant(fig);
             out[0] = D { v: s, d: ds };
             out[1] = D { v: fl, d: df };
-            // the mean times: no exact tangent here
-            out[2] = D {
-                v: out[2].v,
-                d: NAN.d,
-            };
-            out[3] = D {
-                v: out[3].v,
-                d: NAN.d,
-            };
+            // the mean times: the count quadrature in dual numbers, when the
+            // children have chains (else unknown: NaN)
+            let path = ids.iter().position(|&c| ctx.on_path[c])?;
+            match chain::counted_means(ctx, id, *m, path) {
+                Some([ts, tf]) => {
+                    out[2] = ts;
+                    out[3] = tf;
+                }
+                None => {
+                    out[2].d = NAN.d;
+                    out[3].d = NAN.d;
+                }
+            }
             out
         }
         _ => return None,
@@ -316,11 +341,14 @@ fn node_map(
 /// the dual values disagree with the engine's figures (then the caller
 /// differences instead). A component whose tangent is unknown is NaN.
 pub(crate) fn root_tangent(
-    tree: &Tree,
+    plan: &Plan,
+    grids: &Grids,
     analysis: &Analysis,
     leaf: NodeId,
     param: Param,
 ) -> Option<Node> {
+    let tree = plan.tree();
+    let mut ctx = Ctx::new(plan, grids, leaf, param);
     let mut node = leaf_tangent(&tree.node(leaf).kind, &analysis.nodes[leaf], param)?;
     let mut id = leaf;
     while let Some(parent) = tree.node(id).parent {
@@ -338,7 +366,7 @@ pub(crate) fn root_tangent(
             })
             .collect();
         let fig = &analysis.nodes[parent];
-        node = node_map(tree, parent, analysis.method, fig, &kids)?;
+        node = node_map(tree, parent, analysis.method, fig, &kids, &mut ctx)?;
         // the dual values must be the engine's figures (a check of the map)
         let engine = constant(fig);
         for (a, b) in node.iter().zip(engine.iter()) {
@@ -349,4 +377,27 @@ pub(crate) fn root_tangent(
         id = parent;
     }
     Some(node)
+}
+
+/// The tangent of the root's `P(Success by t)` along leaf `leaf`'s
+/// `param`, when the root is a phase chain (every leaf below exponential,
+/// Erlang or hypoexponential, or a condition; the chain within the
+/// budget): uniformisation of the doubled chain (`sensitivity::chain`).
+/// `None` otherwise (a deterministic time's atoms among them).
+pub(crate) fn success_by_tangent(
+    plan: &Plan,
+    grids: &Grids,
+    leaf: NodeId,
+    param: Param,
+    t: f64,
+    max_work: f64,
+) -> Option<D> {
+    if !matches!(
+        plan.representation(Tree::ROOT).ok()?,
+        Representation::Chain | Representation::Closed | Representation::Atoms
+    ) {
+        return None;
+    }
+    let mut ctx = Ctx::new(plan, grids, leaf, param);
+    success_by(&ctx.chain(Tree::ROOT)?, t, max_work)
 }
