@@ -1109,6 +1109,15 @@ fn fit(args: FitArgs) -> Result<(), Failure> {
     for path in &args.logs {
         logs.extend(btrel::logs::read_logs(path).map_err(Failure::input)?);
     }
+    for log in logs.iter().filter(|l| l.out_of_order > 0) {
+        eprintln!(
+            "note: {}: {} out of time order, by up to {:.3} ms (BT.CPP's logger queues the records \
+             of different threads in either order); each keeps its own timestamp",
+            log.file,
+            plural(log.out_of_order, "record", "records"),
+            log.max_step_back * 1e3
+        );
+    }
     let by = match args.by {
         FitBy::Id => btrel::fit::By::Id,
         FitBy::Name => btrel::fit::By::Name,

@@ -843,6 +843,9 @@ pub struct Fitted {
     pub unfitted: Vec<(String, Counts)>,
     /// Per file: (file, records, leaf episodes).
     pub files: Vec<(String, usize, usize)>,
+    /// Per file with records out of time order: (file, how many, the
+    /// largest step back in seconds).
+    pub out_of_order: Vec<(String, usize, f64)>,
 }
 
 /// Pools the logs' leaves by key and fits each. Errors when one name is
@@ -861,6 +864,7 @@ pub fn fit_logs_with(
     let mut pooled: std::collections::HashMap<String, (Declared, String, Vec<Episode>)> =
         std::collections::HashMap::new();
     let mut files = Vec::new();
+    let mut out_of_order = Vec::new();
     for log in logs {
         let mut n = 0;
         for leaf in &log.leaves {
@@ -886,6 +890,9 @@ pub fn fit_logs_with(
             entry.2.extend_from_slice(&leaf.episodes);
         }
         files.push((log.file.clone(), log.records, n));
+        if log.out_of_order > 0 {
+            out_of_order.push((log.file.clone(), log.out_of_order, log.max_step_back));
+        }
     }
     let mut leaves = Vec::new();
     let mut unfitted = Vec::new();
@@ -903,6 +910,7 @@ pub fn fit_logs_with(
         leaves,
         unfitted,
         files,
+        out_of_order,
     })
 }
 
@@ -922,6 +930,12 @@ pub fn render(f: &Fitted, by: By) -> String {
     for (file, records, eps) in &f.files {
         s.push_str(&format!(
             "#   {file}: {records} records, {eps} leaf episodes\n"
+        ));
+    }
+    for (file, n, back) in &f.out_of_order {
+        s.push_str(&format!(
+            "#   {file}: {n} of them out of time order by up to {:.3} ms, kept as logged\n",
+            back * 1e3
         ));
     }
     let auto = f

@@ -347,7 +347,11 @@ fn located_errors() {
         e.contains("record 4") && e.contains("RUNNING to SKIPPED"),
         "{e}"
     );
-    let e = fit_err(&btlog(XML, &[(10, 2, RUN), (5, 2, OK)]), "x.btlog");
+    // more than 0.1 s back in time: mixed up
+    let e = fit_err(
+        &btlog(XML, &[(200_000, 2, RUN), (50_000, 2, OK)]),
+        "x.btlog",
+    );
     assert!(e.contains("record 2") && e.contains("back in time"), "{e}");
     // SQLite: the magic bytes, then no database (tests/fit_sqlite.rs has more)
     let e = fit_err(b"SQLite format 3\0rest", "x.db3");
@@ -370,6 +374,59 @@ fn located_errors() {
     );
     let e = fit_err(b"run,node,start,end,status\n1,a,0,1,done\n", "e.csv");
     assert!(e.contains("line 2") && e.contains("`done`"), "{e}");
+}
+
+/// Records of two BT.CPP threads swapped in the file (a timestamp a few µs
+/// earlier than the record before it) are read with their own timestamps,
+/// counted and noted, not refused.
+#[test]
+fn btlog_records_slightly_out_of_order() {
+    // A runs 0..2 s and succeeds; C's instant Success is stamped at 2 s − 24
+    // µs but written after A's Success; a2 then runs 2..3 s and fails
+    let records = [
+        (0, 2, RUN),
+        (2 * S, 2, OK),
+        (2 * S - 24, 3, OK),
+        (2 * S, 2, IDLE),
+        (2 * S, 3, IDLE),
+        (2 * S, 4, RUN),
+        (3 * S, 4, FAIL),
+    ];
+    let log = read_bytes(&btlog(XML, &records), "x.btlog", "btlog").unwrap();
+    assert_eq!((log.out_of_order, log.max_step_back), (1, 24e-6));
+    let a: Vec<(f64, End)> = log.leaves[0]
+        .episodes
+        .iter()
+        .map(|e| (e.duration, e.end))
+        .collect();
+    assert_eq!(a, vec![(2.0, End::Success)]);
+    assert_eq!(log.leaves[1].episodes.len(), 1);
+    let a2: Vec<(f64, End)> = log.leaves[2]
+        .episodes
+        .iter()
+        .map(|e| (e.duration, e.end))
+        .collect();
+    assert_eq!(a2, vec![(1.0, End::Failure)]);
+    let f = fit_logs(&[log], By::Id).unwrap();
+    let text = btrel::fit::render(&f, By::Id);
+    assert!(
+        text.contains("1 of them out of time order by up to 0.024 ms"),
+        "{text}"
+    );
+    // the CLI says so too
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("swapped.btlog");
+    std::fs::write(&path, btlog(XML, &records)).unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_btrel"))
+        .args(["fit", path.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{o:?}");
+    let err = String::from_utf8(o.stderr).unwrap();
+    assert!(
+        err.contains("swapped.btlog: 1 record out of time order, by up to 0.024 ms"),
+        "{err}"
+    );
 }
 
 fn rec_at(record: usize) -> usize {

@@ -21,6 +21,15 @@ pub const PROTOCOL: u8 = 1;
 /// Bytes per transition record.
 pub const RECORD: usize = 9;
 
+/// Largest step back in time (µs) accepted between consecutive records.
+/// BT.CPP's FileLogger2 takes a transition's timestamp in the thread that
+/// changes the node's status and queues it under a lock, so records of two
+/// threads (an asynchronous action, a halt) can reach the file in the other
+/// order, a few µs to ms apart; such a record keeps its own timestamp (each
+/// node's transitions stay in their order). A larger step means a mixed-up
+/// file.
+pub const MAX_STEP_BACK_US: u64 = 100_000;
+
 /// Leaves BT.CPP runs itself in zero time (btrel models them without a
 /// params entry); they are not fitted.
 const BUILTIN_LEAVES: &[&str] = &[
@@ -170,6 +179,7 @@ pub fn read(bytes: &[u8], file: &str) -> Result<Log, LogError> {
         ));
     }
     let mut last_t = 0u64;
+    let (mut out_of_order, mut max_back) = (0usize, 0u64);
     for r in 0..records {
         let off = pos + r * RECORD;
         let b = &bytes[off..off + RECORD];
@@ -187,16 +197,23 @@ pub fn read(bytes: &[u8], file: &str) -> Result<Log, LogError> {
             ));
         };
         if t < last_t {
-            return Err(LogError::new(
-                file,
-                where_(),
-                format!(
-                    "the timestamp goes back in time ({t} µs after {last_t} µs): \
-                     records are out of order or the file is mixed up"
-                ),
-            ));
+            let back = last_t - t;
+            if back > MAX_STEP_BACK_US {
+                return Err(LogError::new(
+                    file,
+                    where_(),
+                    format!(
+                        "the timestamp goes back in time ({t} µs after {last_t} µs), by more than \
+                         the {} ms that records of BT.CPP's logging threads can be swapped by: \
+                         records are out of order or the file is mixed up",
+                        MAX_STEP_BACK_US / 1000
+                    ),
+                ));
+            }
+            out_of_order += 1;
+            max_back = max_back.max(back);
         }
-        last_t = t;
+        last_t = last_t.max(t);
         let Some(node) = nodes.get_mut(&uid) else {
             let mut known: Vec<u16> = Vec::new();
             known.extend(nodes.keys().copied());
@@ -233,6 +250,8 @@ pub fn read(bytes: &[u8], file: &str) -> Result<Log, LogError> {
         xml: Some(xml.to_string()),
         leaves,
         records,
+        out_of_order,
+        max_step_back: max_back as f64 * 1e-6,
     })
 }
 

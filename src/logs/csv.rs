@@ -112,5 +112,7 @@ pub fn read(bytes: &[u8], file: &str) -> Result<Log, LogError> {
         xml: None,
         leaves,
         records: rows,
+        out_of_order: 0,
+        max_step_back: 0.0,
     })
 }

@@ -73,6 +73,12 @@ pub struct Log {
     pub leaves: Vec<LeafLog>,
     /// Transition records (btlog, SQLite) or rows (CSV) read.
     pub records: usize,
+    /// Records whose timestamp is earlier than an earlier record's (within
+    /// the [`btlog::MAX_STEP_BACK_US`] that BT.CPP's logging threads can swap
+    /// records by; each keeps its own timestamp).
+    pub out_of_order: usize,
+    /// The largest such step back in time, in seconds (0 when none).
+    pub max_step_back: f64,
 }
 
 /// A located error in a log file.

@@ -299,6 +299,8 @@ pub fn read(path: &Path, file: &str) -> Result<Vec<Log>, LogError> {
                 xml: Some(s.xml),
                 leaves: s.leaves,
                 records: s.records,
+                out_of_order: 0,
+                max_step_back: 0.0,
             }
         })
         .collect())
