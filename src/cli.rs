@@ -1217,6 +1217,7 @@ fn sensitivity(args: SensitivityArgs) -> Result<(), Failure> {
 
 fn check(path: &Path) -> Result<(), Failure> {
     let tree = load(path)?;
+    warn_endless(&tree);
     emit(None, |out| {
         writeln!(
             out,
@@ -1226,6 +1227,26 @@ fn check(path: &Path) -> Result<(), Failure> {
             plural(tree.leaf_count(), "leaf", "leaves")
         )
     })
+}
+
+/// Most "can run forever" warnings printed (the rest are counted).
+const ENDLESS_WARNINGS: usize = 3;
+
+/// Warns (standard error) about the loops of `tree` that never return when
+/// they run ([`btrel::sim::endless_loops`]): where P(never returns) > 0
+/// comes from.
+fn warn_endless(tree: &Tree) {
+    let endless = btrel::sim::endless_loops(tree);
+    for (_, why) in endless.iter().take(ENDLESS_WARNINGS) {
+        eprintln!("warning: {why}");
+    }
+    if endless.len() > ENDLESS_WARNINGS {
+        eprintln!(
+            "warning: and {} more such nodes (copies made by RecoveryNode, RetryUntilSuccessful, \
+             SubTrees): runs that reach one never return",
+            endless.len() - ENDLESS_WARNINGS
+        );
+    }
 }
 
 /// `n thing` / `n things`.
@@ -1250,6 +1271,7 @@ fn report(args: ReportArgs) -> Result<(), Failure> {
         ));
     }
     let (tree, source) = load_keyed(&args.tree)?;
+    warn_endless(&tree);
     let options = Options {
         method: method(args.method),
         max_states: args.max_states,
@@ -1526,6 +1548,7 @@ fn simulate(args: SimulateArgs) -> Result<(), Failure> {
     }
     let options = sim_options(&args.sim, runs, times, true)?;
     let tree = load(&args.tree)?;
+    warn_endless(&tree);
     let node = match &args.node {
         Some(n) => find_nodes(&tree, std::slice::from_ref(n), &args.tree)?[0],
         None => Tree::ROOT,
@@ -1547,6 +1570,7 @@ fn curve(args: CurveArgs) -> Result<(), Failure> {
     let times = requested_times(&args)?;
     let ci = ci_settings(&args.ci)?;
     let (tree, source) = load_keyed(&args.tree)?;
+    warn_endless(&tree);
     let nodes = if args.nodes.is_empty() {
         vec![Tree::ROOT]
     } else {

@@ -265,10 +265,10 @@ pub fn unrolled_loop(
         (success, failure)
     };
     if end <= 0.0 {
-        return Err(AnalysisError::NeverReturns {
-            node: name.to_string(),
-            until: if until_success { "Success" } else { "Failure" },
-        });
+        // the child never ends the loop: it never returns, one trap phase
+        // (no exits) holding all the mass
+        let _ = name;
+        return Ok(trap());
     }
     let finish = |mut out: PhaseChain| {
         // the mass still repeating after the last copy ends the loop too
@@ -307,6 +307,15 @@ pub fn unrolled_loop(
         vec![c; copies as usize],
         !until_success,
     )))
+}
+
+/// The chain of a node that never returns: one phase without transitions
+/// or exits (a *trap*; its total rate is 0), entered with probability 1.
+pub fn trap() -> PhaseChain {
+    let mut c = PhaseChain::default();
+    let i = c.push_phase();
+    c.initial = vec![(i, 1.0)];
+    c
 }
 
 /// A Parallel with the book's thresholds gets its product chain only up to
