@@ -47,6 +47,9 @@ Examples:
 
 TREE is YAML or BehaviorTree.CPP v4 XML (.xml, or --input-format xml; parameters from
 --params, default TREE with the extension .params.yaml); `-` reads standard input.
+A node that may never return (a loop whose child cannot end it, a ReactiveSequence's restart
+loop) gets a `never` column, P(never returns); MTTS and MTTF are conditional on returning; a
+warning on standard error names each such loop.
 Exit codes: 0 ok, 2 invalid input or usage, 1 analysis not possible or internal error.";
 
 const CHECK_EXAMPLES: &str = "\
@@ -422,7 +425,9 @@ Examples:
   btrel curve trees/search-and-grasp.yaml --t-end 1000 --mc 1e5
 
 The same seed gives bit-identical output whatever --threads is (default seed 0x5EEDB7E1).
-For a simulated curve as CSV use `btrel curve --mc N`.";
+For a simulated curve as CSV use `btrel curve --mc N`. A run that reaches a loop whose child
+can never return the outcome that ends it never returns (judged exactly, not by a horizon):
+counted in a `never` column, running at every time point.";
 
 const PLOT_EXAMPLES: &str = "\
 Examples:

@@ -159,6 +159,7 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
     let (mut parsed, mut semantic, mut invalid) = (Vec::new(), Vec::new(), Vec::new());
     let mut front_end = Vec::new();
     let mut limited = Vec::new();
+    let mut nevers: Vec<(String, f64)> = Vec::new();
     let mut curves = 0;
     // analysed trees with a PipelineSequence (the re-planning ones by the
     // renewal method)
@@ -194,7 +195,12 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
         }
         match parse_xml_files(&xml, &params, &includes) {
             Ok(tree) => match analyze(&tree, &Options::default()) {
-                Ok(_) => {
+                Ok(a) => {
+                    // BT.CPP's behaviour with the published params: the
+                    // part of the runs that never returns
+                    if a.nodes[0].never() > 1e-9 {
+                        nevers.push((row.file.clone(), a.nodes[0].never()));
+                    }
                     if tree
                         .nodes
                         .iter()
@@ -240,9 +246,9 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
     }
     println!(
         "{} trees: {} read and analysed ({} with the root's curve too, {} with a \
-         PipelineSequence), {} read but refused by the analysis (a loop whose child never ends \
-         it), {} read and simulated but without an exact analysis of a Nav2 node, {} refused for \
-         node semantics only, {} invalid as published",
+         PipelineSequence), {} read but refused by the analysis (the state budget), {} read and \
+         simulated but without an exact analysis of a Nav2 node, {} refused for node semantics \
+         only, {} invalid as published",
         trees.len(),
         parsed.len(),
         curves,
@@ -260,6 +266,9 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
     }
     for (f, n) in &parsed {
         println!("  read: {f} ({n} nodes)");
+    }
+    for (f, p) in &nevers {
+        println!("  never returns: {f}: P(never returns) = {p:.6}");
     }
     for (f, e) in &semantic {
         println!("  node semantics: {f}: {}", e.lines().nth(1).unwrap_or(""));
@@ -308,17 +317,40 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
         parsed.len() + limited.len() + nav2.len() + semantic.len() + invalid.len(),
         trees.len()
     );
-    // 92 analysed and 1 over the chain budget (Nav2's routing tree: its two
-    // RateControllers' re-planning race, with or without its RoundRobin) when
-    // this was written; 86 analysed before the RoundRobin's index became a
-    // flow (5 RecoveryNode trees with a RoundRobin were simulated only) and
-    // the renewal method took a first cycle (the 2 SpeedController trees,
-    // whose first wait differs from the later ones). What remains refused: 5
-    // Nav2 trees with timed actions in two children of a ReactiveSequence, 2
-    // with a SequenceWithMemory below a RecoveryNode, 1 with a count from the
-    // blackboard that no source gives (`{num_samples}`)
-    assert!(parsed.len() >= 92, "{} analysed", parsed.len());
-    assert!(parsed.len() + nav2.len() + limited.len() >= 93);
+    // 96 analysed and 3 over the chain budget (Nav2's routing tree: its two
+    // RateControllers' re-planning race; Nav2's route-graph tree: its
+    // ReactiveSequences' restart loops unrolled in the re-planning race;
+    // MoveIt Pro's MPC tree: a KeepRunningUntilFailure over a Delay, as a
+    // shifted loop series) when this was written; 92 before the
+    // ReactiveSequence restart loop and laws that never return (4 Nav2 trees
+    // analysed with P(never returns) 1, 1, 1 and 0.298766), 86 before the
+    // RoundRobin's index became a flow and the renewal method took a first
+    // cycle. What remains refused: 2 with a SequenceWithMemory below a
+    // RecoveryNode, 1 with a count from the blackboard that no source gives
+    // (`{num_samples}`)
+    assert!(parsed.len() >= 96, "{} analysed", parsed.len());
+    assert!(parsed.len() + nav2.len() + limited.len() >= 99);
+    // the trees whose restart loop cannot end: BT.CPP ticks them for ever
+    for (file, p) in [
+        (
+            "nav2/nav_to_pose_with_consistent_replanning_and_if_path_becomes_invalid.xml",
+            1.0,
+        ),
+        (
+            "nav2/navigate_through_poses_w_replanning_and_recovery.xml",
+            1.0,
+        ),
+        (
+            "nav2_humble/navigate_through_poses_w_replanning_and_recovery.xml",
+            1.0,
+        ),
+    ] {
+        let found = nevers.iter().find(|(f, _)| f == file);
+        assert!(
+            found.is_some_and(|(_, q)| (q - p).abs() < 1e-12),
+            "{file}: P(never returns) {found:?}, expected {p}"
+        );
+    }
     // no tree is refused for its RoundRobin any more
     for (f, e) in &nav2 {
         assert!(
@@ -326,5 +358,5 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
             "{f} refused for its RoundRobin:\n{e}"
         );
     }
-    assert!(semantic.len() <= 8, "{} refused", semantic.len());
+    assert!(semantic.len() <= 3, "{} refused", semantic.len());
 }

@@ -107,38 +107,23 @@ impl Out<'_> {
         n
     }
 
-    fn push(
-        &mut self,
-        name: String,
-        parent: Option<NodeId>,
-        depth: usize,
-        path: String,
-        kind: NodeKind,
-        location: Option<(usize, usize)>,
-        key: Option<String>,
-        fresh: bool,
-    ) -> Result<NodeId, String> {
+    /// Appends `node` (its name made unique when `fresh`) with its params
+    /// key.
+    fn push(&mut self, mut node: Node, key: Option<String>, fresh: bool) -> Result<NodeId, String> {
         if self.nodes.len() >= self.max_nodes {
             return Err(format!(
                 "the restart loops of its reactive nodes take more than {} nodes",
                 self.max_nodes
             ));
         }
-        if depth >= self.max_depth {
+        if node.depth >= self.max_depth {
             return Err(format!(
                 "the restart loops of its reactive nodes nest the tree more than {} levels deep",
                 self.max_depth
             ));
         }
-        let name = self.unique(name, fresh);
-        self.nodes.push(Node {
-            name,
-            path,
-            depth,
-            parent,
-            kind,
-            location,
-        });
+        node.name = self.unique(std::mem::take(&mut node.name), fresh);
+        self.nodes.push(node);
         self.new_keys.push(key);
         Ok(self.nodes.len() - 1)
     }
@@ -156,12 +141,14 @@ impl Out<'_> {
         let node = &self.old.nodes[src];
         let name = format!("{prefix}{}", node.name);
         let id = self.push(
-            name,
-            parent,
-            depth,
-            path.clone(),
-            node.kind.clone(),
-            node.location,
+            Node {
+                name,
+                path: path.clone(),
+                depth,
+                parent,
+                kind: node.kind.clone(),
+                location: node.location,
+            },
             self.keys.get(src).cloned().flatten(),
             !prefix.is_empty(),
         )?;
@@ -200,15 +187,17 @@ impl Out<'_> {
                         Decorator::UntilSuccess
                     };
                     let d = self.push(
-                        format!("{own}/restarts"),
-                        Some(id),
-                        depth + 1,
-                        p.clone(),
-                        NodeKind::Decorator {
-                            decorator,
-                            child: 0,
+                        Node {
+                            name: format!("{own}/restarts"),
+                            path: p.clone(),
+                            depth: depth + 1,
+                            parent: Some(id),
+                            kind: NodeKind::Decorator {
+                                decorator,
+                                child: 0,
+                            },
+                            location: self.old.nodes[src].location,
                         },
-                        self.old.nodes[src].location,
                         None,
                         true,
                     )?;
