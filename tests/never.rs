@@ -185,3 +185,22 @@ fn a_child_that_may_return_at_its_first_tick_is_refused() {
         "{e}"
     );
 }
+
+/// `report`'s JSON carries P(never returns) when some node may never
+/// return (and not otherwise).
+#[test]
+fn the_json_report_carries_p_never() {
+    let params = "{C: {ps: 0.6}, A: {ps: 1.0, mu: 1}, B: {ps: 0.9, mu: 1, nu: 1}}";
+    let t = xml("<ReactiveSequence><C/><A/><B/></ReactiveSequence>", params);
+    let a = analyze(&t, &Options::default()).expect("analysed");
+    let v = btrel::report::json::report_value(&btrel::report::Report::new(&t, &a));
+    let never = v["nodes"][0]["never"].as_f64().expect("never");
+    near(never, 0.6);
+    let t = xml(
+        "<ReactiveSequence><C/><A/></ReactiveSequence>",
+        "{C: {ps: 0.6}, A: {ps: 1.0, mu: 1}}",
+    );
+    let a = analyze(&t, &Options::default()).expect("analysed");
+    let v = btrel::report::json::report_value(&btrel::report::Report::new(&t, &a));
+    assert!(v["nodes"][0].get("never").is_none(), "{v}");
+}

@@ -239,8 +239,9 @@ pub(crate) struct Program {
     slots: Vec<usize>,
     /// Total number of children of pipelines (bounds `Scratch::reruns`).
     pipeline_kids: usize,
-    /// `(can succeed, can fail)` of each tree node ([`super::outcomes`]).
-    can: Vec<(bool, bool)>,
+    /// `(can succeed, can fail)` of each tree node ([`super::outcomes`]),
+    /// shared by the programs of one simulation.
+    can: std::sync::Arc<Vec<(bool, bool)>>,
 }
 
 /// The kind of control node a child may be spliced into.
@@ -252,7 +253,18 @@ enum Chain {
 
 impl Program {
     /// Compiles the subtree of `tree` rooted at `id`.
+    #[cfg(test)]
     pub(crate) fn new(tree: &Tree, id: NodeId) -> Program {
+        Program::with_outcomes(tree, id, std::sync::Arc::new(super::outcomes(tree, id)))
+    }
+
+    /// Compiles the subtree of `tree` rooted at `id`, given `can`, the
+    /// [`super::outcomes`] of a subtree holding it.
+    pub(crate) fn with_outcomes(
+        tree: &Tree,
+        id: NodeId,
+        can: std::sync::Arc<Vec<(bool, bool)>>,
+    ) -> Program {
         let mut p = Program {
             ops: Vec::new(),
             kids: Vec::new(),
@@ -263,7 +275,7 @@ impl Program {
             modes: Vec::new(),
             slots: Vec::new(),
             pipeline_kids: 0,
-            can: super::outcomes(tree, id),
+            can,
         };
         p.root = p.compile(tree, id);
         p

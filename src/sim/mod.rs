@@ -451,7 +451,12 @@ pub fn simulate_node(
 
     // Compiling recurses too, so it runs on the pool as well.
     let run = || {
-        let programs: Vec<Program> = targets.iter().map(|&id| Program::new(tree, id)).collect();
+        // which outcomes each node can return: once for the whole subtree
+        let can = std::sync::Arc::new(outcomes(tree, node));
+        let programs: Vec<Program> = targets
+            .iter()
+            .map(|&id| Program::with_outcomes(tree, id, can.clone()))
+            .collect();
         let job = Job {
             programs: &programs,
             sorted: &sorted,
