@@ -204,3 +204,45 @@ fn the_json_report_carries_p_never() {
     let v = btrel::report::json::report_value(&btrel::report::Report::new(&t, &a));
     assert!(v["nodes"][0].get("never").is_none(), "{v}");
 }
+
+/// Nav2's re-planning race with a planner cycle that may never return: the
+/// first planning blocks the pipeline for ever when it never returns (0.5
+/// here); a later re-plan that never returns stops the re-plans and leaves
+/// the follower to decide. The renewal method's figures against Monte
+/// Carlo (|z| < 5), and P(never) by hand: exactly the first planning's 0.5.
+#[test]
+fn a_replanning_cycle_that_never_returns_leaves_the_follower_to_decide() {
+    let text = r#"<root BTCPP_format="4" main_tree_to_execute="Main"><BehaviorTree ID="Main">
+<PipelineSequence name="P">
+  <RateController hz="1.0">
+    <Fallback>
+      <ReactiveSequence name="Check"><C/><T/><V/></ReactiveSequence>
+      <Plan/>
+    </Fallback>
+  </RateController>
+  <Follow/>
+</PipelineSequence></BehaviorTree></root>"#;
+    let params = "{C: {ps: 0.5}, T: {ps: 1.0, mu: 10}, V: {ps: 0.9, mu: 10, nu: 10}, \
+                  Plan: {ps: 0.9, mu: 1, nu: 0.5}, Follow: {ps: 0.7, mu: 0.05, nu: 0.1}}";
+    let t = parse_xml_str(text, "t.xml", params, "t.params.yaml").unwrap_or_else(|e| panic!("{e}"));
+    let f = root(&t);
+    // the first planning never returns when C holds (0.5): the pipeline
+    // never starts the follower; after it, the follower (which always
+    // returns) decides every run
+    near(f.never(), 0.5);
+    let r = common::simulate_root(&t, 200_000, &[]);
+    let n = &r.nodes[0];
+    common::assert_within_z("ps", &n.ps, f.ps);
+    common::assert_within_z("pf", &n.pf, f.pf);
+    common::assert_within_z("never", &n.never, f.never());
+    common::assert_within_z(
+        "MTTS",
+        n.mtts.as_ref().expect("runs"),
+        f.mtts.expect("MTTS"),
+    );
+    common::assert_within_z(
+        "MTTF",
+        n.mttf.as_ref().expect("runs"),
+        f.mttf.expect("MTTF"),
+    );
+}

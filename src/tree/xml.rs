@@ -47,7 +47,9 @@
 //!   its non-reactive counterpart — when at most one child holds actions. BT.CPP
 //!   halts the other children when one returns RUNNING and re-ticks them from
 //!   IDLE, so with actions in two children an earlier action is restarted
-//!   while a later one runs: refused (found by `tests/btcpp_referee.rs`).
+//!   while a later one runs (found by `tests/btcpp_referee.rs`): read as that
+//!   restart loop (`reactive.rs`), which may never return; refused when a
+//!   child may return within its first tick.
 //!   `SequenceWithMemory` resumes at the failed
 //!   child when ticked again after a failure, so below a node that ticks a
 //!   failed child again (`RetryUntilSuccessful` with more than one attempt,
