@@ -246,3 +246,27 @@ fn a_replanning_cycle_that_never_returns_leaves_the_follower_to_decide() {
         f.mttf.expect("MTTF"),
     );
 }
+
+/// A loop over one action inside a Parallel, from its exact folded chain
+/// (no unrolling): until_failure(A: ps 0.7, mu 2, nu 1) ends after
+/// T = Z + Y (Z = 0 w.p. 0.3, else Exp(0.6); Y ~ Exp(1)), so
+/// P(T > t) = 1.75 e^{−0.6t} − 0.75 e^{−t}; raced (success 1, failure 1)
+/// against B that fails after Exp(1): Failure at min(T, T_B), MTTF =
+/// 1.75/1.6 − 0.75/2 = 0.71875.
+#[test]
+fn a_loop_over_one_action_races_exactly() {
+    let t = common::tree(
+        "tree: {parallel: {success_threshold: 1, failure_threshold: 1, children: [\
+         {until_failure: {child: {action: {ps: 0.7, mu: 2.0, nu: 1.0}}}}, \
+         {action: {ps: 0.0, nu: 1.0}}]}}",
+    );
+    let f = root(&t);
+    near(f.pf, 1.0);
+    near(f.mttf.expect("MTTF"), 0.71875);
+    // the curve: P(F ≤ t) = 1 − P(T > t)·e^{−t}
+    for p in curve(&t, 0, &[0.5, 2.0], &CurveOptions::default()).expect("curve") {
+        let x = p.t;
+        let alive = (1.75 * (-0.6 * x).exp() - 0.75 * (-x).exp()) * (-x).exp();
+        assert!((p.failure - (1.0 - alive)).abs() < 1e-9, "{p:?}");
+    }
+}
