@@ -47,6 +47,9 @@ Examples:
 
 TREE is YAML or BehaviorTree.CPP v4 XML (.xml, or --input-format xml; parameters from
 --params, default TREE with the extension .params.yaml); `-` reads standard input.
+A node that may never return (a loop whose child cannot end it, a ReactiveSequence's restart
+loop) gets a `never` column, P(never returns); MTTS and MTTF are conditional on returning; a
+warning on standard error names each such loop.
 Exit codes: 0 ok, 2 invalid input or usage, 1 analysis not possible or internal error.";
 
 const CHECK_EXAMPLES: &str = "\
@@ -424,7 +427,9 @@ Examples:
   btrel curve trees/search-and-grasp.yaml --t-end 1000 --mc 1e5
 
 The same seed gives bit-identical output whatever --threads is (default seed 0x5EEDB7E1).
-For a simulated curve as CSV use `btrel curve --mc N`.";
+For a simulated curve as CSV use `btrel curve --mc N`. A run that reaches a loop whose child
+can never return the outcome that ends it never returns (judged exactly, not by a horizon):
+counted in a `never` column, running at every time point.";
 
 const PLOT_EXAMPLES: &str = "\
 Examples:
@@ -1234,6 +1239,7 @@ fn sensitivity(args: SensitivityArgs) -> Result<(), Failure> {
 
 fn check(path: &Path) -> Result<(), Failure> {
     let tree = load(path)?;
+    warn_endless(&tree);
     emit(None, |out| {
         writeln!(
             out,
@@ -1243,6 +1249,26 @@ fn check(path: &Path) -> Result<(), Failure> {
             plural(tree.leaf_count(), "leaf", "leaves")
         )
     })
+}
+
+/// Most "can run forever" warnings printed (the rest are counted).
+const ENDLESS_WARNINGS: usize = 3;
+
+/// Warns (standard error) about the loops of `tree` that never return when
+/// they run ([`btrel::sim::endless_loops`]): where P(never returns) > 0
+/// comes from.
+fn warn_endless(tree: &Tree) {
+    let endless = btrel::sim::endless_loops(tree);
+    for (_, why) in endless.iter().take(ENDLESS_WARNINGS) {
+        eprintln!("warning: {why}");
+    }
+    if endless.len() > ENDLESS_WARNINGS {
+        eprintln!(
+            "warning: and {} more such nodes (copies made by RecoveryNode, RetryUntilSuccessful, \
+             SubTrees): runs that reach one never return",
+            endless.len() - ENDLESS_WARNINGS
+        );
+    }
 }
 
 /// `n thing` / `n things`.
@@ -1267,6 +1293,7 @@ fn report(args: ReportArgs) -> Result<(), Failure> {
         ));
     }
     let (tree, source) = load_keyed(&args.tree)?;
+    warn_endless(&tree);
     let options = Options {
         method: method(args.method),
         max_states: args.max_states,
@@ -1543,6 +1570,7 @@ fn simulate(args: SimulateArgs) -> Result<(), Failure> {
     }
     let options = sim_options(&args.sim, runs, times, true)?;
     let tree = load(&args.tree)?;
+    warn_endless(&tree);
     let node = match &args.node {
         Some(n) => find_nodes(&tree, std::slice::from_ref(n), &args.tree)?[0],
         None => Tree::ROOT,
@@ -1564,6 +1592,7 @@ fn curve(args: CurveArgs) -> Result<(), Failure> {
     let times = requested_times(&args)?;
     let ci = ci_settings(&args.ci)?;
     let (tree, source) = load_keyed(&args.tree)?;
+    warn_endless(&tree);
     let nodes = if args.nodes.is_empty() {
         vec![Tree::ROOT]
     } else {

@@ -63,17 +63,32 @@ fn until_success_with_an_instant_outcome_in_a_sequence() {
     assert_within_z("MTTS", sim.nodes[0].mtts.as_ref().unwrap(), 1.25);
 }
 
+/// A loop whose child can never end it never returns (BT.CPP returns
+/// RUNNING for ever): P(S) = P(F) = 0, P(never) = 1 in `report`, π_R(t) = 1
+/// in `curve`, every simulated run counted as never returning (no hang),
+/// and a warning naming the loop in the CLI.
 #[test]
-fn a_loop_that_cannot_end_is_refused_everywhere() {
-    let t = tree("tree: {until_failure: {name: spin, child: {action: {ps: 1.0, mu: 1.0}}}}");
-    let e = btrel::analyze(&t, &Default::default())
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("'spin' never returns"), "{e}");
-    let e = btrel::sim::simulate(&t, &Default::default(), None)
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("'spin' never returns"), "{e}");
+fn a_loop_that_cannot_end_never_returns_everywhere() {
+    let yaml = "tree: {until_failure: {name: spin, child: {action: {ps: 1.0, mu: 1.0}}}}";
+    let t = tree(yaml);
+    let f = root_figures(&t);
+    assert_eq!((f.ps, f.pf, f.never()), (0.0, 0.0, 1.0));
+    let p = btrel::curve::curve(&t, 0, &[0.0, 10.0], &Default::default()).unwrap();
+    assert!(p.iter().all(|p| p.running == 1.0), "{p:?}");
+    let sim = simulate_root(&t, 1000, &[10.0]);
+    assert_eq!(sim.nodes[0].never.mean, 1.0);
+    assert_eq!(sim.curve[0].running.mean, 1.0);
+    let dir = std::env::temp_dir().join(format!("btrel-loops-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("spin.yaml");
+    std::fs::write(&file, yaml).unwrap();
+    let (code, out, err) = run_btrel(&["report", file.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("never"), "{out}");
+    assert!(
+        err.contains("warning: node 'spin' can run forever: it repeats"),
+        "{err}"
+    );
 }
 
 #[test]

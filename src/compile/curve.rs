@@ -159,10 +159,16 @@ pub(super) fn loop_curve(
     }
     let again0 = c.initial_success;
     if again0 >= 1.0 || (c.initial.is_empty() && c.initial_failure <= 0.0) {
-        return Err(AnalysisError::NeverReturns {
-            node: node.name.clone(),
-            until: if until_success { "Success" } else { "Failure" },
-        });
+        // the child never ends the loop: it runs forever
+        return Ok(times
+            .iter()
+            .map(|&t| CurvePoint {
+                t,
+                success: 0.0,
+                failure: 0.0,
+                running: 1.0,
+            })
+            .collect());
     }
     let scale = 1.0 / (1.0 - again0);
     let entry: Vec<(usize, f64)> = c.initial.iter().map(|&(j, p)| (j, p * scale)).collect();

@@ -104,7 +104,14 @@ impl Figures {
         self.mttf.filter(|&t| t > 0.0).map(|t| 1.0 / t)
     }
 
-    /// Mean execution time `E[T]` = ps·MTTS + pf·MTTF.
+    /// Probability that the node never returns, `1 − ps − pf` (a loop
+    /// whose child never ends it, a ReactiveSequence's restart loop).
+    pub fn never(&self) -> f64 {
+        (1.0 - self.ps - self.pf).max(0.0)
+    }
+
+    /// Mean execution time `E[T]` = ps·MTTS + pf·MTTF (the time-weighted
+    /// mass of the runs that return).
     pub fn mean_time(&self) -> f64 {
         self.ps * self.mtts.unwrap_or(0.0) + self.pf * self.mttf.unwrap_or(0.0)
     }
@@ -478,39 +485,45 @@ fn means_from_laws(
 }
 
 /// Figures of a loop without a bound, from its child's: `until_failure`
-/// returns Failure after a geometric number `K` of successful runs
-/// (`E[K] = ps/pf`), so `MTTF = (ps/pf)·MTTS + MTTF_child`; `until_success`
-/// likewise with the outcomes exchanged. `None` for other decorators.
+/// returns Failure after `K` successful runs, `P(K = k, Failure) =
+/// ps^k·pf`, so `P(F) = pf/(1 − ps)` and, given that it returns,
+/// `E[K] = ps/(1 − ps)`: `MTTF = ps/(1 − ps)·MTTS + MTTF_child`;
+/// `until_success` likewise with the outcomes exchanged. The rest,
+/// `1 − P(F)`, never returns: a child that never fails (`pf = 0`) makes the
+/// loop run forever (`ps = 1`), or a run of the child that never returns
+/// (a defective child law). `None` for other decorators.
 pub fn loop_figures(
     decorator: Decorator,
     child: Figures,
-    name: &str,
+    _name: &str,
 ) -> Result<Option<Figures>, AnalysisError> {
     let (p_end, p_again, t_end, t_again, success) = match decorator {
         Decorator::UntilFailure => (child.pf, child.ps, child.mttf, child.mtts, false),
         Decorator::UntilSuccess => (child.ps, child.pf, child.mtts, child.mttf, true),
         _ => return Ok(None),
     };
-    if p_end <= 0.0 {
-        return Err(AnalysisError::NeverReturns {
-            node: name.to_string(),
-            until: if success { "Success" } else { "Failure" },
-        });
-    }
-    let t = p_again / p_end * t_again.unwrap_or(0.0) + t_end.unwrap_or(0.0);
+    let (p, t) = if p_end <= 0.0 {
+        (0.0, None)
+    } else {
+        let again = p_again / (1.0 - p_again);
+        (
+            (p_end / (1.0 - p_again)).min(1.0),
+            Some(again * t_again.unwrap_or(0.0) + t_end.unwrap_or(0.0)),
+        )
+    };
     Ok(Some(if success {
         Figures {
-            ps: 1.0,
+            ps: p,
             pf: 0.0,
-            mtts: Some(t),
+            mtts: t,
             mttf: None,
         }
     } else {
         Figures {
             ps: 0.0,
-            pf: 1.0,
+            pf: p,
             mtts: None,
-            mttf: Some(t),
+            mttf: t,
         }
     }))
 }
@@ -679,7 +692,8 @@ fn check(f: &Figures, node: &str) -> Result<(), AnalysisError> {
             return Err(bad(what, x));
         }
     }
-    if (f.ps + f.pf - 1.0).abs() > 1e-6 {
+    // a law may be defective (the rest never returns), never above 1
+    if f.ps + f.pf - 1.0 > 1e-6 {
         return Err(bad("ps + pf", f.ps + f.pf));
     }
     for (what, x) in [("MTTS", f.mtts), ("MTTF", f.mttf)] {

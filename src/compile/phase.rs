@@ -268,10 +268,10 @@ pub fn unrolled_loop(
         (success, failure)
     };
     if end <= 0.0 {
-        return Err(AnalysisError::NeverReturns {
-            node: name.to_string(),
-            until: if until_success { "Success" } else { "Failure" },
-        });
+        // the child never ends the loop: it never returns, one trap phase
+        // (no exits) holding all the mass
+        let _ = name;
+        return Ok(trap());
     }
     let finish = |mut out: PhaseChain| {
         // the mass still repeating after the last copy ends the loop too
@@ -295,6 +295,9 @@ pub fn unrolled_loop(
         // instantaneous repetitions take no time; one copy otherwise
         return Ok(finish(c));
     }
+    if let Some(folded) = folded_loop(&c, until_success) {
+        return Ok(folded);
+    }
     let copies = (LOOP_TAIL.ln() / again.min(1.0 - 1e-300).ln())
         .ceil()
         .max(1.0);
@@ -310,6 +313,82 @@ pub fn unrolled_loop(
         vec![c; copies as usize],
         !until_success,
     )))
+}
+
+/// The loop's exact chain without unrolling, when the child repeats from a
+/// single phase: no instantaneous outcome, no transitions, and exactly one
+/// entry phase `s` with the "again" exit (and no ending exit). A run that
+/// leaves `s` to repeat enters `s` again with probability `α_s` — by
+/// memorylessness no change — and phase `j` with `α_j`: so `s` moves to
+/// `j` at rate `a_s·α_j`, acyclic. A single action (ps, Exp(mu) / Exp(nu)) is
+/// such a child: the loop is then exact with the child's phases alone.
+fn folded_loop(c: &PhaseChain, until_success: bool) -> Option<PhaseChain> {
+    if c.initial_success != 0.0 || c.initial_failure != 0.0 {
+        return None;
+    }
+    if c.transitions.iter().any(|t| !t.is_empty()) {
+        return None;
+    }
+    let again = |i: usize| {
+        if until_success {
+            c.exit_failure[i]
+        } else {
+            c.exit_success[i]
+        }
+    };
+    let end = |i: usize| {
+        if until_success {
+            c.exit_success[i]
+        } else {
+            c.exit_failure[i]
+        }
+    };
+    let repeating: Vec<usize> = (0..c.len()).filter(|&i| again(i) > 0.0).collect();
+    let [s] = repeating[..] else {
+        return None;
+    };
+    if end(s) > 0.0 {
+        return None;
+    }
+    let alpha_s: f64 = c.initial.iter().filter(|e| e.0 == s).map(|e| e.1).sum();
+    if alpha_s >= 1.0 {
+        return None;
+    }
+    // `s` first (its moves go to later phases), the others in order
+    let order: Vec<usize> = std::iter::once(s)
+        .chain((0..c.len()).filter(|&i| i != s))
+        .collect();
+    let mut at = vec![0; c.len()];
+    for (k, &i) in order.iter().enumerate() {
+        at[i] = k;
+    }
+    let mut out = PhaseChain::default();
+    for &i in &order {
+        let k = out.push_phase();
+        let e = end(i);
+        if until_success {
+            out.exit_success[k] = e;
+        } else {
+            out.exit_failure[k] = e;
+        }
+    }
+    out.initial = c.initial.iter().map(|&(i, p)| (at[i], p)).collect();
+    let a = again(s);
+    for &(j, p) in &c.initial {
+        if j != s && p > 0.0 {
+            out.transitions[0].push((at[j], a * p));
+        }
+    }
+    Some(out)
+}
+
+/// The chain of a node that never returns: one phase without transitions
+/// or exits (a *trap*; its total rate is 0), entered with probability 1.
+pub fn trap() -> PhaseChain {
+    let mut c = PhaseChain::default();
+    let i = c.push_phase();
+    c.initial = vec![(i, 1.0)];
+    c
 }
 
 /// A Parallel with the book's thresholds gets its product chain only up to

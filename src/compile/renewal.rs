@@ -307,6 +307,10 @@ fn absorption_dd(r: &PhaseChain) -> [Vec<Dd>; 4] {
     let mut out = [(); 4].map(|_| vec![Dd::ZERO; n]);
     for i in (0..n).rev() {
         let q = r.total_rate(i);
+        if q <= 0.0 {
+            // a trap: never absorbed
+            continue;
+        }
         let mut acc = [
             Dd::from_f64(r.exit_success[i]),
             Dd::from_f64(r.exit_failure[i]),

@@ -433,10 +433,8 @@ fn loop_series(
     let p_again: f64 = again.iter().map(counted_probability).sum::<f64>().max(0.0);
     let p_end: f64 = end.iter().map(counted_probability).sum();
     if p_end <= 0.0 {
-        return Err(AnalysisError::NeverReturns {
-            node: tree.node(id).name.clone(),
-            until: if until_success { "Success" } else { "Failure" },
-        });
+        // the child never ends the loop: the loop never returns (no mass)
+        return Ok(ShiftedLaw::default());
     }
     let terms = if p_again <= 0.0 {
         1.0

@@ -7,18 +7,23 @@ use serde_json::{json, Value};
 use super::{Exporter, Report};
 
 /// `{"tree", "method", "nodes": [{"name", "path", "kind", "ps", "pf", "mtts",
-/// "mttf", "mu", "nu"}]}`; undefined figures are `null`.
+/// "mttf", "mu", "nu"}]}`; undefined figures are `null`. When some node
+/// may never return, every node also has `"never"` (P(never returns)).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct JsonExporter;
 
 /// The report as a JSON value.
 pub fn report_value(report: &Report) -> Value {
+    let defective = report
+        .nodes
+        .iter()
+        .any(|n| n.figures.never() > super::table::NEVER_SHOWN);
     let nodes: Vec<Value> = report
         .nodes
         .iter()
         .map(|n| {
             let f = &n.figures;
-            json!({
+            let mut v = json!({
                 "name": n.name,
                 "path": n.path,
                 "kind": n.kind,
@@ -28,7 +33,12 @@ pub fn report_value(report: &Report) -> Value {
                 "mttf": f.mttf,
                 "mu": f.mu(),
                 "nu": f.nu(),
-            })
+            });
+            // P(never returns), when some node may never return
+            if defective {
+                v["never"] = json!(f.never());
+            }
+            v
         })
         .collect();
     json!({

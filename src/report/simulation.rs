@@ -20,6 +20,11 @@ fn node_fields(n: &NodeEstimate) -> Map<String, Value> {
     m.insert("ps_se".into(), json!(finite(n.ps.se)));
     m.insert("pf".into(), json!(n.pf.mean));
     m.insert("pf_se".into(), json!(finite(n.pf.se)));
+    // runs that never return: only when some did
+    if n.never.mean > 0.0 {
+        m.insert("never".into(), json!(n.never.mean));
+        m.insert("never_se".into(), json!(finite(n.never.se)));
+    }
     for (key, e) in [("mtts", &n.mtts), ("mttf", &n.mttf)] {
         m.insert(key.into(), json!(e.map(|e| e.mean)));
         m.insert(format!("{key}_se"), json!(e.and_then(|e| finite(e.se))));
@@ -116,23 +121,33 @@ pub fn write_table(tree: &Tree, r: &SimResult, out: &mut dyn Write) -> io::Resul
         r.seed
     )?;
     let root_depth = tree.node(r.nodes[0].node).depth;
-    let mut rows = vec![vec![
+    // a column for the runs that never return, when some did
+    let never = r.nodes.iter().any(|n| n.never.mean > 0.0);
+    let mut header = vec![
         "node".to_string(),
         "kind".into(),
         "ps".into(),
         "MTTS".into(),
         "MTTF".into(),
-    ]];
+    ];
+    if never {
+        header.insert(3, "never".into());
+    }
+    let mut rows = vec![header];
     let mut marked = false;
     for n in &r.nodes {
         let node = tree.node(n.node);
-        rows.push(vec![
+        let mut row = vec![
             format!("{}{}", "  ".repeat(node.depth - root_depth), node.name),
             node.kind.keyword().into(),
             pm(Some(&n.ps)),
             pm_conditional(n.mtts.as_ref(), &mut marked),
             pm_conditional(n.mttf.as_ref(), &mut marked),
-        ]);
+        ];
+        if never {
+            row.insert(3, pm(Some(&n.never)));
+        }
+        rows.push(row);
     }
     aligned(&rows, 2, out)?;
     if marked {

@@ -10,6 +10,10 @@ use super::{Exporter, Report};
 /// Significant digits in the table.
 pub const DIGITS: usize = 5;
 
+/// P(never returns) above which the table shows a `never` column (below,
+/// `1 − ps − pf` is rounding).
+pub const NEVER_SHOWN: f64 = 1e-12;
+
 /// One row per node, names indented by depth, 5 significant digits,
 /// undefined figures shown as `—`.
 #[derive(Debug, Clone, Copy, Default)]
@@ -17,7 +21,15 @@ pub struct TableExporter;
 
 impl Exporter for TableExporter {
     fn write(&self, report: &Report, out: &mut dyn Write) -> io::Result<()> {
-        let header = ["node", "kind", "ps", "pf", "MTTS", "MTTF", "mu", "nu"];
+        // a column for P(never returns) when some node may never return
+        let defective = report.nodes.iter().any(|n| n.figures.never() > NEVER_SHOWN);
+        let header: &[&str] = if defective {
+            &[
+                "node", "kind", "ps", "pf", "never", "MTTS", "MTTF", "mu", "nu",
+            ]
+        } else {
+            &["node", "kind", "ps", "pf", "MTTS", "MTTF", "mu", "nu"]
+        };
         let mut cells = Cells::with_capacity(header.len(), report.nodes.len() + 1);
         cells.push_row(header.iter().copied());
         // formatting numbers dominates on large trees: chunks in parallel
@@ -33,8 +45,14 @@ impl Exporter for TableExporter {
                     name.extend(std::iter::repeat_n("  ", n.depth));
                     name.push_str(&n.name);
                     let kind = n.kind.to_string();
-                    let numbers = [Some(f.ps), Some(f.pf), f.mtts, f.mttf, f.mu(), f.nu()]
-                        .map(|x| significant_or_dash(x, DIGITS));
+                    let mut numbers = vec![Some(f.ps), Some(f.pf), f.mtts, f.mttf, f.mu(), f.nu()];
+                    if defective {
+                        numbers.insert(2, Some(f.never()));
+                    }
+                    let numbers: Vec<String> = numbers
+                        .into_iter()
+                        .map(|x| significant_or_dash(x, DIGITS))
+                        .collect();
                     part.push_row(
                         [name.as_str(), kind.as_str()]
                             .into_iter()

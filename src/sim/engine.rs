@@ -130,6 +130,8 @@ enum Op {
         kind: DecoratorOp,
         n: u32,
     },
+    /// A loop whose child can never end it: the run never returns.
+    Never,
     /// A flow: its states are `Program::steps[first..end]`, state 0 first.
     Flow {
         first: u32,
@@ -164,7 +166,14 @@ enum Mode {
     Inert,
     /// Runs `op` again `first` s after the child's first Success, then
     /// `period` s after each Success (0: back to back), until a run fails.
-    Again { op: u32, period: f64, first: f64 },
+    Again {
+        op: u32,
+        period: f64,
+        first: f64,
+        /// Whether a run of `op` can fail at all (else, while the current
+        /// child never returns, the re-runs go on forever: not run).
+        can_fail: bool,
+    },
     /// Fails at the next tick (SingleTrigger).
     Fail,
 }
@@ -176,6 +185,7 @@ enum Mode {
 #[derive(Debug, Clone, Copy)]
 struct Rerun {
     op: u32,
+    can_fail: bool,
     period: f64,
     next: f64,
     fail_at: f64,
@@ -236,6 +246,9 @@ pub(crate) struct Program {
     slots: Vec<usize>,
     /// Total number of children of pipelines (bounds `Scratch::reruns`).
     pipeline_kids: usize,
+    /// `(can succeed, can fail)` of each tree node ([`super::outcomes`]),
+    /// shared by the programs of one simulation.
+    can: std::sync::Arc<Vec<(bool, bool)>>,
 }
 
 /// The kind of control node a child may be spliced into.
@@ -247,7 +260,18 @@ enum Chain {
 
 impl Program {
     /// Compiles the subtree of `tree` rooted at `id`.
+    #[cfg(test)]
     pub(crate) fn new(tree: &Tree, id: NodeId) -> Program {
+        Program::with_outcomes(tree, id, std::sync::Arc::new(super::outcomes(tree, id)))
+    }
+
+    /// Compiles the subtree of `tree` rooted at `id`, given `can`, the
+    /// [`super::outcomes`] of a subtree holding it.
+    pub(crate) fn with_outcomes(
+        tree: &Tree,
+        id: NodeId,
+        can: std::sync::Arc<Vec<(bool, bool)>>,
+    ) -> Program {
         let mut p = Program {
             ops: Vec::new(),
             kids: Vec::new(),
@@ -258,6 +282,7 @@ impl Program {
             modes: Vec::new(),
             slots: Vec::new(),
             pipeline_kids: 0,
+            can,
         };
         p.root = p.compile(tree, id);
         p
@@ -320,6 +345,12 @@ impl Program {
                 return self.push(Op::Parallel { first, end, m, f });
             }
             NodeKind::Decorator { decorator, child } => {
+                // a loop whose child cannot end it never returns
+                if self.can[id] == (false, false)
+                    && matches!(decorator, Decorator::UntilFailure | Decorator::UntilSuccess)
+                {
+                    return self.push(Op::Never);
+                }
                 let child = self.compile(tree, *child);
                 let (kind, n) = match decorator.as_primitive() {
                     Decorator::Inverter => (DecoratorOp::Invert, 1),
@@ -328,7 +359,7 @@ impl Program {
                     Decorator::Retry { attempts } => (DecoratorOp::Retry, attempts as u32),
                     Decorator::Repeat { times } => (DecoratorOp::Repeat, times as u32),
                     // without a bound (a loop whose child cannot end it is
-                    // refused before simulating: `never_returns`)
+                    // `Op::Never`): ends with probability 1
                     Decorator::UntilSuccess => (DecoratorOp::Retry, u32::MAX),
                     Decorator::UntilFailure => (DecoratorOp::Repeat, u32::MAX),
                     Decorator::Rate { .. } | Decorator::SingleTrigger => {
@@ -438,6 +469,7 @@ impl Program {
                         op,
                         period: 0.0,
                         first: 0.0,
+                        can_fail: self.can[c].1,
                     },
                     // the RateController's child, run afresh each period
                     // (a SpeedController's first wait differs)
@@ -449,11 +481,17 @@ impl Program {
                             } => first,
                             _ => period,
                         };
+                        let can_fail = tree.nodes[c]
+                            .kind
+                            .children()
+                            .first()
+                            .is_some_and(|&k| self.can[k].1);
                         match self.ops[op as usize] {
                             Op::Decorator { child, .. } => Mode::Again {
                                 op: child,
                                 period,
                                 first,
+                                can_fail,
                             },
                             _ => unreachable!("a RateController compiles to a decorator"),
                         }
@@ -481,7 +519,8 @@ impl Program {
     }
 
     /// Runs the subtree once, from time 0. Returns (`true` for Success,
-    /// duration).
+    /// duration); a run that never returns (it reached a loop whose child
+    /// can never end it) is `(false, ∞)`.
     #[inline]
     pub(crate) fn episode<R: Rng>(&self, rng: &mut R, scratch: &mut Scratch) -> (bool, f64) {
         // every run starts with the RoundRobins at their first child
@@ -519,8 +558,8 @@ impl Program {
                 for &c in &self.kids[first as usize..end as usize] {
                     let (ok, d) = self.run(c, rng, scratch);
                     t += d;
-                    if !ok {
-                        return (false, t);
+                    if !ok || !d.is_finite() {
+                        return (ok && d.is_finite(), t);
                     }
                 }
                 (true, t)
@@ -530,12 +569,13 @@ impl Program {
                 for &c in &self.kids[first as usize..end as usize] {
                     let (ok, d) = self.run(c, rng, scratch);
                     t += d;
-                    if ok {
-                        return (true, t);
+                    if ok || !d.is_finite() {
+                        return (ok && d.is_finite(), t);
                     }
                 }
                 (false, t)
             }
+            Op::Never => (false, f64::INFINITY),
             Op::Parallel { first, end, m, f } => self.parallel(first, end, m, f, rng, scratch),
             Op::Pipeline { first, end } => self.run_pipeline(first, end, rng, scratch),
             Op::RoundRobin {
@@ -551,6 +591,10 @@ impl Program {
                 for _ in 0..n {
                     let (ok, d) = self.run(kids[idx as usize], rng, scratch);
                     t += d;
+                    if !d.is_finite() {
+                        // never returns: the index stays where it is
+                        return (false, t);
+                    }
                     idx += 1;
                     if idx == n {
                         if !wrap {
@@ -594,6 +638,9 @@ impl Program {
                     let step = steps[state as usize];
                     let (ok, d) = self.run(step.child, rng, scratch);
                     t += d;
+                    if !d.is_finite() {
+                        return (false, t);
+                    }
                     state = step.next[ok as usize];
                     match state {
                         FLOW_SUCCESS => return (true, t),
@@ -605,9 +652,12 @@ impl Program {
             Op::Decorator { child, kind, n } => match kind {
                 DecoratorOp::Invert => {
                     let (ok, d) = self.run(child, rng, scratch);
-                    (!ok, d)
+                    (!ok && d.is_finite(), d)
                 }
-                DecoratorOp::Force(outcome) => (outcome, self.run(child, rng, scratch).1),
+                DecoratorOp::Force(outcome) => {
+                    let d = self.run(child, rng, scratch).1;
+                    (outcome && d.is_finite(), d)
+                }
                 DecoratorOp::Retry | DecoratorOp::Repeat => {
                     // retry stops at the first Success, repeat at the first Failure
                     let stop = kind == DecoratorOp::Retry;
@@ -615,6 +665,9 @@ impl Program {
                     for _ in 0..n {
                         let (ok, d) = self.run(child, rng, scratch);
                         t += d;
+                        if !d.is_finite() {
+                            return (false, t);
+                        }
                         if ok == stop {
                             return (ok, t);
                         }
@@ -650,8 +703,16 @@ impl Program {
             let mut fail = f64::INFINITY;
             for k in base..scratch.reruns.len() {
                 let mut r = scratch.reruns[k];
-                while r.fail_at == f64::INFINITY && r.next <= stop {
+                // while the current child never returns (stop = ∞), re-runs
+                // that cannot fail would go on forever: they decide nothing
+                let endless = !stop.is_finite() && !r.can_fail;
+                while r.fail_at == f64::INFINITY && r.next <= stop && !endless {
                     let (ok, d) = self.run(r.op, rng, scratch);
+                    if !d.is_finite() {
+                        // a re-run that never returns: no more re-runs
+                        r.next = f64::INFINITY;
+                        break;
+                    }
                     if ok {
                         r.next += d + r.period;
                     } else {
@@ -671,15 +732,21 @@ impl Program {
                 result = Some((false, fail));
                 break;
             }
-            if !ok || i == last {
+            if !ok || i == last || !stop.is_finite() {
                 result = Some((ok, stop));
                 break;
             }
             t = stop;
             match self.modes[i as usize] {
                 Mode::Inert => {}
-                Mode::Again { op, period, first } => scratch.reruns.push(Rerun {
+                Mode::Again {
                     op,
+                    period,
+                    first,
+                    can_fail,
+                } => scratch.reruns.push(Rerun {
+                    op,
+                    can_fail,
                     period,
                     next: t + first,
                     fail_at: f64::INFINITY,
@@ -688,6 +755,7 @@ impl Program {
                 }),
                 Mode::Fail => scratch.reruns.push(Rerun {
                     op: 0,
+                    can_fail: true,
                     period: 0.0,
                     next: t,
                     fail_at: t,
@@ -752,7 +820,9 @@ impl Program {
         scratch.succ.truncate(s0);
         scratch.fail.truncate(f0);
         scratch.order.truncate(o0);
-        result
+        // children that never return decide nothing: the node returns at
+        // its thresholds' first finite time, or never (∞)
+        (result.0 && result.1.is_finite(), result.1)
     }
 }
 
@@ -762,7 +832,8 @@ impl Program {
 pub const SAME_INSTANT: f64 = 1e-12;
 
 fn same_instant(a: f64, b: f64) -> bool {
-    (a - b).abs() <= SAME_INSTANT * a.abs().max(b.abs()).max(1.0)
+    // ∞ (never) is no instant
+    a.is_finite() && b.is_finite() && (a - b).abs() <= SAME_INSTANT * a.abs().max(b.abs()).max(1.0)
 }
 
 /// The outcome of a Parallel whose success and failure thresholds are both

@@ -143,8 +143,13 @@ pub struct NodeEstimate {
     pub node: NodeId,
     /// Probability of Success.
     pub ps: Estimate,
-    /// Probability of Failure (`1 − ps`: every run ends).
+    /// Probability of Failure.
     pub pf: Estimate,
+    /// Probability that the run never returns (`1 − ps − pf`): it reached
+    /// a loop whose child can never end it (an endless loop, judged from
+    /// which outcomes each node can return at all), directly or through a
+    /// node that waits for it ([`outcomes`]; module docs).
+    pub never: Estimate,
     /// Mean Time To Succeed, `E[T | Success]`; `None` if no run succeeded.
     pub mtts: Option<Estimate>,
     /// Mean Time To Fail, `E[T | Failure]`; `None` if no run failed.
@@ -229,10 +234,12 @@ pub enum SimError {
     ThreadPool(String),
 }
 
-/// The first loop (`until_failure` / `until_success`) in the subtree at
-/// `root` whose child can never return the outcome that ends it, judged from
-/// which outcomes each node can return at all (probability > 0).
-fn endless_loop(tree: &Tree, root: NodeId) -> Option<NodeId> {
+/// Which outcomes each node of the subtree at `root` can return at all
+/// (probability > 0), `(can succeed, can fail)`, indexed by node (other
+/// nodes `(false, false)`). A loop (`until_failure` / `until_success`)
+/// whose child can never return the outcome that ends it can return
+/// neither: it never returns (an *endless* loop).
+pub(crate) fn outcomes(tree: &Tree, root: NodeId) -> Vec<(bool, bool)> {
     use crate::tree::{Decorator, NodeKind};
     let range = tree.subtree(root);
     // (can succeed, can fail), filled bottom-up
@@ -312,15 +319,59 @@ fn endless_loop(tree: &Tree, root: NodeId) -> Option<NodeId> {
                     | Decorator::Repeat { .. }
                     | Decorator::Rate { .. }
                     | Decorator::SingleTrigger => (s, f),
-                    Decorator::UntilFailure if !f => return Some(id),
-                    Decorator::UntilSuccess if !s => return Some(id),
+                    Decorator::UntilFailure if !f => (false, false),
+                    Decorator::UntilSuccess if !s => (false, false),
                     Decorator::UntilFailure => (false, true),
                     Decorator::UntilSuccess => (true, false),
                 }
             }
         };
     }
-    None
+    can
+}
+
+/// The loops (`until_failure` / `until_success`) of `tree` that never
+/// return when they run: their child can never return the outcome that
+/// ends them ([`outcomes`]). Each with a sentence saying why; a loop made
+/// for a ReactiveSequence / ReactiveFallback's restarts (named
+/// `<node>/restarts`) is described as that restart loop.
+pub fn endless_loops(tree: &Tree) -> Vec<(NodeId, String)> {
+    use crate::tree::{Decorator, NodeKind};
+    let can = outcomes(tree, Tree::ROOT);
+    let mut out = Vec::new();
+    for (id, node) in tree.nodes.iter().enumerate() {
+        let NodeKind::Decorator { decorator, child } = node.kind else {
+            continue;
+        };
+        let until = match decorator {
+            Decorator::UntilFailure => "Failure",
+            Decorator::UntilSuccess => "Success",
+            _ => continue,
+        };
+        if can[id] != (false, false) {
+            continue;
+        }
+        let child = &tree.node(child).name;
+        let parent = node.parent.map(|p| tree.node(p));
+        let why = match parent {
+            Some(p) if node.name.strip_suffix("/restarts") == Some(p.name.as_str()) => {
+                let (ty, other) = if until == "Failure" {
+                    ("ReactiveSequence", "Success")
+                } else {
+                    ("ReactiveFallback", "Failure")
+                };
+                format!(
+                    "the restart loop of {ty} '{}': '{child}' is ticked again from IDLE (a fresh \
+                     run) while a later child that takes time runs, which is halted, and \
+                     '{child}' never returns {until} (it returns {other} or never returns)",
+                    p.name
+                )
+            }
+            _ => format!("it repeats '{child}' until {until}, and '{child}' never returns {until}"),
+        };
+        out.push((id, format!("node '{}' can run forever: {why}", node.name)));
+    }
+    out
 }
 
 /// A RoundRobin in the subtree at `root` below a Parallel or a
@@ -409,9 +460,6 @@ pub fn simulate_node(
             len: tree.nodes.len(),
         });
     }
-    if let Some(id) = endless_loop(tree, node) {
-        return Err(SimError::NeverReturns(tree.node(id).name.clone()));
-    }
     if let Some(e) = halted_round_robin(tree, node) {
         return Err(e);
     }
@@ -429,7 +477,12 @@ pub fn simulate_node(
 
     // Compiling recurses too, so it runs on the pool as well.
     let run = || {
-        let programs: Vec<Program> = targets.iter().map(|&id| Program::new(tree, id)).collect();
+        // which outcomes each node can return: once for the whole subtree
+        let can = std::sync::Arc::new(outcomes(tree, node));
+        let programs: Vec<Program> = targets
+            .iter()
+            .map(|&id| Program::with_outcomes(tree, id, can.clone()))
+            .collect();
         let job = Job {
             programs: &programs,
             sorted: &sorted,
@@ -540,7 +593,10 @@ impl Job<'_> {
             let mut scratch = program.scratch();
             for _ in 0..n {
                 let (ok, t) = program.episode(rng, &mut scratch);
-                raw[ok as usize].push(t);
+                // a run that never returns (t = ∞) counts in neither
+                if t.is_finite() {
+                    raw[ok as usize].push(t);
+                }
             }
         }
         sums
@@ -560,9 +616,13 @@ impl Job<'_> {
         let raw = &mut sums.nodes[0];
         for _ in 0..n {
             let (ok, t) = program.episode(rng, scratch);
-            raw[ok as usize].push(t);
-            // The run counts at every time point >= t.
-            sums.hist[bin(t, self.sorted)][ok as usize] += 1;
+            // a run that never returns (t = ∞) counts in neither: running
+            // at every time point
+            if t.is_finite() {
+                raw[ok as usize].push(t);
+                // The run counts at every time point >= t.
+                sums.hist[bin(t, self.sorted)][ok as usize] += 1;
+            }
         }
     }
 }
@@ -595,6 +655,7 @@ impl Totals {
                 node,
                 ps: proportion(s.n, n),
                 pf: proportion(f.n, n),
+                never: proportion(n - s.n - f.n, n),
                 mtts: s.estimate(),
                 mttf: f.estimate(),
             })

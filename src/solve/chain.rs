@@ -50,6 +50,8 @@ pub struct AbsorbingChain {
 /// exits: the exact representation of a subtree whose leaves are Markovian.
 ///
 /// States are in topological order: every transition goes to a higher index.
+/// A phase without transitions or exits (total rate 0) is a *trap*: a run
+/// that enters it never returns (a defective law, `P(S) + P(F) < 1`).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct PhaseChain {
     /// Initial probability of each phase (sparse).
@@ -98,6 +100,10 @@ impl PhaseChain {
         let mut edges = Vec::new();
         for i in 0..self.len() {
             let q = self.total_rate(i);
+            // a trap (no exits: the run never returns) has no jumps
+            if q <= 0.0 {
+                continue;
+            }
             let d = 1.0 / q;
             for &(j, r) in &self.transitions[i] {
                 edges.push(Edge {

@@ -379,6 +379,10 @@ pub fn absorption_by_phase(chain: &PhaseChain) -> PhaseAbsorption {
     };
     for i in (0..n).rev() {
         let q = chain.total_rate(i);
+        if q <= 0.0 {
+            // a trap: never absorbed
+            continue;
+        }
         let (mut s, mut f) = (chain.exit_success[i], chain.exit_failure[i]);
         let (mut ms, mut mf) = (0.0, 0.0);
         for &(j, r) in &chain.transitions[i] {

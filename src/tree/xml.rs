@@ -47,7 +47,9 @@
 //!   its non-reactive counterpart — when at most one child holds actions. BT.CPP
 //!   halts the other children when one returns RUNNING and re-ticks them from
 //!   IDLE, so with actions in two children an earlier action is restarted
-//!   while a later one runs: refused (found by `tests/btcpp_referee.rs`).
+//!   while a later one runs (found by `tests/btcpp_referee.rs`): read as that
+//!   restart loop (`reactive.rs`), which may never return; refused when a
+//!   child may return within its first tick.
 //!   `SequenceWithMemory` resumes at the failed
 //!   child when ticked again after a failure, so below a node that ticks a
 //!   failed child again (`RetryUntilSuccessful` with more than one attempt,
@@ -137,6 +139,7 @@ use super::{Decorator, Flow, FlowNext, FlowState, Node, NodeKind, Tree};
 
 mod controllers;
 mod predicates;
+mod reactive;
 
 /// Largest XML or params file, in bytes.
 pub const MAX_BYTES: usize = 256 << 20;
@@ -3289,6 +3292,7 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
         false
     };
     let mut restarts: Vec<Problem> = Vec::new();
+    let mut loops: HashMap<usize, reactive::Restart> = HashMap::new();
     for &(id, doc, loc, ty) in &b.reactive {
         // a PathLongerOnApproach that returned Success below a
         // ReactiveSequence, ticked again (even from IDLE), finds the path it
@@ -3300,42 +3304,63 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
                     .iter()
                     .any(|o| o.0 == c && o.3 == "PathLongerOnApproach")
         };
-        let kids: Vec<usize> = b.nodes[id]
-            .kind
-            .children()
-            .iter()
-            .copied()
-            .filter(|&c| has_action(c))
+        let children = b.nodes[id].kind.children();
+        let kids: Vec<usize> = (0..children.len())
+            .filter(|&i| has_action(children[i]))
             .collect();
-        let timed: Vec<String> = kids
-            .iter()
-            .map(|&c| format!("'{}'", b.nodes[c].name))
-            .collect();
-        let with_actions = timed.len();
         let restarted = kids
             .split_last()
-            .is_some_and(|(_, earlier)| earlier.iter().any(|&c| !once(c)));
-        if restarted {
+            .is_some_and(|(_, earlier)| earlier.iter().any(|&i| !once(children[i])));
+        if !restarted {
+            continue;
+        }
+        // the restart loop (reactive.rs): the first two children that take
+        // time must surely return RUNNING at their first tick, and the
+        // first must be restarted (not a PathLongerOnApproach)
+        let (first, second) = (kids[0], kids[1]);
+        let name = |i: usize| format!("'{}'", b.nodes[children[i]].name);
+        let unsure: Vec<String> = [first, second]
+            .into_iter()
+            .filter(|&i| !reactive::surely_timed(&b.nodes, children[i]))
+            .map(name)
+            .collect();
+        if !unsure.is_empty() || once(children[first]) {
+            let why = if unsure.is_empty() {
+                format!(
+                    "its first child that takes time, {}, is a PathLongerOnApproach, which is \
+                     not restarted while a later child is",
+                    name(first)
+                )
+            } else {
+                format!(
+                    "{} may return within its first tick or take time, which decides whether \
+                     the children are restarted",
+                    unsure.join(" and ")
+                )
+            };
             restarts.push(Problem {
                 doc,
                 loc,
                 text: format!(
-                    "<{ty}> with actions that take time in {with_actions} children ({}): BT.CPP \
-                     halts its other children when one returns RUNNING and ticks them again \
-                     from IDLE, so an earlier action is restarted while a later one runs (and \
-                     that one is halted); a {} does not model this (keep actions in one child, \
-                     e.g. the last; an action that returns within its tick, such as Nav2's \
-                     synchronous TruncatePathLocal, takes no time: `tau_s: 0`, `tau_f: 0`)",
-                    timed.join(", "),
-                    if ty == "ReactiveSequence" {
-                        "Sequence"
-                    } else {
-                        "Fallback"
-                    }
+                    "<{ty}> with actions that take time in {} children ({}): BT.CPP halts its \
+                     other children when one returns RUNNING and ticks them again from IDLE; \
+                     btrel reads this restart loop exactly when the first two such children \
+                     surely return RUNNING at their first tick, but {why}",
+                    kids.len(),
+                    kids.iter().map(|&i| name(i)).collect::<Vec<_>>().join(", "),
                 ),
                 semantic: true,
             });
+            continue;
         }
+        loops.insert(
+            id,
+            reactive::Restart {
+                first,
+                second,
+                sequence: ty == "ReactiveSequence",
+            },
+        );
     }
     // WhileDoElse ticks its condition child again at every tick of a
     // running branch and halts the branch if the outcome changes: with
@@ -3363,8 +3388,10 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
         &restarts,
         "ReactiveSequence and ReactiveFallback are read as Sequence and Fallback when \
                  at most one child holds actions (conditions before it are re-ticked, which \
-                 changes nothing while they keep their value); WhileDoElse is read as \
-                 IfThenElse when its condition child holds conditions only",
+                 changes nothing while they keep their value), and as their restart loop when \
+                 two children hold actions that surely take time (README, node table); \
+                 WhileDoElse is read as IfThenElse when its condition child holds conditions \
+                 only",
     ) {
         return Err(e);
     }
@@ -3418,13 +3445,25 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
     ) {
         return Err(e);
     }
-    Ok(Keyed {
-        tree: Tree {
-            title: main_id.map(str::to_string),
-            nodes: b.nodes,
-        },
-        keys,
-    })
+    let tree = Tree {
+        title: main_id.map(str::to_string),
+        nodes: b.nodes,
+    };
+    if loops.is_empty() {
+        return Ok(Keyed { tree, keys });
+    }
+    // the restart loops, once every check on the built tree is done
+    let (tree, keys) =
+        reactive::rewrite(&tree, &keys, &loops, MAX_NODES, MAX_DEPTH).map_err(|e| {
+            let &(_, doc, loc, _) = b
+                .reactive
+                .iter()
+                .find(|r| loops.contains_key(&r.0))
+                .expect("a rewritten node is reactive");
+            let s = &sources[doc];
+            TreeError::at(&s.name, &s.text, loc, e)
+        })?;
+    Ok(Keyed { tree, keys })
 }
 
 fn read_text(path: &Path, file: &str) -> Result<String, TreeError> {
