@@ -12,7 +12,7 @@
 //! process), so that it stays `Copy` and 24 bytes and a tree's nodes do not
 //! grow for the families most trees do not use.
 
-use rand::Rng;
+use rand::{Rng, RngExt};
 use rand_distr::{Distribution, Exp1, Gamma};
 
 /// Most distinct rates a [`Stages`] holds.
@@ -21,12 +21,34 @@ pub const MAX_STAGES: usize = 8;
 /// Most stages (phases) in all, e.g. the largest Erlang `k`.
 pub const MAX_PHASES: u32 = 1000;
 
-/// `counts[i]` exponential stages of rate `rates[i]` for `i < len`, summed.
+/// Most phases of a general phase-type law ([`Stages::general`]).
+pub const MAX_GENERAL_PHASES: usize = 64;
+
+/// `counts[i]` exponential stages of rate `rates[i]` for `i < len`, summed;
+/// or (when `general` is set, `len` 0) a general phase-type law.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Stages {
     len: u8,
     rates: [f64; MAX_STAGES],
     counts: [u32; MAX_STAGES],
+    general: Option<&'static General>,
+}
+
+/// A general phase-type law `PH(α, T)`: the time to absorption of a CTMC
+/// started in phase `i` with probability `α_i` (`Σ α = 1`: no atom at 0)
+/// with sub-generator `T` (exit rates `t = −T·1`). The phases are stored in
+/// a topological order of `T`'s transitions (every transition goes to a
+/// later phase; `T` upper triangular), which the engine's chains need;
+/// absorption is then certain. Built (validated) by [`Stages::general`].
+#[derive(Debug, PartialEq)]
+pub struct General {
+    alpha: Vec<f64>,
+    /// `T`, row-major `n × n`, in the stored (topological) order.
+    t: Vec<f64>,
+    /// Exit rates `−Σ_j T_ij`.
+    exit: Vec<f64>,
+    /// Total rates `−T_ii`.
+    q: Vec<f64>,
 }
 
 impl Stages {
@@ -38,6 +60,7 @@ impl Stages {
             len: 0,
             rates: [0.0; MAX_STAGES],
             counts: [0; MAX_STAGES],
+            general: None,
         };
         if list.is_empty() {
             return Err("no stage".into());
@@ -88,14 +111,185 @@ impl Stages {
         Stages::new(&rates.iter().map(|&r| (r, 1)).collect::<Vec<_>>())
     }
 
+    /// The general phase-type law `PH(alpha, t)` (`t` the sub-generator,
+    /// one row per phase). Fails (with the reason, phases numbered from 1)
+    /// unless there are 1 to [`MAX_GENERAL_PHASES`] phases, `t` is square
+    /// of that order, the `alpha_i` are finite, ≥ 0 and sum to 1 (within
+    /// 1e-9: no atom at 0), `T_ii` < 0 and `T_ij` ≥ 0 are finite, every row
+    /// sums to ≤ 0, absorption is certain (every phase leads to an exit:
+    /// `T` nonsingular) and the transitions have no cycle (the engine's
+    /// chains are acyclic; such a law is stored in a topological order).
+    /// One phase is the exponential.
+    pub fn general(alpha: &[f64], t: &[Vec<f64>]) -> Result<Stages, String> {
+        let n = alpha.len();
+        if n == 0 {
+            return Err("alpha is empty".into());
+        }
+        if n > MAX_GENERAL_PHASES {
+            return Err(format!(
+                "{n} phases: at most {MAX_GENERAL_PHASES} are allowed"
+            ));
+        }
+        if t.len() != n {
+            return Err(format!("alpha has {n} entries but T has {} rows", t.len()));
+        }
+        if let Some((i, r)) = t.iter().enumerate().find(|(_, r)| r.len() != n) {
+            return Err(format!(
+                "row {} of T has {} entries: T is {n} × {n}",
+                i + 1,
+                r.len()
+            ));
+        }
+        if let Some((i, a)) = alpha
+            .iter()
+            .enumerate()
+            .find(|(_, a)| !(a.is_finite() && **a >= 0.0))
+        {
+            return Err(format!(
+                "alpha[{}] = {a} is not a probability (finite, >= 0)",
+                i + 1
+            ));
+        }
+        let sum: f64 = alpha.iter().sum();
+        if (sum - 1.0).abs() > 1e-9 {
+            return Err(format!(
+                "alpha sums to {sum}, not 1 (an atom at time 0 is not supported)"
+            ));
+        }
+        let mut exit = vec![0.0; n];
+        for (i, row) in t.iter().enumerate() {
+            for (j, &x) in row.iter().enumerate() {
+                let ok = x.is_finite() && if i == j { x < 0.0 } else { x >= 0.0 };
+                if !ok {
+                    let want = if i == j {
+                        "a diagonal entry is minus a phase's total rate: finite and < 0"
+                    } else {
+                        "an off-diagonal entry is a transition rate: finite and >= 0"
+                    };
+                    return Err(format!("T[{}][{}] = {x}: {want}", i + 1, j + 1));
+                }
+            }
+            let row_sum: f64 = row.iter().sum();
+            if row_sum > 1e-12 * -row[i] {
+                return Err(format!(
+                    "row {} of T sums to {row_sum} > 0 (a row's sum is minus the phase's exit rate)",
+                    i + 1
+                ));
+            }
+            exit[i] = (-row_sum).max(0.0);
+        }
+        // absorption is certain iff every phase leads to an exit
+        let mut exits = exit.iter().map(|&x| x > 0.0).collect::<Vec<_>>();
+        loop {
+            let before = exits.iter().filter(|&&x| x).count();
+            for i in 0..n {
+                if !exits[i] && (0..n).any(|j| j != i && t[i][j] > 0.0 && exits[j]) {
+                    exits[i] = true;
+                }
+            }
+            if exits.iter().filter(|&&x| x).count() == before {
+                break;
+            }
+        }
+        let trapped: Vec<String> = (0..n)
+            .filter(|&i| !exits[i])
+            .map(|i| (i + 1).to_string())
+            .collect();
+        if !trapped.is_empty() {
+            return Err(format!(
+                "absorption is not certain: no path from phase(s) {} leads to an exit (T is singular)",
+                trapped.join(", ")
+            ));
+        }
+        // topological order (Kahn, smallest index first)
+        let mut indegree: Vec<usize> = (0..n)
+            .map(|j| (0..n).filter(|&i| i != j && t[i][j] > 0.0).count())
+            .collect();
+        let mut order = Vec::with_capacity(n);
+        let mut placed = vec![false; n];
+        while let Some(i) = (0..n).find(|&i| !placed[i] && indegree[i] == 0) {
+            placed[i] = true;
+            order.push(i);
+            for j in 0..n {
+                if j != i && t[i][j] > 0.0 {
+                    indegree[j] -= 1;
+                }
+            }
+        }
+        if order.len() < n {
+            let cycle: Vec<String> = (0..n)
+                .filter(|&i| !placed[i])
+                .map(|i| (i + 1).to_string())
+                .collect();
+            return Err(format!(
+                "the transitions between phases {} form a cycle; only acyclic phase-type \
+                 laws (no phase can be re-entered) are supported",
+                cycle.join(", ")
+            ));
+        }
+        if n == 1 {
+            return Stages::erlang(1, -t[0][0]);
+        }
+        let g = General {
+            alpha: order.iter().map(|&i| alpha[i] / sum).collect(),
+            t: order
+                .iter()
+                .flat_map(|&i| order.iter().map(move |&j| t[i][j]))
+                .collect(),
+            exit: order.iter().map(|&i| exit[i]).collect(),
+            q: order.iter().map(|&i| -t[i][i]).collect(),
+        };
+        Ok(Stages {
+            len: 0,
+            rates: [0.0; MAX_STAGES],
+            counts: [0; MAX_STAGES],
+            general: Some(intern_general(g)),
+        })
+    }
+
+    /// The hyperexponential law: with probability `p_i` an exponential of
+    /// rate `rate_i`, for each `(p_i, rate_i)` (a phase-type law with a
+    /// diagonal `T`). Fails as [`Stages::general`] does.
+    pub fn hyperexponential(branches: &[(f64, f64)]) -> Result<Stages, String> {
+        if let Some((i, r)) = branches
+            .iter()
+            .map(|b| b.1)
+            .enumerate()
+            .find(|(_, r)| !(r.is_finite() && *r > 0.0))
+        {
+            return Err(format!(
+                "branch {}: rate {r} is not a finite number > 0",
+                i + 1
+            ));
+        }
+        let n = branches.len();
+        let t: Vec<Vec<f64>> = (0..n)
+            .map(|i| {
+                (0..n)
+                    .map(|j| if i == j { -branches[i].1 } else { 0.0 })
+                    .collect()
+            })
+            .collect();
+        let alpha: Vec<f64> = branches.iter().map(|b| b.0).collect();
+        Stages::general(&alpha, &t)
+    }
+
+    /// The general phase-type law, when this is one (not a sum of stages).
+    pub fn as_general(&self) -> Option<&'static General> {
+        self.general
+    }
+
     /// The distinct rates with their counts.
     pub fn iter(&self) -> impl Iterator<Item = (f64, u32)> + '_ {
         (0..usize::from(self.len)).map(|i| (self.rates[i], self.counts[i]))
     }
 
-    /// Total number of stages.
+    /// Total number of stages (of phases, for a general law).
     pub fn phases(&self) -> u32 {
-        self.iter().map(|(_, c)| c).sum()
+        match self.general {
+            Some(g) => g.len() as u32,
+            None => self.iter().map(|(_, c)| c).sum(),
+        }
     }
 
     /// `Some((k, rate))` when every stage has the same rate (an Erlang-k).
@@ -103,21 +297,31 @@ impl Stages {
         (self.len == 1).then(|| (self.counts[0], self.rates[0]))
     }
 
-    /// The rate of every stage, stage by stage (decreasing).
+    /// The rate of every stage, stage by stage (decreasing); empty for a
+    /// general law (see [`Stages::as_general`]).
     pub fn series(&self) -> Vec<f64> {
         self.iter()
             .flat_map(|(r, c)| std::iter::repeat_n(r, c as usize))
             .collect()
     }
 
-    /// Mean `Σ count/rate`.
+    /// Mean `Σ count/rate`; `α (−T)⁻¹ 1` for a general law.
     pub fn mean(&self) -> f64 {
-        self.iter().map(|(r, c)| f64::from(c) / r).sum()
+        match self.general {
+            Some(g) => g.moments().0,
+            None => self.iter().map(|(r, c)| f64::from(c) / r).sum(),
+        }
     }
 
-    /// Variance `Σ count/rate²`.
+    /// Variance `Σ count/rate²`; `2 α (−T)⁻² 1 − mean²` for a general law.
     pub fn variance(&self) -> f64 {
-        self.iter().map(|(r, c)| f64::from(c) / (r * r)).sum()
+        match self.general {
+            Some(g) => {
+                let (m1, m2) = g.moments();
+                (m2 - m1 * m1).max(0.0)
+            }
+            None => self.iter().map(|(r, c)| f64::from(c) / (r * r)).sum(),
+        }
     }
 
     /// `P(sum ≤ t)`: the regularized lower incomplete gamma function for an
@@ -140,8 +344,11 @@ impl Stages {
     }
 
     /// The stages as a phase chain: stage `i` enters `i + 1`, the last
-    /// exits to Success.
+    /// exits to Success (a general law: its phases, exits to Success).
     pub fn chain(&self) -> crate::solve::chain::PhaseChain {
+        if let Some(g) = self.general {
+            return g.chain();
+        }
         let mut c = crate::solve::chain::PhaseChain::default();
         let series = self.series();
         for (i, &r) in series.iter().enumerate() {
@@ -159,6 +366,9 @@ impl Stages {
 
     /// One draw of the sum.
     pub fn sample<R: Rng + ?Sized>(&self, rng: &mut R) -> f64 {
+        if let Some(g) = self.general {
+            return g.sample(rng);
+        }
         self.iter()
             .map(|(r, c)| {
                 if c <= 16 {
@@ -181,14 +391,128 @@ fn ln_factorial(n: u32) -> f64 {
 pub fn intern(s: Stages) -> &'static Stages {
     use std::collections::HashMap;
     use std::sync::{Mutex, OnceLock};
-    type Key = ([u64; MAX_STAGES], [u32; MAX_STAGES], u8);
+    type Key = ([u64; MAX_STAGES], [u32; MAX_STAGES], u8, usize);
     static TABLE: OnceLock<Mutex<HashMap<Key, &'static Stages>>> = OnceLock::new();
-    let key: Key = (s.rates.map(f64::to_bits), s.counts, s.len);
+    // a general law is interned itself: its address identifies it
+    let general = s.general.map_or(0, |g| std::ptr::from_ref(g) as usize);
+    let key: Key = (s.rates.map(f64::to_bits), s.counts, s.len, general);
     let mut table = TABLE
         .get_or_init(Default::default)
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
     table.entry(key).or_insert_with(|| Box::leak(Box::new(s)))
+}
+
+/// The interned copy of `g` (the same reference for equal laws).
+fn intern_general(g: General) -> &'static General {
+    use std::collections::HashMap;
+    use std::sync::{Mutex, OnceLock};
+    static TABLE: OnceLock<Mutex<HashMap<Vec<u64>, &'static General>>> = OnceLock::new();
+    let key: Vec<u64> = std::iter::once(g.alpha.len() as u64)
+        .chain(g.alpha.iter().chain(&g.t).map(|x| x.to_bits()))
+        .collect();
+    let mut table = TABLE
+        .get_or_init(Default::default)
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    table.entry(key).or_insert_with(|| Box::leak(Box::new(g)))
+}
+
+impl General {
+    /// Number of phases.
+    pub fn len(&self) -> usize {
+        self.alpha.len()
+    }
+
+    /// Whether there is no phase (never: a law has at least two).
+    pub fn is_empty(&self) -> bool {
+        self.alpha.is_empty()
+    }
+
+    /// The initial probabilities, in the stored order.
+    pub fn alpha(&self) -> &[f64] {
+        &self.alpha
+    }
+
+    /// `T_ij` in the stored order.
+    pub fn t(&self, i: usize, j: usize) -> f64 {
+        self.t[i * self.len() + j]
+    }
+
+    /// Whether `T` is diagonal: a hyperexponential law (rates `−T_ii`).
+    pub fn is_hyperexponential(&self) -> bool {
+        let n = self.len();
+        (0..n).all(|i| (0..n).all(|j| i == j || self.t(i, j) == 0.0))
+    }
+
+    /// `(E[X], E[X²])`: `m = (−T)⁻¹ 1` and `s = (−T)⁻¹ m` by back
+    /// substitution (`T` is upper triangular), `E[X] = α m`, `E[X²] = 2 α s`.
+    fn moments(&self) -> (f64, f64) {
+        let n = self.len();
+        let (mut m, mut s) = (vec![0.0; n], vec![0.0; n]);
+        for i in (0..n).rev() {
+            let later = |v: &[f64]| (i + 1..n).map(|j| self.t(i, j) * v[j]).sum::<f64>();
+            m[i] = (1.0 + later(&m)) / self.q[i];
+            s[i] = (m[i] + later(&s)) / self.q[i];
+        }
+        let m1 = self.alpha.iter().zip(&m).map(|(a, x)| a * x).sum();
+        let m2 = 2.0 * self.alpha.iter().zip(&s).map(|(a, x)| a * x).sum::<f64>();
+        (m1, m2)
+    }
+
+    /// The law's phase chain (exits to Success).
+    fn chain(&self) -> crate::solve::chain::PhaseChain {
+        let n = self.len();
+        let mut c = crate::solve::chain::PhaseChain::default();
+        for i in 0..n {
+            c.push_phase();
+            c.exit_success[i] = self.exit[i];
+            for j in i + 1..n {
+                let r = self.t(i, j);
+                if r > 0.0 {
+                    c.transitions[i].push((j, r));
+                }
+            }
+        }
+        c.initial = (0..n)
+            .filter(|&i| self.alpha[i] > 0.0)
+            .map(|i| (i, self.alpha[i]))
+            .collect();
+        c
+    }
+
+    /// One draw: the phases walked from one drawn by `α`, an exponential
+    /// sojourn of rate `−T_ii` in each, the next phase (or the exit) drawn
+    /// in proportion to its rate.
+    fn sample<R: Rng + ?Sized>(&self, rng: &mut R) -> f64 {
+        let n = self.len();
+        let last = (0..n).rev().find(|&i| self.alpha[i] > 0.0).unwrap_or(0);
+        let u: f64 = rng.random();
+        let mut acc = 0.0;
+        let mut i = last;
+        for (j, &a) in self.alpha.iter().enumerate() {
+            acc += a;
+            if a > 0.0 && u < acc {
+                i = j;
+                break;
+            }
+        }
+        let mut time = 0.0;
+        loop {
+            let e: f64 = Exp1.sample(rng);
+            time += e / self.q[i];
+            let u = rng.random::<f64>() * self.q[i];
+            let mut acc = 0.0;
+            let next = (i + 1..n).find(|&j| {
+                acc += self.t(i, j);
+                self.t(i, j) > 0.0 && u < acc
+            });
+            match next {
+                Some(j) => i = j,
+                None => return time,
+            }
+        }
+    }
 }
 
 /// `P(Erlang(k, rate) ≤ t) = 1 − Σ_{j<k} e^{−x} x^j / j!`, `x = rate·t`;
