@@ -57,12 +57,26 @@ pub const KS_CRITICAL_5: f64 = 1.094;
 /// A fitted duration law.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Family {
-    Deterministic { time: f64 },
-    Exponential { rate: f64 },
-    ShiftedExponential { shift: f64, rate: f64 },
-    Erlang { k: u32, rate: f64 },
+    Deterministic {
+        time: f64,
+    },
+    Exponential {
+        rate: f64,
+    },
+    ShiftedExponential {
+        shift: f64,
+        rate: f64,
+    },
+    Erlang {
+        k: u32,
+        rate: f64,
+    },
     /// `p·Exp(rate1) + (1−p)·Exp(rate2)`, `rate1 > rate2`.
-    Hyperexponential { p: f64, rate1: f64, rate2: f64 },
+    Hyperexponential {
+        p: f64,
+        rate1: f64,
+        rate2: f64,
+    },
 }
 
 impl Family {
