@@ -12,7 +12,7 @@ use btrel::fit::{fit_leaf_with, Counts, Timing, TimingMode};
 use btrel::logs::Declared;
 use btrel::tree::{parse_str, NodeKind};
 use common::{assert_root_and_curve_within_z, root_figures, run_btrel, simulate_root, tree};
-use rand::SeedableRng;
+use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, Exp1};
 use rand_xoshiro::Xoshiro256PlusPlus;
 
@@ -107,6 +107,95 @@ fn the_stored_order_is_topological_and_the_law_is_unchanged() {
     assert!((root_figures(&b).mtts.expect("succeeds") - want).abs() < 1e-12);
 }
 
+#[test]
+fn a_cyclic_law_is_taken_in_its_canonical_acyclic_form() {
+    // T = [[−2, 1], [1, −3]] (phases 1 ⇄ 2), then Exp(1.5): mpmath
+    // (mp.dps = 40) on α′ = (0.3, 0.7, 0), T′ = [[−2, 1, 1], [1, −3, 2],
+    // [0, 0, −1.5]]: 1 − α′ expm(T′t) 1 and the mean α′(−T′)⁻¹1
+    const REF: [(f64, f64); 4] = [
+        (0.25, 0.059879985084446272982),
+        (1.0, 0.45237571217824334405),
+        (2.5, 0.88613194442629526754),
+        (6.0, 0.99847808599121170933),
+    ];
+    let t = tree(
+        "tree: {sequence: {children: [\
+           {action: {ps: 1, success_time: {phase_type: {alpha: [0.3, 0.7], T: [[-2, 1], [1, -3]]}}}}, \
+           {action: {ps: 1, mu: 1.5}}]}}",
+    );
+    let f = root_figures(&t);
+    assert!(
+        (f.mtts.expect("succeeds") - 1.3266666666666666667).abs() < 1e-12,
+        "{f:?}"
+    );
+    for (x, want) in REF {
+        let (s, _) = curve_at(&t, x);
+        assert!((s - want).abs() < 1e-11, "{x}: {s} vs {want}");
+    }
+    // a 3-phase law with cycles everywhere (real eigenvalues −3.386,
+    // −1.946, −0.668): mpmath gives the mean 1.4375 and P(T ≤ 0.5), P(T ≤ 2)
+    let alpha = [0.2, 0.3, 0.5];
+    let m = [[-3.0, 1.0, 1.0], [0.5, -2.0, 0.5], [0.2, 0.3, -1.0]];
+    let t = tree(
+        "tree: {action: {ps: 1, success_time: {phase_type: {alpha: [0.2, 0.3, 0.5], \
+           T: [[-3, 1, 1], [0.5, -2, 0.5], [0.2, 0.3, -1]]}}}}",
+    );
+    assert!((root_figures(&t).mtts.expect("succeeds") - 1.4375).abs() < 1e-12);
+    let refs = [(0.5, 0.30494272796684639757), (2.0, 0.75166418816425972601)];
+    for (x, want) in refs {
+        let (s, _) = curve_at(&t, x);
+        assert!((s - want).abs() < 1e-11, "{x}: {s} vs {want}");
+    }
+    // and a walk of the cyclic chain as written (not btrel's form):
+    // 200 000 draws, |z| < 5 on both probabilities
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(5);
+    let n = 200_000;
+    let mut below = [0usize; 2];
+    for _ in 0..n {
+        let u: f64 = rng.random();
+        let mut i = if u < alpha[0] {
+            0
+        } else if u < alpha[0] + alpha[1] {
+            1
+        } else {
+            2
+        };
+        let mut time = 0.0;
+        loop {
+            let q = -m[i][i];
+            let e: f64 = Exp1.sample(&mut rng);
+            time += e / q;
+            let u: f64 = rng.random::<f64>() * q;
+            let mut acc = 0.0;
+            let mut next = None;
+            for (j, &r) in m[i].iter().enumerate() {
+                if j != i {
+                    acc += r;
+                    if u < acc {
+                        next = Some(j);
+                        break;
+                    }
+                }
+            }
+            match next {
+                Some(j) => i = j,
+                None => break,
+            }
+        }
+        for (k, (x, _)) in refs.iter().enumerate() {
+            if time <= *x {
+                below[k] += 1;
+            }
+        }
+    }
+    for (k, (x, _)) in refs.iter().enumerate() {
+        let (s, _) = curve_at(&t, *x);
+        let est = below[k] as f64 / n as f64;
+        let se = (s * (1.0 - s) / n as f64).sqrt();
+        assert!(((est - s) / se).abs() < 5.0, "{x}: walk {est} vs {s}");
+    }
+}
+
 /// Figures and curves agree with btrel's simulator, which draws a
 /// phase-type time by walking its phases (|z| < 5).
 #[test]
@@ -170,11 +259,14 @@ fn bad_phase_type_laws_are_located_errors() {
     let head = "tree:\n  action: {ps: 1, success_time: {phase_type: ";
     let col = at("  action: {ps: 1, success_time: {phase_type: ");
     let cases: Vec<(String, (usize, usize), &str)> = vec![
-        // a cycle between the two phases
+        // a cycle through three phases with complex eigenvalues −2.75 ±
+        // 1.299i: no acyclic form of order 3
         (
-            format!("{head}{{alpha: [0.3, 0.7], T: [[-2, 1], [1, -3]]}}}}}}\n"),
+            format!(
+                "{head}{{alpha: [1, 0, 0], T: [[-2, 1.5, 0], [0, -2, 1.5], [1.5, 0, -2]]}}}}}}\n"
+            ),
             (2, col),
-            "form a cycle",
+            "complex eigenvalue",
         ),
         // no exit from either phase: absorption is not certain
         (

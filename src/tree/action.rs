@@ -102,7 +102,7 @@ pub(crate) const TIME_LAW_HELP: &str = "write one of `{rate: r}` (exponential, 1
      rate r), `{hypoexponential: [r1, r2, ...]}` (one stage per rate), \
      `{hyperexponential: [{p: 0.3, rate: r1}, {p: 0.7, rate: r2}]}` (rate r_i with probability \
      p_i), `{phase_type: {alpha: [0.3, 0.7], T: [[-2, 1], [0, -3]]}}` (initial probabilities \
-     and sub-generator of an acyclic phase-type law, at most 64 phases), optionally with \
+     and sub-generator of a phase-type law, at most 64 phases), optionally with \
      `shift: s` before any of them but `fixed` (a deterministic delay, s)";
 
 /// Validates a `success_time` / `failure_time` law.
@@ -257,8 +257,9 @@ fn phase_type_law(
         format!(
             "a phase-type law is `{{alpha: [a1, ..., an], T: [[T11, ..., T1n], ...]}}`: \
              initial probabilities summing to 1 and an n x n sub-generator (T_ii < 0, \
-             T_ij >= 0, rows summing to <= 0, exit rate -row sum) whose transitions have no \
-             cycle, at most {MAX_GENERAL_PHASES} phases"
+             T_ij >= 0, rows summing to <= 0, exit rate -row sum), every phase leading to an \
+             exit, at most {MAX_GENERAL_PHASES} phases; a T with cycles is taken when it has \
+             an acyclic form of the same order (real eigenvalues)"
         )
     };
     let (alpha, t) = (&ph.value.alpha, &ph.value.t);

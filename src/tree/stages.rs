@@ -116,9 +116,12 @@ impl Stages {
     /// unless there are 1 to [`MAX_GENERAL_PHASES`] phases, `t` is square
     /// of that order, the `alpha_i` are finite, ≥ 0 and sum to 1 (within
     /// 1e-9: no atom at 0), `T_ii` < 0 and `T_ij` ≥ 0 are finite, every row
-    /// sums to ≤ 0, absorption is certain (every phase leads to an exit:
-    /// `T` nonsingular) and the transitions have no cycle (the engine's
-    /// chains are acyclic; such a law is stored in a topological order).
+    /// sums to ≤ 0 and absorption is certain (every phase leads to an exit:
+    /// `T` nonsingular). The engine's chains are acyclic: a law without
+    /// cycles is stored in a topological order of its phases (the same
+    /// chain); one with cycles as its canonical acyclic form
+    /// (Cumani's CF1: the same law, checked), which fails when `T` has
+    /// complex eigenvalues or the form would need a negative probability.
     /// One phase is the exponential.
     pub fn general(alpha: &[f64], t: &[Vec<f64>]) -> Result<Stages, String> {
         let n = alpha.len();
@@ -221,11 +224,40 @@ impl Stages {
                 .filter(|&i| !placed[i])
                 .map(|i| (i + 1).to_string())
                 .collect();
-            return Err(format!(
-                "the transitions between phases {} form a cycle; only acyclic phase-type \
-                 laws (no phase can be re-entered) are supported",
-                cycle.join(", ")
-            ));
+            // a cyclic law: its canonical acyclic form, when it has one
+            let alpha: Vec<f64> = alpha.iter().map(|a| a / sum).collect();
+            let (beta, mu) = canonical_form(&alpha, t, &exit).map_err(|why| {
+                format!(
+                    "the transitions between phases {} form a cycle, and {why}; btrel's \
+                     chains are acyclic, so such a law is not supported",
+                    cycle.join(", ")
+                )
+            })?;
+            let m = mu.len();
+            if m == 1 {
+                return Stages::erlang(1, mu[0]);
+            }
+            let mut tt = vec![0.0; m * m];
+            for (i, &r) in mu.iter().enumerate() {
+                tt[i * m + i] = -r;
+                if i + 1 < m {
+                    tt[i * m + i + 1] = r;
+                }
+            }
+            let mut exit = vec![0.0; m];
+            exit[m - 1] = mu[m - 1];
+            let g = General {
+                alpha: beta,
+                t: tt,
+                exit,
+                q: mu,
+            };
+            return Ok(Stages {
+                len: 0,
+                rates: [0.0; MAX_STAGES],
+                counts: [0; MAX_STAGES],
+                general: Some(intern_general(g)),
+            });
         }
         if n == 1 {
             return Stages::erlang(1, -t[0][0]);
@@ -385,6 +417,177 @@ impl Stages {
 /// `ln Γ(n + 1) = ln n!` by summation (exact enough for n ≤ MAX_PHASES).
 fn ln_factorial(n: u32) -> f64 {
     (2..=n).map(|i| f64::from(i).ln()).sum()
+}
+
+/// The canonical acyclic form (Cumani's CF1) of a cyclic `PH(α, T)`, exit
+/// rates `exit`: `(β, μ)`, the law of entering a series of phases of rates
+/// `μ₁ ≤ μ₂ ≤ … ≤ μₘ` (exit from the last) at phase `j` with probability
+/// `β_j`. The phases that `α` never leads to are dropped first; the `μ` are
+/// minus the eigenvalues of (the rest of) `T`, and `β = α P` for the `P`
+/// with `T P = P S` (`S` the series' sub-generator), built column by column
+/// from the last one, `P_{·m} = exit/μₘ`, `P_{·j−1} = (T + μ_j I) P_{·j} /
+/// μ_{j−1}` (no solve: Cayley–Hamilton closes the recursion). Then `α e^{Tt}
+/// 1 = β e^{St} 1`: the same law. Fails (saying why) when an eigenvalue is
+/// not real, a `β_j` is negative (no such form of this order) or the
+/// moments `k! α(−T)^{−k}1` of the two forms, `k ≤ 2m − 1` (which determine
+/// a law of order m), differ by more than 1e-8 relative (rounding).
+fn canonical_form(
+    alpha: &[f64],
+    t: &[Vec<f64>],
+    exit: &[f64],
+) -> Result<(Vec<f64>, Vec<f64>), String> {
+    let n = alpha.len();
+    // the phases α leads to
+    let mut seen: Vec<bool> = alpha.iter().map(|&a| a > 0.0).collect();
+    let mut stack: Vec<usize> = (0..n).filter(|&i| seen[i]).collect();
+    while let Some(i) = stack.pop() {
+        for j in 0..n {
+            if j != i && t[i][j] > 0.0 && !seen[j] {
+                seen[j] = true;
+                stack.push(j);
+            }
+        }
+    }
+    let keep: Vec<usize> = (0..n).filter(|&i| seen[i]).collect();
+    let m = keep.len();
+    let a: Vec<f64> = keep.iter().map(|&i| alpha[i]).collect();
+    let tm: Vec<Vec<f64>> = keep
+        .iter()
+        .map(|&i| keep.iter().map(|&j| t[i][j]).collect())
+        .collect();
+    let ex: Vec<f64> = keep.iter().map(|&i| exit[i]).collect();
+    let eig = faer::Mat::<f64>::from_fn(m, m, |i, j| tm[i][j])
+        .eigenvalues()
+        .map_err(|e| format!("its eigenvalues could not be computed ({e:?})"))?;
+    let mut mu = Vec::with_capacity(m);
+    for z in &eig {
+        if z.im.abs() > 1e-9 * z.re.abs().max(f64::MIN_POSITIVE) {
+            return Err(format!(
+                "T has the complex eigenvalue {} ± {}i (such a law has no acyclic form of \
+                 the same order)",
+                z.re,
+                z.im.abs()
+            ));
+        }
+        if !(z.re < 0.0) {
+            return Err(format!("T has the eigenvalue {} (not < 0)", z.re));
+        }
+        mu.push(-z.re);
+    }
+    mu.sort_by(f64::total_cmp);
+    // P column by column from the last
+    let mut cols: Vec<Vec<f64>> = vec![Vec::new(); m];
+    cols[m - 1] = ex.iter().map(|e| e / mu[m - 1]).collect();
+    for j in (1..m).rev() {
+        let c = &cols[j];
+        let next: Vec<f64> = (0..m)
+            .map(|i| {
+                let tc: f64 = (0..m).map(|k| tm[i][k] * c[k]).sum();
+                (tc + mu[j] * c[i]) / mu[j - 1]
+            })
+            .collect();
+        cols[j - 1] = next;
+    }
+    let mut beta: Vec<f64> = cols
+        .iter()
+        .map(|c| a.iter().zip(c).map(|(x, y)| x * y).sum())
+        .collect();
+    if let Some((j, b)) = beta.iter().enumerate().find(|(_, b)| **b < -1e-9) {
+        return Err(format!(
+            "its canonical acyclic form of order {m} would start in phase {} with \
+             probability {b} < 0 (no acyclic form of that order)",
+            j + 1
+        ));
+    }
+    for b in &mut beta {
+        *b = b.max(0.0);
+    }
+    let total: f64 = beta.iter().sum();
+    if !((total - 1.0).abs() < 1e-8) {
+        return Err(format!(
+            "its canonical acyclic form's probabilities sum to {total}, not 1 (rounding)"
+        ));
+    }
+    for b in &mut beta {
+        *b /= total;
+    }
+    // check: the moments of both forms
+    let ph = moments_dense(&a, &tm, 2 * m - 1)
+        .ok_or_else(|| "T is singular (absorption is not certain)".to_string())?;
+    let cf: Vec<f64> = {
+        // S upper bidiagonal: (−S)⁻¹ v by back substitution
+        let mut v = vec![1.0; m];
+        let mut out = Vec::with_capacity(2 * m - 1);
+        let mut fact = 1.0;
+        for k in 1..2 * m {
+            let mut w = vec![0.0; m];
+            for i in (0..m).rev() {
+                let later = if i + 1 < m { mu[i] * w[i + 1] } else { 0.0 };
+                w[i] = (v[i] + later) / mu[i];
+            }
+            v = w;
+            fact *= k as f64;
+            out.push(fact * beta.iter().zip(&v).map(|(x, y)| x * y).sum::<f64>());
+        }
+        out
+    };
+    for (k, (x, y)) in ph.iter().zip(&cf).enumerate() {
+        if (x - y).abs() > 1e-8 * x.abs().max(y.abs()) {
+            return Err(format!(
+                "its canonical acyclic form's moment {} is {y}, not {x} (rounding)",
+                k + 1
+            ));
+        }
+    }
+    Ok((beta, mu))
+}
+
+/// `k! α(−T)^{−k} 1` for `k = 1..=count`, by Gaussian elimination with
+/// partial pivoting; `None` if `T` is singular.
+fn moments_dense(alpha: &[f64], t: &[Vec<f64>], count: usize) -> Option<Vec<f64>> {
+    let m = alpha.len();
+    // LU of −T
+    let mut lu: Vec<Vec<f64>> = t.iter().map(|r| r.iter().map(|x| -x).collect()).collect();
+    let mut piv: Vec<usize> = (0..m).collect();
+    for c in 0..m {
+        let p = (c..m).max_by(|&i, &j| lu[i][c].abs().total_cmp(&lu[j][c].abs()))?;
+        if lu[p][c] == 0.0 {
+            return None;
+        }
+        lu.swap(c, p);
+        piv.swap(c, p);
+        for i in c + 1..m {
+            let f = lu[i][c] / lu[c][c];
+            lu[i][c] = f;
+            for j in c + 1..m {
+                lu[i][j] -= f * lu[c][j];
+            }
+        }
+    }
+    let solve = |b: &[f64]| {
+        let mut y: Vec<f64> = piv.iter().map(|&i| b[i]).collect();
+        for i in 0..m {
+            for j in 0..i {
+                y[i] -= lu[i][j] * y[j];
+            }
+        }
+        for i in (0..m).rev() {
+            for j in i + 1..m {
+                y[i] -= lu[i][j] * y[j];
+            }
+            y[i] /= lu[i][i];
+        }
+        y
+    };
+    let mut v = vec![1.0; m];
+    let mut fact = 1.0;
+    let mut out = Vec::with_capacity(count);
+    for k in 1..=count {
+        v = solve(&v);
+        fact *= k as f64;
+        out.push(fact * alpha.iter().zip(&v).map(|(a, x)| a * x).sum::<f64>());
+    }
+    Some(out)
 }
 
 /// The interned copy of `s` (the same reference for equal stages).
