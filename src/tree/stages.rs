@@ -469,7 +469,7 @@ fn canonical_form(
                 z.im.abs()
             ));
         }
-        if !(z.re < 0.0) {
+        if z.re >= 0.0 || z.re.is_nan() {
             return Err(format!("T has the eigenvalue {} (not < 0)", z.re));
         }
         mu.push(-z.re);
@@ -503,7 +503,7 @@ fn canonical_form(
         *b = b.max(0.0);
     }
     let total: f64 = beta.iter().sum();
-    if !((total - 1.0).abs() < 1e-8) {
+    if (total - 1.0).abs() >= 1e-8 || total.is_nan() {
         return Err(format!(
             "its canonical acyclic form's probabilities sum to {total}, not 1 (rounding)"
         ));
@@ -556,11 +556,12 @@ fn moments_dense(alpha: &[f64], t: &[Vec<f64>], count: usize) -> Option<Vec<f64>
         }
         lu.swap(c, p);
         piv.swap(c, p);
-        for i in c + 1..m {
-            let f = lu[i][c] / lu[c][c];
-            lu[i][c] = f;
-            for j in c + 1..m {
-                lu[i][j] -= f * lu[c][j];
+        let pivot_row = lu[c].clone();
+        for row in lu.iter_mut().skip(c + 1) {
+            let f = row[c] / pivot_row[c];
+            row[c] = f;
+            for (x, p) in row.iter_mut().zip(&pivot_row).skip(c + 1) {
+                *x -= f * p;
             }
         }
     }
