@@ -10,7 +10,8 @@ use btrel::curve::{curve, CurveOptions};
 use btrel::fit::timing::Family;
 use btrel::fit::{fit_leaf_with, Counts, Timing, TimingMode};
 use btrel::logs::Declared;
-use btrel::tree::{parse_str, NodeKind};
+use btrel::tree::parse::{fast_reader_accepts, parse_full};
+use btrel::tree::{parse_str, NodeKind, ParseLimits};
 use common::{assert_root_and_curve_within_z, root_figures, run_btrel, simulate_root, tree};
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, Exp1};
@@ -235,6 +236,13 @@ fn the_written_form_reads_back_to_the_same_law() {
     let NodeKind::Action(a) = t.nodes[0].kind else {
         panic!("an action")
     };
+    let y = format!(
+        "tree: {{action: {{ps: 0.5, success_time: {{shift: 2, phase_type: \
+           {{alpha: [0.3, 0.7], T: [[-2, 1], [0, -3]]}}}}, failure_time: {HYPER}}}}}"
+    );
+    assert!(fast_reader_accepts(&y));
+    let full = parse_full(&y, "t.yaml", ParseLimits::default()).expect("parses");
+    assert_eq!(full, t);
     let (s, f) = (a.success.expect("S"), a.failure.expect("F"));
     assert_eq!(s.family(), "shifted phase-type");
     assert_eq!(f.family(), "hyperexponential");
@@ -317,7 +325,11 @@ fn bad_phase_type_laws_are_located_errors() {
         ),
     ];
     for (y, (line, column), what) in &cases {
+        // the fast reader and the full parser give the same error
+        let full = parse_full(y, "t.yaml", ParseLimits::default()).expect_err(y);
+        assert!(fast_reader_accepts(y), "{y}");
         let e = parse_str(y, "t.yaml").expect_err(y);
+        assert_eq!(e, full, "{y}");
         assert!(e.message.contains(what), "{y}: {}", e.message);
         assert_eq!((e.line, e.column), (*line, *column), "{y}: {}", e.message);
     }
