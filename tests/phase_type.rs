@@ -442,3 +442,56 @@ fn auto_timing_recovers_a_hyperexponential() {
     let f = families(x);
     assert!(matches!(f, Some(Family::Exponential { .. })), "{f:?}");
 }
+
+#[test]
+fn xml_params_files_take_phase_type_laws() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let xml = dir.path().join("t.xml");
+    std::fs::write(
+        &xml,
+        r#"<root BTCPP_format="4" main_tree_to_execute="Main">
+  <BehaviorTree ID="Main">
+    <Sequence name="seq">
+      <Pick name="pick"/>
+      <Place name="place"/>
+    </Sequence>
+  </BehaviorTree>
+  <TreeNodesModel><Action ID="Pick"/><Action ID="Place"/></TreeNodesModel>
+</root>"#,
+    )
+    .expect("written");
+    let params = dir.path().join("t.params.yaml");
+    std::fs::write(
+        &params,
+        format!("pick: {{ps: 1, success_time: {HYPER}}}\nplace: {{ps: 1, success_time: {PH}}}\n"),
+    )
+    .expect("written");
+    let (code, out, err) = run_btrel(&[
+        "report",
+        xml.to_str().expect("path"),
+        "--params",
+        params.to_str().expect("path"),
+        "--format",
+        "json",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
+    // 1.55 (hyperexponential) + 0.3·(2/3) + 0.7/3 (phase-type) by hand
+    let mtts = v["nodes"][0]["mtts"].as_f64().expect("mtts");
+    assert!((mtts - (1.55 + 0.2 + 0.7 / 3.0)).abs() < 1e-12, "{mtts}");
+    // a bad entry: located in the params file
+    std::fs::write(
+        &params,
+        "pick: {ps: 1, mu: 1}\nplace: {ps: 1, success_time: {phase_type: {alpha: [1], T: [[2]]}}}\n",
+    )
+    .expect("written");
+    let (code, _, err) = run_btrel(&[
+        "check",
+        xml.to_str().expect("path"),
+        "--params",
+        params.to_str().expect("path"),
+    ]);
+    assert_eq!(code, 2, "{err}");
+    let col = "place: {ps: 1, success_time: {phase_type: {alpha: [1], T: [[".len() + 1;
+    assert!(err.contains(&format!("t.params.yaml:2:{col}")), "{err}");
+}

@@ -802,4 +802,19 @@ mod tests {
         assert!(Stages::hypoexponential(&[1.0, -2.0]).is_err());
         assert!(Stages::erlang(0, 1.0).is_err());
     }
+
+    #[test]
+    fn a_two_phase_cycle_becomes_a_series_of_its_eigen_rates() {
+        // T = [[−2, 1], [1, −3]]: characteristic polynomial λ² + 5λ + 5,
+        // rates (5 ∓ √5)/2; mean α(−T)⁻¹1 with (−T)⁻¹ = [[3, 1], [1, 2]]/5
+        let s = Stages::general(&[0.3, 0.7], &[vec![-2.0, 1.0], vec![1.0, -3.0]]).expect("valid");
+        let g = s.as_general().expect("general");
+        let (lo, hi) = ((5.0 - 5f64.sqrt()) / 2.0, (5.0 + 5f64.sqrt()) / 2.0);
+        assert!((-g.t(0, 0) - lo).abs() < 1e-12 && (-g.t(1, 1) - hi).abs() < 1e-12);
+        assert!((g.t(0, 1) - lo).abs() < 1e-12 && g.t(1, 0) == 0.0);
+        let mean = (0.3 * 4.0 + 0.7 * 3.0) / 5.0;
+        assert!((s.mean() - mean).abs() < 1e-12, "{}", s.mean());
+        // the Duration stays small: the law is interned
+        assert_eq!(std::mem::size_of::<crate::tree::Duration>(), 24);
+    }
 }
