@@ -1203,6 +1203,30 @@ fn sensitivity(args: SensitivityArgs) -> Result<(), Failure> {
         }
     };
     let s = btrel::sensitivity::sensitivity(&tree, objective, &options).map_err(fail)?;
+    // the laws whose parameters have no rows: say so
+    let held: Vec<String> = tree
+        .nodes
+        .iter()
+        .filter_map(|n| match &n.kind {
+            btrel::tree::NodeKind::Action(a) => {
+                let families: Vec<&str> = [a.success, a.failure]
+                    .into_iter()
+                    .flatten()
+                    .filter(|d| matches!(d, btrel::tree::Duration::PhaseType { .. }))
+                    .map(|d| d.family())
+                    .collect();
+                (!families.is_empty()).then(|| format!("{} ({})", n.name, families.join(", ")))
+            }
+            _ => None,
+        })
+        .collect();
+    if !held.is_empty() {
+        eprintln!(
+            "note: the stage rates, branches and phase-type parameters (alpha, T) of {} are held, \
+             not differentiated (a shift is listed as the outcome's tau)",
+            held.join("; ")
+        );
+    }
     let mut sentences = Vec::new();
     if matches!(args.format, FormatArg::Table) {
         for row in s.rows.iter().filter(|r| r.derivative != 0.0).take(3) {

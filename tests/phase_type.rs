@@ -495,3 +495,17 @@ fn xml_params_files_take_phase_type_laws() {
     let col = "place: {ps: 1, success_time: {phase_type: {alpha: [1], T: [[".len() + 1;
     assert!(err.contains(&format!("t.params.yaml:2:{col}")), "{err}");
 }
+
+#[test]
+fn sensitivity_says_the_phase_type_parameters_are_held() {
+    let (code, out, err) = run_btrel(&["sensitivity", "trees/phase-type.yaml"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        err.contains("pick (hyperexponential); place (phase-type, Erlang)")
+            && err.contains("are held, not differentiated"),
+        "{err}"
+    );
+    // no row for them: pick's rows are ps and nu only
+    let pick: Vec<&str> = out.lines().filter(|l| l.starts_with("pick ")).collect();
+    assert_eq!(pick.len(), 2, "{out}");
+}
