@@ -97,7 +97,8 @@ struct FitArgs {
     output: Option<PathBuf>,
     /// Timing families: `exponential` (the book's model; deterministic when every duration of
     /// each outcome is one time) or `auto` (per outcome deterministic, exponential, shifted
-    /// exponential or Erlang-k, k ≤ 20, by BIC; needs 10 completed episodes of the outcome).
+    /// exponential, Erlang-k, k ≤ 20, or hyperexponential-2 (EM), by BIC; needs 10 completed
+    /// episodes of the outcome).
     #[arg(long, value_enum, default_value = "exponential")]
     timing: FitTiming,
 }
@@ -115,7 +116,8 @@ Examples:
   btrel sensitivity trees/search-and-grasp.yaml --of mttf --format json
 
 For every leaf parameter (ps, mu, nu, tau_s, tau_f; the shift of a shifted `success_time` /
-`failure_time` is its tau_s / tau_f, the rates of Erlang and hypoexponential stages are held)
+`failure_time` is its tau_s / tau_f; the rates of Erlang and hypoexponential stages and the
+alpha, T and branches of phase-type and hyperexponential laws are held, not differentiated)
 the derivative of the root's figure and
 its elasticity d ln O / d ln θ, ranked by |elasticity|; the table ends with sentences for the
 top entries (ps changed by 0.1, other parameters by 10%, the new figure computed again).
@@ -332,7 +334,7 @@ struct CurveArgs {
     #[arg(long, value_enum, default_value_t = MethodArg::Exact)]
     method: MethodArg,
     /// as-given, or deterministic: every exponential time replaced by 1/rate (an Erlang,
-    /// hypoexponential or shifted time by its mean).
+    /// hypo-, hyperexponential, phase-type or shifted time by its mean).
     #[arg(long, value_enum, default_value_t = TimingArg::AsGiven)]
     timing: TimingArg,
     /// Also simulate N runs and add mc_success, mc_failure, mc_running columns.
@@ -765,8 +767,8 @@ fn analysis_failure(cmd: Cmd, method: Method) -> impl Fn(AnalysisError) -> Failu
             // an exported model is a CTMC: say why, not what a Parallel supports
             (AnalysisError::NotMarkovian { leaf }, Cmd::ExportPrism) => format!(
                 "action '{leaf}' has a fixed, hybrid or shifted time, which no CTMC (PRISM or \
-                 Storm model) represents exactly: only exponential, Erlang and hypoexponential \
-                 times are phases"
+                 Storm model) represents exactly: only exponential, Erlang, hypoexponential, \
+                 hyperexponential and phase-type times (without shift) are phases"
             ),
             _ => e.to_string(),
         };
@@ -1223,6 +1225,30 @@ fn sensitivity(args: SensitivityArgs) -> Result<(), Failure> {
         }
     };
     let s = btrel::sensitivity::sensitivity(&tree, objective, &options).map_err(fail)?;
+    // the laws whose parameters have no rows: say so
+    let held: Vec<String> = tree
+        .nodes
+        .iter()
+        .filter_map(|n| match &n.kind {
+            btrel::tree::NodeKind::Action(a) => {
+                let families: Vec<&str> = [a.success, a.failure]
+                    .into_iter()
+                    .flatten()
+                    .filter(|d| matches!(d, btrel::tree::Duration::PhaseType { .. }))
+                    .map(|d| d.family())
+                    .collect();
+                (!families.is_empty()).then(|| format!("{} ({})", n.name, families.join(", ")))
+            }
+            _ => None,
+        })
+        .collect();
+    if !held.is_empty() {
+        eprintln!(
+            "note: the stage rates, branches and phase-type parameters (alpha, T) of {} are held, \
+             not differentiated (a shift is listed as the outcome's tau)",
+            held.join("; ")
+        );
+    }
     let mut sentences = Vec::new();
     if matches!(args.format, FormatArg::Table) {
         for row in s.rows.iter().filter(|r| r.derivative != 0.0).take(3) {

@@ -529,7 +529,8 @@ fn fit_families(counts: &Counts, warnings: &mut Vec<String>) -> Option<(Estimate
                 Some(
                     timing::Family::Exponential { rate }
                     | timing::Family::ShiftedExponential { rate, .. }
-                    | timing::Family::Erlang { rate, .. },
+                    | timing::Family::Erlang { rate, .. }
+                    | timing::Family::Hyperexponential { rate1: rate, .. },
                 ) => *rate,
                 _ => 1.0,
             };

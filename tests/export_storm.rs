@@ -201,6 +201,9 @@ fn storm_solves_the_exports_like_btrel() {
     models += check(&python, "two-arm-parallel.yaml", None, &t);
     models += check(&python, "two-arm-parallel.yaml", Some("both arms"), &t);
     models += check(&python, "keys-table-or-drawer.yaml", None, &t);
+    // hyperexponential and phase-type leaves (one with a cycle): their chains
+    models += check(&python, "phase-type.yaml", None, &t);
+    models += check(&python, "phase-type.yaml", Some("get help"), &t);
     // rates up to 1.1e5/s: uniformisation takes 1e5 steps per second of
     // horizon, so the horizon stays short (the mean time and the eventual
     // probabilities need none)

@@ -1,6 +1,6 @@
 //! `btrel fit --timing auto` on a real BehaviorTree.CPP log: actions whose
-//! durations are exponential, Erlang-3 and shifted exponential by
-//! construction (tests/btcpp/make_families_log.py, behaviortreepy,
+//! durations are exponential, Erlang-3, shifted exponential and
+//! hyperexponential by construction (tests/btcpp/make_families_log.py, behaviortreepy,
 //! BTREL_PYTHON) get those families, with rates near the truth, and the
 //! params file drives `report --params` on the tree embedded in the log.
 
@@ -76,10 +76,19 @@ fn auto_timing_finds_the_families_of_a_real_btcpp_log() {
                 assert!((0.010..0.0105).contains(&shift), "Shift shift {shift}");
                 near("Shift rate", rate, 200.0, leaf.counts.successes);
             }
+            ("Hyper", Family::Hyperexponential { p, rate1, rate2 }) => {
+                // 300 runs: ~120 fast (mean 5 ms) and ~180 slow (50 ms)
+                // durations; p within 5 binomial standard errors (0.028)
+                // plus the modes' overlap
+                eprintln!("Hyper p: fit {p:.4} truth 0.4");
+                assert!((p - 0.4).abs() < 0.15, "Hyper p {p}");
+                near("Hyper rate1", rate1, 1.0 / 0.005, (0.4 * 300.0) as usize);
+                near("Hyper rate2", rate2, 1.0 / 0.050, (0.6 * 300.0) as usize);
+            }
             (k, s) => panic!("{k}: {s:?} is not {}", truth[k]["family"]),
         }
     }
-    assert_eq!(f.leaves.len(), 3);
+    assert_eq!(f.leaves.len(), 4);
     // the CLI writes the families; report reads them on the log's tree
     let params = dir.path().join("fitted.yaml");
     let o = bin()
@@ -92,6 +101,10 @@ fn auto_timing_finds_the_families_of_a_real_btcpp_log() {
     let text = std::fs::read_to_string(&params).expect("params written");
     assert!(text.contains("success_time: {erlang: {k: 3,"), "{text}");
     assert!(text.contains("success_time: {shift: 0.01"), "{text}");
+    assert!(
+        text.contains("success_time: {hyperexponential: [{p: "),
+        "{text}"
+    );
     let xml = btrel::logs::read_file(&log)
         .expect("log reads")
         .xml

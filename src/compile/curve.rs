@@ -69,7 +69,7 @@ impl Default for CurveOptions {
 }
 
 /// The tree with every random time replaced by its mean (`τ = 1/rate`; an
-/// Erlang, hypoexponential or shifted time by its mean).
+/// Erlang, hypo-, hyperexponential, phase-type or shifted time by its mean).
 pub fn deterministic_version(tree: &Tree) -> Tree {
     let mut t = tree.clone();
     let fix = |d: Option<Duration>| {

@@ -5,7 +5,8 @@
 //!   it enters a phase of rate `mu` that exits to Success, with probability
 //!   `pf` a phase of rate `nu` that exits to Failure. An Erlang or
 //!   hypoexponential outcome time is its stages in series instead of one
-//!   phase.
+//!   phase, a hyperexponential or general phase-type time its own (acyclic)
+//!   chain.
 //! * A condition has no phase: it starts in Success with probability `ps`,
 //!   in Failure otherwise.
 //! * A Sequence (Fallback) concatenates its children's phases: a child's
@@ -74,31 +75,36 @@ pub(crate) fn chain_of(
                     }
                     continue;
                 }
-                // exponential: one phase; Erlang, hypoexponential: in series
-                let Some(rates) = d.and_then(|d: Duration| d.phase_rates()) else {
+                // exponential: one phase; Erlang, hypoexponential: in
+                // series; hyperexponential, phase-type: its (acyclic) chain
+                // (a leaf's own chain is small: at most MAX_PHASES phases)
+                let Some(law) = d.and_then(|d: Duration| d.phase_chain()) else {
                     return Err(AnalysisError::NotMarkovian {
                         leaf: node.name.clone(),
                     });
                 };
-                if c.len() + rates.len() > max_states {
+                if c.len() + law.len() > max_states {
                     return Err(AnalysisError::StateBudget {
                         node: node.name.clone(),
-                        states: (c.len() + rates.len()) as f64,
+                        states: (c.len() + law.len()) as f64,
                         budget: max_states,
                     });
                 }
                 let first = c.len();
-                for (j, &rate) in rates.iter().enumerate() {
-                    let i = c.push_phase();
-                    if j + 1 < rates.len() {
-                        c.transitions[i].push((i + 1, rate));
-                    } else if success {
-                        c.exit_success[i] = rate;
+                for i in 0..law.len() {
+                    let k = c.push_phase();
+                    c.transitions[k] = law.transitions[i]
+                        .iter()
+                        .map(|&(j, r)| (first + j, r))
+                        .collect();
+                    if success {
+                        c.exit_success[k] = law.exit_success[i];
                     } else {
-                        c.exit_failure[i] = rate;
+                        c.exit_failure[k] = law.exit_success[i];
                     }
                 }
-                c.initial.push((first, p));
+                c.initial
+                    .extend(law.initial.iter().map(|&(i, a)| (first + i, p * a)));
             }
             Ok(c)
         }

@@ -104,8 +104,8 @@ fn side(p: f64, d: Option<Duration>) -> (bool, bool) {
     match d {
         // a zero-time outcome is instantaneous in a phase chain too
         Some(Duration::Fixed { time }) => (time == 0.0, true),
-        // exponential, Erlang, hypoexponential: phases in series
-        Some(d) => (d.phase_rates().is_some(), false),
+        // exponential, Erlang, hypo-, hyperexponential, phase-type: phases
+        Some(d) => (d.is_phase_type(), false),
         None => (false, false),
     }
 }

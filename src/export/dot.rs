@@ -38,6 +38,7 @@ fn duration_text(d: &Duration, rate_symbol: &str, tau_symbol: &str) -> String {
         }
         Duration::PhaseType { shift, stages } => {
             let body = match stages.as_erlang() {
+                _ if stages.as_general().is_some() => d.family().to_string(),
                 Some((1, rate)) => format!("exponential, rate {}", short(rate)),
                 Some((k, rate)) => format!("Erlang-{k}, rate {}", short(rate)),
                 None => format!(

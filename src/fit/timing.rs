@@ -9,7 +9,12 @@
 //! * **shifted exponential** `δ + Exp(λ)` (2 parameters; `δ̂` is the
 //!   shortest completed duration, the maximum of the likelihood);
 //! * **Erlang-k** `Gamma(k, λ)`, `k = 2..=`[`MAX_K`] by profile likelihood
-//!   (2 parameters, k and λ; k = 1 is the exponential).
+//!   (2 parameters, k and λ; k = 1 is the exponential);
+//! * **hyperexponential-2** `p·Exp(λ₁) + (1−p)·Exp(λ₂)` (3 parameters), the
+//!   phase-type law of bimodal durations (a fast and a slow mode), by EM
+//!   ([`fit_hyperexponential`]: the E-step splits each duration, and each
+//!   halt, between the modes; the M-step is the exponential's events over
+//!   exposure per mode), from a few starts, the best likelihood kept;
 //!
 //! and the one of least **BIC** = `−2 log L + params · ln n` is kept, `n`
 //! the leaf's episodes (completed and halted). BIC rather than AIC: it
@@ -52,10 +57,26 @@ pub const KS_CRITICAL_5: f64 = 1.094;
 /// A fitted duration law.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Family {
-    Deterministic { time: f64 },
-    Exponential { rate: f64 },
-    ShiftedExponential { shift: f64, rate: f64 },
-    Erlang { k: u32, rate: f64 },
+    Deterministic {
+        time: f64,
+    },
+    Exponential {
+        rate: f64,
+    },
+    ShiftedExponential {
+        shift: f64,
+        rate: f64,
+    },
+    Erlang {
+        k: u32,
+        rate: f64,
+    },
+    /// `p·Exp(rate1) + (1−p)·Exp(rate2)`, `rate1 > rate2`.
+    Hyperexponential {
+        p: f64,
+        rate1: f64,
+        rate2: f64,
+    },
 }
 
 impl Family {
@@ -64,6 +85,7 @@ impl Family {
         match self {
             Family::Deterministic { .. } | Family::Exponential { .. } => 1,
             Family::ShiftedExponential { .. } | Family::Erlang { .. } => 2,
+            Family::Hyperexponential { .. } => 3,
         }
     }
 
@@ -74,6 +96,7 @@ impl Family {
             Family::Exponential { .. } => "exponential".into(),
             Family::ShiftedExponential { .. } => "shifted exponential".into(),
             Family::Erlang { k, .. } => format!("Erlang-{k}"),
+            Family::Hyperexponential { .. } => "hyperexponential-2".into(),
         }
     }
 
@@ -90,6 +113,14 @@ impl Family {
                 Ok(s) => Duration::phase_type(0.0, s),
                 Err(_) => Duration::Exponential { rate },
             },
+            Family::Hyperexponential { p, rate1, rate2 } => {
+                match Stages::hyperexponential(&[(p, rate1), (1.0 - p, rate2)]) {
+                    Ok(s) => Duration::phase_type(0.0, s),
+                    Err(_) => Duration::Exponential {
+                        rate: 1.0 / (p / rate1 + (1.0 - p) / rate2),
+                    },
+                }
+            }
         }
     }
 
@@ -115,6 +146,15 @@ impl Family {
                 let k = f64::from(k);
                 k * rate.ln() + (k - 1.0) * t.ln() - rate * t - ln_gamma_int(k)
             }
+            Family::Hyperexponential { p, rate1, rate2 } => {
+                if t < 0.0 {
+                    return f64::NEG_INFINITY;
+                }
+                log_sum_exp(
+                    p.ln() + rate1.ln() - rate1 * t,
+                    (1.0 - p).ln() + rate2.ln() - rate2 * t,
+                )
+            }
         }
     }
 
@@ -131,8 +171,125 @@ impl Family {
             Family::Exponential { rate } => -rate * c.max(0.0),
             Family::ShiftedExponential { shift, rate } => -rate * (c - shift).max(0.0),
             Family::Erlang { k, rate } => erlang_log_sf(k, rate * c.max(0.0)).0,
+            Family::Hyperexponential { p, rate1, rate2 } => {
+                let c = c.max(0.0);
+                log_sum_exp(p.ln() - rate1 * c, (1.0 - p).ln() - rate2 * c)
+            }
         }
     }
+}
+
+/// `ln(eᵃ + eᵇ)` without overflow (−∞ terms allowed).
+fn log_sum_exp(a: f64, b: f64) -> f64 {
+    let m = a.max(b);
+    if m == f64::NEG_INFINITY {
+        return m;
+    }
+    m + ((a - m).exp() + (b - m).exp()).ln()
+}
+
+/// Most EM iterations of [`fit_hyperexponential`] per start.
+pub const HYPER_EM_ITERATIONS: usize = 500;
+
+/// The hyperexponential-2 maximum of the likelihood by EM, from `start`
+/// (`(p, rate1, rate2)`) when given, else from a few starts (the modes
+/// split at the 30th, 50th and 70th percentiles of the completed
+/// durations), the best kept. E-step: each duration `t` (halt `c`, weight
+/// `w`) goes to mode 1 with its posterior probability `r(t) ∝ p λ₁ e^{−λ₁t}`
+/// (`s(c) ∝ p e^{−λ₁c}`); M-step: `p = (Σ r + Σ w s) / (n + Σ w)`, `λ₁ = Σ r /
+/// (Σ r t + Σ w s c)`, `λ₂` likewise. `None` for fewer than 3 durations
+/// or when the modes merge (a rate not finite > 0 or `p` at 0 or 1).
+pub fn fit_hyperexponential(s: &Side, start: Option<(f64, f64, f64)>) -> Option<Family> {
+    let n = s.events.len();
+    if n < 3 {
+        return None;
+    }
+    let starts: Vec<(f64, f64, f64)> = match start {
+        Some(x) => vec![x],
+        None => {
+            let mut x = s.events.to_vec();
+            x.sort_by(f64::total_cmp);
+            [0.3, 0.5, 0.7]
+                .iter()
+                .filter_map(|&q| {
+                    let cut = ((n as f64 * q) as usize).clamp(1, n - 1);
+                    let (lo, hi) = x.split_at(cut);
+                    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+                    let (m1, m2) = (mean(lo), mean(hi));
+                    (m1 > 0.0 && m2 > m1).then_some((q, 1.0 / m1, 1.0 / m2))
+                })
+                .collect()
+        }
+    };
+    let weighted: Vec<(f64, f64)> = s
+        .censored
+        .iter()
+        .zip(s.weights)
+        .filter(|(_, &w)| w > 0.0)
+        .map(|(&c, &w)| (c, w))
+        .collect();
+    let total_w: f64 = weighted.iter().map(|x| x.1).sum();
+    let valid = |(p, a, b): (f64, f64, f64)| {
+        p > 1e-12 && p < 1.0 - 1e-12 && a.is_finite() && b.is_finite() && a > 0.0 && b > 0.0
+    };
+    let mut best: Option<(f64, Family)> = None;
+    for (mut p, mut a, mut b) in starts {
+        if !valid((p, a, b)) {
+            continue;
+        }
+        for _ in 0..HYPER_EM_ITERATIONS {
+            let post = |la: f64, lb: f64| {
+                // P(mode 1) from log weights of the two modes
+                1.0 / (1.0 + (lb - la).exp())
+            };
+            let (mut r_sum, mut r_t, mut o_t) = (0.0, 0.0, 0.0);
+            for &t in s.events {
+                let r = post(p.ln() + a.ln() - a * t, (1.0 - p).ln() + b.ln() - b * t);
+                r_sum += r;
+                r_t += r * t;
+                o_t += (1.0 - r) * t;
+            }
+            let (mut s_sum, mut s_c, mut o_c) = (0.0, 0.0, 0.0);
+            for &(c, w) in &weighted {
+                let r = post(p.ln() - a * c, (1.0 - p).ln() - b * c);
+                s_sum += w * r;
+                s_c += w * r * c;
+                o_c += w * (1.0 - r) * c;
+            }
+            let p2 = (r_sum + s_sum) / (n as f64 + total_w);
+            let a2 = r_sum / (r_t + s_c);
+            let b2 = (n as f64 - r_sum) / (o_t + o_c);
+            let change = ((p2 - p).abs() / p)
+                .max(((a2 - a) / a).abs())
+                .max(((b2 - b) / b).abs());
+            (p, a, b) = (p2, a2, b2);
+            if !valid((p, a, b)) || change < 1e-10 {
+                break;
+            }
+        }
+        if !valid((p, a, b)) {
+            continue;
+        }
+        // the faster mode first
+        let f = if a >= b {
+            Family::Hyperexponential {
+                p,
+                rate1: a,
+                rate2: b,
+            }
+        } else {
+            Family::Hyperexponential {
+                p: 1.0 - p,
+                rate1: b,
+                rate2: a,
+            }
+        };
+        let ll = s.log_likelihood(&f);
+        if ll.is_finite() && best.as_ref().is_none_or(|(b, _)| ll > *b) {
+            best = Some((ll, f));
+        }
+    }
+    best.map(|(_, f)| f)
 }
 
 /// `ln (k−1)!` for a whole `k ≥ 1`.
@@ -358,6 +515,7 @@ pub fn choose(s: &Side, n_bic: f64, deterministic: Option<f64>) -> Option<SideFi
         candidate(s, exp, n_bic),
         fit_shifted(s).and_then(|f| candidate(s, f, n_bic)),
         best_erlang(s, n_bic),
+        fit_hyperexponential(s, None).and_then(|f| candidate(s, f, n_bic)),
     ]
     .into_iter()
     .flatten()
@@ -377,6 +535,9 @@ pub fn refit(s: &Side, family: &Family) -> Option<Family> {
         Family::Exponential { .. } => fit_exponential(s),
         Family::ShiftedExponential { .. } => fit_shifted(s),
         Family::Erlang { k, .. } => fit_erlang(s, *k),
+        Family::Hyperexponential { p, rate1, rate2 } => {
+            fit_hyperexponential(s, Some((*p, *rate1, *rate2)))
+        }
     }
 }
 

@@ -8,6 +8,7 @@ use serde_saphyr::Spanned;
 
 use super::error::TreeError;
 use super::parse::PROBABILITY_SUM_TOLERANCE;
+use super::stages::MAX_GENERAL_PHASES;
 use super::{Action, Duration, Stages};
 
 /// A 1-based (line, column).
@@ -37,8 +38,9 @@ pub(crate) struct ActionParams {
 
 /// An outcome's time law as written under `success_time` / `failure_time`:
 /// `{rate: r}`, `{fixed: t}`, `{erlang: {k: 3, rate: r}}`,
-/// `{hypoexponential: [r1, r2]}`, and `shift: s` with a rate, an Erlang or a
-/// hypoexponential (a deterministic delay before it).
+/// `{hypoexponential: [r1, r2]}`, `{hyperexponential: [{p: 0.3, rate: r1},
+/// ...]}`, `{phase_type: {alpha: [...], T: [[...], ...]}}`, and `shift: s`
+/// with any of them but `fixed` (a deterministic delay before it).
 #[derive(Deserialize, Default, Debug, Clone, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct TimeDef {
@@ -52,6 +54,27 @@ pub(crate) struct TimeDef {
     pub erlang: Option<At<ErlangDef>>,
     #[serde(default)]
     pub hypoexponential: Option<At<Vec<At<f64>>>>,
+    #[serde(default)]
+    pub hyperexponential: Option<At<Vec<At<HyperBranchDef>>>>,
+    #[serde(default)]
+    pub phase_type: Option<At<PhaseTypeDef>>,
+}
+
+/// One branch `{p: probability, rate: r}` of a hyperexponential.
+#[derive(Deserialize, Debug, Clone, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct HyperBranchDef {
+    pub p: At<f64>,
+    pub rate: At<f64>,
+}
+
+/// `{alpha: [a1, ...], T: [[...], ...]}`: a general phase-type law.
+#[derive(Deserialize, Debug, Clone, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct PhaseTypeDef {
+    pub alpha: At<Vec<At<f64>>>,
+    #[serde(rename = "T")]
+    pub t: At<Vec<At<Vec<At<f64>>>>>,
 }
 
 /// `{k: stages, rate: r}`.
@@ -76,8 +99,11 @@ impl ActionParams {
 /// What `success_time` / `failure_time` accept (for help texts).
 pub(crate) const TIME_LAW_HELP: &str = "write one of `{rate: r}` (exponential, 1/s), \
      `{fixed: t}` (deterministic, s), `{erlang: {k: 3, rate: r}}` (k exponential stages of \
-     rate r), `{hypoexponential: [r1, r2, ...]}` (one stage per rate), optionally with \
-     `shift: s` before a rate, an Erlang or a hypoexponential (a deterministic delay, s)";
+     rate r), `{hypoexponential: [r1, r2, ...]}` (one stage per rate), \
+     `{hyperexponential: [{p: 0.3, rate: r1}, {p: 0.7, rate: r2}]}` (rate r_i with probability \
+     p_i), `{phase_type: {alpha: [0.3, 0.7], T: [[-2, 1], [0, -3]]}}` (initial probabilities \
+     and sub-generator of a phase-type law, at most 64 phases), optionally with \
+     `shift: s` before any of them but `fixed` (a deterministic delay, s)";
 
 /// Validates a `success_time` / `failure_time` law.
 fn time_law(
@@ -113,6 +139,8 @@ fn time_law(
         t.fixed.as_ref().map(|_| "fixed"),
         t.erlang.as_ref().map(|_| "erlang"),
         t.hypoexponential.as_ref().map(|_| "hypoexponential"),
+        t.hyperexponential.as_ref().map(|_| "hyperexponential"),
+        t.phase_type.as_ref().map(|_| "phase_type"),
     ];
     let given: Vec<&str> = laws.into_iter().flatten().collect();
     if given.len() != 1 {
@@ -182,10 +210,126 @@ fn time_law(
             .map(|v| positive(format!("{key}.hypoexponential rate"), v))
             .collect::<Result<Vec<f64>, TreeError>>()?;
         Stages::hypoexponential(&rates).map_err(|w| stages_err(sloc(list), w))?
+    } else if let Some(list) = &t.hyperexponential {
+        let help = || {
+            "a hyperexponential is `[{p: 0.3, rate: r1}, {p: 0.7, rate: r2}]`: rate r_i (1/s) \
+             with probability p_i, the p_i summing to 1, at most 64 branches"
+                .to_string()
+        };
+        if list.value.is_empty() {
+            return Err(e(
+                sloc(list),
+                format!("`{key}.hyperexponential` is empty"),
+                help(),
+            ));
+        }
+        let mut branches = Vec::with_capacity(list.value.len().min(MAX_GENERAL_PHASES + 1));
+        for b in &list.value {
+            let p = b.value.p.value;
+            if !(p.is_finite() && (0.0..=1.0).contains(&p)) {
+                return Err(e(
+                    sloc(&b.value.p),
+                    format!("{key}.hyperexponential p = {p} is not a probability"),
+                    help(),
+                ));
+            }
+            let rate = positive(format!("{key}.hyperexponential rate"), &b.value.rate)?;
+            branches.push((p, rate));
+        }
+        Stages::hyperexponential(&branches)
+            .map_err(|w| e(sloc(list), format!("`{key}.hyperexponential`: {w}"), help()))?
+    } else if let Some(ph) = &t.phase_type {
+        phase_type_law(key, ph, e)?
     } else {
         unreachable!("exactly one law is given (checked above)")
     };
     Ok(Duration::phase_type(shift.unwrap_or(0.0), stages))
+}
+
+/// Validates a `phase_type: {alpha, T}` law: each entry where it is
+/// written, then the law as a whole (at `phase_type`).
+fn phase_type_law(
+    key: &str,
+    ph: &At<PhaseTypeDef>,
+    e: &dyn Fn(Loc, String, String) -> TreeError,
+) -> Result<Stages, TreeError> {
+    let help = || {
+        format!(
+            "a phase-type law is `{{alpha: [a1, ..., an], T: [[T11, ..., T1n], ...]}}`: \
+             initial probabilities summing to 1 and an n x n sub-generator (T_ii < 0, \
+             T_ij >= 0, rows summing to <= 0, exit rate -row sum), every phase leading to an \
+             exit, at most {MAX_GENERAL_PHASES} phases; a T with cycles is taken when it has \
+             an acyclic form of the same order (real eigenvalues)"
+        )
+    };
+    let (alpha, t) = (&ph.value.alpha, &ph.value.t);
+    let n = alpha.value.len();
+    if n == 0 || n > MAX_GENERAL_PHASES {
+        return Err(e(
+            sloc(alpha),
+            format!("`{key}.phase_type.alpha` has {n} entries"),
+            help(),
+        ));
+    }
+    if t.value.len() != n {
+        return Err(e(
+            sloc(t),
+            format!(
+                "`{key}.phase_type.T` has {} rows but alpha has {n} entries",
+                t.value.len()
+            ),
+            help(),
+        ));
+    }
+    for (i, a) in alpha.value.iter().enumerate() {
+        if !(a.value.is_finite() && (0.0..=1.0).contains(&a.value)) {
+            return Err(e(
+                sloc(a),
+                format!(
+                    "{key}.phase_type.alpha[{}] = {} is not a probability",
+                    i + 1,
+                    a.value
+                ),
+                help(),
+            ));
+        }
+    }
+    for (i, row) in t.value.iter().enumerate() {
+        if row.value.len() != n {
+            return Err(e(
+                sloc(row),
+                format!(
+                    "row {} of `{key}.phase_type.T` has {} entries, not {n}",
+                    i + 1,
+                    row.value.len()
+                ),
+                help(),
+            ));
+        }
+        for (j, x) in row.value.iter().enumerate() {
+            let v = x.value;
+            let ok = v.is_finite() && if i == j { v < 0.0 } else { v >= 0.0 };
+            if !ok {
+                let want = if i == j { "< 0" } else { ">= 0" };
+                return Err(e(
+                    sloc(x),
+                    format!(
+                        "{key}.phase_type.T[{}][{}] = {v} must be a finite number {want}",
+                        i + 1,
+                        j + 1
+                    ),
+                    help(),
+                ));
+            }
+        }
+    }
+    let a: Vec<f64> = alpha.value.iter().map(|x| x.value).collect();
+    let m: Vec<Vec<f64>> = t
+        .value
+        .iter()
+        .map(|r| r.value.iter().map(|x| x.value).collect())
+        .collect();
+    Stages::general(&a, &m).map_err(|w| e(sloc(ph), format!("`{key}.phase_type`: {w}"), help()))
 }
 
 /// The location of a value.

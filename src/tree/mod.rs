@@ -454,21 +454,30 @@ impl Duration {
         }
     }
 
-    /// The rates of the duration's phases in series (entered in order, the
-    /// last one ending the outcome) when it is exactly phase-type: an
-    /// exponential, an Erlang or a hypoexponential without shift. `None`
-    /// for fixed, hybrid and shifted times.
-    pub fn phase_rates(&self) -> Option<Vec<f64>> {
+    /// The duration as a phase chain whose Success exit ends the outcome,
+    /// when it is exactly phase-type: an exponential, an Erlang, a
+    /// hypoexponential, a hyperexponential or a general phase-type law,
+    /// without shift. `None` for fixed, hybrid and shifted times.
+    pub fn phase_chain(&self) -> Option<crate::solve::chain::PhaseChain> {
         match *self {
-            Duration::Exponential { rate } => Some(vec![rate]),
-            Duration::PhaseType { shift: 0.0, stages } => Some(stages.series()),
+            Duration::Exponential { rate } => Stages::erlang(1, rate).ok().map(|s| s.chain()),
+            Duration::PhaseType { shift: 0.0, stages } => Some(stages.chain()),
             _ => None,
         }
     }
 
+    /// Whether [`Duration::phase_chain`] is `Some` (without building it).
+    pub fn is_phase_type(&self) -> bool {
+        matches!(
+            self,
+            Duration::Exponential { .. } | Duration::PhaseType { shift: 0.0, .. }
+        )
+    }
+
     /// The family's name as in outputs: `exponential`, `deterministic`,
-    /// `truncated exponential`, `Erlang`, `hypoexponential`, `shifted
-    /// exponential`, `shifted Erlang`, `shifted hypoexponential`.
+    /// `truncated exponential`, `Erlang`, `hypoexponential`,
+    /// `hyperexponential`, `phase-type`, and `shifted` before each of the
+    /// last five and `exponential`.
     pub fn family(&self) -> &'static str {
         match *self {
             Duration::Exponential { .. } => "exponential",
@@ -476,6 +485,14 @@ impl Duration {
             Duration::TruncatedExponential { .. } => "truncated exponential",
             Duration::PhaseType { shift, stages } => {
                 let shifted = shift > 0.0;
+                if let Some(g) = stages.as_general() {
+                    return match (shifted, g.is_hyperexponential()) {
+                        (false, true) => "hyperexponential",
+                        (false, false) => "phase-type",
+                        (true, true) => "shifted hyperexponential",
+                        (true, false) => "shifted phase-type",
+                    };
+                }
                 match (shifted, stages.as_erlang()) {
                     (false, Some(_)) => "Erlang",
                     (false, None) => "hypoexponential",
@@ -492,16 +509,29 @@ impl Duration {
     /// 0.5}}` or `{shift: 8, rate: 0.5}`. A truncated exponential has no
     /// such form (it is written with `mu`/`nu` and `tau_f`/`tau_s`): its rate.
     pub fn to_yaml(&self) -> String {
-        let body = |s: &Stages| match s.as_erlang() {
-            Some((1, rate)) => format!("rate: {rate}"),
-            Some((k, rate)) => format!("erlang: {{k: {k}, rate: {rate}}}"),
-            None => format!(
+        let list = |v: &mut dyn Iterator<Item = String>| v.collect::<Vec<_>>().join(", ");
+        let body = |s: &Stages| match (s.as_general(), s.as_erlang()) {
+            (Some(g), _) if g.is_hyperexponential() => format!(
+                "hyperexponential: [{}]",
+                list(&mut (0..g.len()).map(|i| format!(
+                    "{{p: {}, rate: {}}}",
+                    g.alpha()[i],
+                    -g.t(i, i)
+                )))
+            ),
+            (Some(g), _) => format!(
+                "phase_type: {{alpha: [{}], T: [{}]}}",
+                list(&mut g.alpha().iter().map(|a| a.to_string())),
+                list(&mut (0..g.len()).map(|i| format!(
+                    "[{}]",
+                    list(&mut (0..g.len()).map(|j| g.t(i, j).to_string()))
+                )))
+            ),
+            (None, Some((1, rate))) => format!("rate: {rate}"),
+            (None, Some((k, rate))) => format!("erlang: {{k: {k}, rate: {rate}}}"),
+            (None, None) => format!(
                 "hypoexponential: [{}]",
-                s.series()
-                    .iter()
-                    .map(|r| r.to_string())
-                    .collect::<Vec<_>>()
-                    .join(", ")
+                list(&mut s.series().iter().map(|r| r.to_string()))
             ),
         };
         match self {
@@ -563,12 +593,12 @@ impl Action {
         }
     }
 
-    /// Whether every outcome time is phase-type (exponential, Erlang or
-    /// hypoexponential, no shift): the action is a mixture of phase chains
+    /// Whether every outcome time is phase-type (exponential, Erlang,
+    /// hypoexponential, hyperexponential or general phase-type, no shift): the action is a mixture of phase chains
     /// that a CTMC represents exactly.
     pub fn is_markovian(&self) -> bool {
-        self.success.is_none_or(|d| d.phase_rates().is_some())
-            && self.failure.is_none_or(|d| d.phase_rates().is_some())
+        self.success.is_none_or(|d| d.is_phase_type())
+            && self.failure.is_none_or(|d| d.is_phase_type())
     }
 }
 

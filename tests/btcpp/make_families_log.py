@@ -8,6 +8,9 @@ A Sequence of three actions, run RUNS times:
          after Exp(mean 10 ms)
   Erl    Success after Erlang-3 of rate 200/s (mean 15 ms)
   Shift  Success after 10 ms + Exp(mean 5 ms)
+  Hyper  Success after Exp(mean 5 ms) with probability 0.4, else after
+         Exp(mean 50 ms): a hyperexponential (its own random stream, so
+         the other actions draw what they drew before it was added)
 The truth is printed as JSON, with the mean and largest delay between a
 drawn end and the tick that returned it (tick quantisation).
 
@@ -27,6 +30,7 @@ TREE = """
       <ForceSuccess><Expo name="expo"/></ForceSuccess>
       <Erl name="erl"/>
       <Shift name="shift"/>
+      <Hyper name="hyper"/>
     </Sequence>
   </BehaviorTree>
 </root>
@@ -36,12 +40,19 @@ TREE = """
 def main():
     out, runs, seed = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
     rng = random.Random(seed)
+    rng_hyper = random.Random(seed + 1_000_003)
     draws = {
         "Expo": lambda: (True, rng.expovariate(50.0))
         if rng.random() < 0.7
         else (False, rng.expovariate(100.0)),
         "Erl": lambda: (True, sum(rng.expovariate(200.0) for _ in range(3))),
         "Shift": lambda: (True, 0.010 + rng.expovariate(200.0)),
+        "Hyper": lambda: (
+            True,
+            rng_hyper.expovariate(1.0 / 0.005)
+            if rng_hyper.random() < 0.4
+            else rng_hyper.expovariate(1.0 / 0.050),
+        ),
     }
     factory = bt.BehaviorTreeFactory()
     actions = TimedActions()
@@ -52,6 +63,7 @@ def main():
         "Expo": {"family": "exponential", "ps": 0.7, "mu": 50.0, "nu": 100.0},
         "Erl": {"family": "Erlang-3", "rate": 200.0},
         "Shift": {"family": "shifted exponential", "shift": 0.010, "rate": 200.0},
+        "Hyper": {"family": "hyperexponential-2", "p": 0.4, "rate1": 1 / 0.005, "rate2": 1 / 0.050},
         **actions.late_stats(),
     }
     json.dump(truth, sys.stdout)

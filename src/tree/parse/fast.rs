@@ -15,7 +15,7 @@
 //! message (including those found while building the tree) comes from the
 //! full parser. Tests check that both readers build identical trees.
 
-use super::super::action::{ErlangDef, TimeDef};
+use super::super::action::{ErlangDef, HyperBranchDef, PhaseTypeDef, TimeDef};
 use super::{
     ActionDef, At, ConditionDef, ControlDef, DecoratorDef, FileDef, NodeDef, ParallelDef,
     RepeatDef, RetryDef,
@@ -303,6 +303,10 @@ fn starts_inline(rest: &str) -> bool {
 }
 
 fn is_key(k: &str) -> bool {
+    // `T`: a phase-type law's sub-generator (the one upper-case key)
+    if k == "T" {
+        return true;
+    }
     let mut b = k.bytes();
     matches!(b.next(), Some(c) if c.is_ascii_lowercase() || c == b'_')
         && b.all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == b'_')
@@ -714,12 +718,92 @@ fn time_law(v: Value) -> Option<At<TimeDef>> {
                     })
                     .is_some()
             }
+            "hyperexponential" => {
+                let (hl, hc) = (v.line, v.column);
+                let Kind::Seq(items) = v.kind else {
+                    return None;
+                };
+                let branches = items
+                    .into_iter()
+                    .map(|b| {
+                        let (bl, bc) = (b.line, b.column);
+                        let (mut p, mut rate) = (None, None);
+                        fields(b, |k, v| {
+                            let taken = match k {
+                                "p" => p.replace(number(v)?).is_some(),
+                                "rate" => rate.replace(number(v)?).is_some(),
+                                _ => return Some(false),
+                            };
+                            Some(!taken)
+                        })?;
+                        Some(At {
+                            value: HyperBranchDef { p: p?, rate: rate? },
+                            line: bl,
+                            column: bc,
+                        })
+                    })
+                    .collect::<Option<Vec<_>>>()?;
+                d.hyperexponential
+                    .replace(At {
+                        value: branches,
+                        line: hl,
+                        column: hc,
+                    })
+                    .is_some()
+            }
+            "phase_type" => {
+                let (pl, pc) = (v.line, v.column);
+                let (mut alpha, mut t) = (None, None);
+                fields(v, |k, v| {
+                    let taken = match k {
+                        "alpha" => alpha.replace(numbers(v)?).is_some(),
+                        "T" => {
+                            let (tl, tc) = (v.line, v.column);
+                            let Kind::Seq(rows) = v.kind else {
+                                return None;
+                            };
+                            let rows = rows.into_iter().map(numbers).collect::<Option<Vec<_>>>()?;
+                            t.replace(At {
+                                value: rows,
+                                line: tl,
+                                column: tc,
+                            })
+                            .is_some()
+                        }
+                        _ => return Some(false),
+                    };
+                    Some(!taken)
+                })?;
+                d.phase_type
+                    .replace(At {
+                        value: PhaseTypeDef {
+                            alpha: alpha?,
+                            t: t?,
+                        },
+                        line: pl,
+                        column: pc,
+                    })
+                    .is_some()
+            }
             _ => return Some(false),
         };
         Some(!slot_taken)
     })?;
     Some(At {
         value: d,
+        line,
+        column,
+    })
+}
+
+/// A flow sequence of numbers, located.
+fn numbers(v: Value) -> Option<At<Vec<At<f64>>>> {
+    let (line, column) = (v.line, v.column);
+    let Kind::Seq(items) = v.kind else {
+        return None;
+    };
+    Some(At {
+        value: items.into_iter().map(number).collect::<Option<Vec<_>>>()?,
         line,
         column,
     })
