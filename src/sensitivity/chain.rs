@@ -210,7 +210,15 @@ fn leaf_chain(kind: &NodeKind, param: Param, max_states: usize) -> Option<DChain
                     }
                     continue;
                 }
-                let rates = d.phase_rates()?;
+                // stages in series (exponential, Erlang, hypoexponential);
+                // a general phase-type law is not differentiated here
+                let rates = match d {
+                    Duration::Exponential { rate } => vec![rate],
+                    Duration::PhaseType { shift: 0.0, stages } if stages.as_general().is_none() => {
+                        stages.series()
+                    }
+                    _ => return None,
+                };
                 // the rate parameter of an exponential outcome
                 let own = if success { Param::Mu } else { Param::Nu };
                 let d_rate = match d {
