@@ -803,6 +803,10 @@ fn compare_failure(cmd: Cmd, method: Method) -> impl Fn(btrel::compare::CompareE
         CompareError::NeedsDeadline => {
             Failure::input("--by success-by needs a deadline: add --deadline T")
         }
+        e @ CompareError::NeverReturns(_) => Failure::analysis(format!(
+            "{e}\n  help: `btrel report` gives each ordering's P(never returns) when you write it \
+             out; make the loop's child able to end it to compare orderings"
+        )),
     }
     }
 }

@@ -223,6 +223,12 @@ pub enum CompareError {
     /// success-by needs a deadline.
     #[error("the success-by objective needs a deadline")]
     NeedsDeadline,
+    /// A node may never return: orderings are not compared.
+    #[error(
+        "node '{0}' may never return (a loop whose child cannot end it): orderings are compared \
+         by figures of runs that return, which do not cover this tree"
+    )]
+    NeverReturns(String),
     /// An analysis failed.
     #[error(transparent)]
     Analysis(#[from] AnalysisError),
@@ -538,6 +544,19 @@ pub fn compare_with_progress(
     }
     let tree = view.as_ref().map_or(tree, |v| &v.tree);
     let analysis = analyze(tree, &compile_options)?;
+    // the objectives and ties assume runs that return: a node that may run
+    // for ever (a loop its child cannot end) makes the root's figures depend
+    // on the ordering in a way they do not compare; named bottom-up (the
+    // last such node in pre-order, e.g. the loop rather than its ancestors)
+    if let Some((id, _)) = analysis
+        .nodes
+        .iter()
+        .enumerate()
+        .rev()
+        .find(|(_, f)| f.never() > 1e-12)
+    {
+        return Err(CompareError::NeverReturns(tree.node(id).name.clone()));
+    }
     let mut ev = Evaluator {
         tree: tree.clone(),
         analysis,

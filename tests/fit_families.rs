@@ -80,10 +80,33 @@ fn auto_timing_finds_the_families_of_a_real_btcpp_log() {
                 // 300 runs: ~120 fast (mean 5 ms) and ~180 slow (50 ms)
                 // durations; p within 5 binomial standard errors (0.028)
                 // plus the modes' overlap
-                eprintln!("Hyper p: fit {p:.4} truth 0.4");
+                eprintln!("Hyper p: fit {p:.4} truth 0.4, rates {rate1:.1} and {rate2:.2} (truth 200 and 20)");
                 assert!((p - 0.4).abs() < 0.15, "Hyper p {p}");
-                near("Hyper rate1", rate1, 1.0 / 0.005, (0.4 * 300.0) as usize);
-                near("Hyper rate2", rate2, 1.0 / 0.050, (0.6 * 300.0) as usize);
+                // a mixture's component rates are not determined to 1/√n
+                // (which duration came from which mode is uncertain: one
+                // run fitted p 0.30 and rate1 284), so the checks are on
+                // what the sample determines: the mean, within 4 of its
+                // standard errors (sd 44.7 ms / √300 = 2.6 ms) plus the
+                // lateness, and P(T ≤ 10 ms) = 0.4547 within 4 binomial
+                // standard errors (0.029) plus 0.02 for the lateness
+                let n = leaf.counts.successes as f64;
+                let late = truth["late_mean_s"].as_f64().expect("late");
+                let mean = p / rate1 + (1.0 - p) / rate2;
+                let want = 0.4 * 0.005 + 0.6 * 0.05 + late;
+                eprintln!("Hyper mean: fit {mean:.5} s truth {want:.5} s");
+                assert!(
+                    (mean - want).abs() < 4.0 * 0.0447 / n.sqrt() + late,
+                    "Hyper mean {mean}"
+                );
+                let cdf = |t: f64| 1.0 - p * (-rate1 * t).exp() - (1.0 - p) * (-rate2 * t).exp();
+                let want = 0.4 * (1.0 - (-2.0f64).exp()) + 0.6 * (1.0 - (-0.2f64).exp());
+                let se = (want * (1.0 - want) / n).sqrt();
+                eprintln!("Hyper P(T <= 10 ms): fit {:.4} truth {want:.4}", cdf(0.01));
+                assert!(
+                    (cdf(0.01) - want).abs() < 4.0 * se + 0.02,
+                    "Hyper cdf {}",
+                    cdf(0.01)
+                );
             }
             (k, s) => panic!("{k}: {s:?} is not {}", truth[k]["family"]),
         }

@@ -270,3 +270,19 @@ fn a_loop_over_one_action_races_exactly() {
         assert!((p.failure - (1.0 - alive)).abs() < 1e-9, "{p:?}");
     }
 }
+
+/// `compare` refuses a tree with a node that may never return: the root's
+/// P(Success) of `Fallback(c, loop)` is 0.4 in the given order and 0 with the
+/// loop first, which figures of returning runs cannot rank.
+#[test]
+fn compare_refuses_a_tree_that_may_never_return() {
+    let tree = common::tree(
+        "tree: {fallback: {children: [{condition: {name: c, ps: 0.4}}, \
+         {until_failure: {child: {action: {name: body, ps: 1.0, mu: 2.0}}}}]}}\n",
+    );
+    let e = btrel::compare::compare(&tree, &Default::default()).unwrap_err();
+    assert!(
+        matches!(e, btrel::compare::CompareError::NeverReturns(ref n) if n == "until_failure@0.1"),
+        "{e}"
+    );
+}
