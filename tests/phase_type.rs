@@ -446,26 +446,11 @@ fn auto_timing_recovers_a_hyperexponential() {
 #[test]
 fn xml_params_files_take_phase_type_laws() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let xml = dir.path().join("t.xml");
-    std::fs::write(
-        &xml,
-        r#"<root BTCPP_format="4" main_tree_to_execute="Main">
-  <BehaviorTree ID="Main">
-    <Sequence name="seq">
-      <Pick name="pick"/>
-      <Place name="place"/>
-    </Sequence>
-  </BehaviorTree>
-  <TreeNodesModel><Action ID="Pick"/><Action ID="Place"/></TreeNodesModel>
-</root>"#,
-    )
-    .expect("written");
-    let params = dir.path().join("t.params.yaml");
-    std::fs::write(
-        &params,
-        format!("pick: {{ps: 1, success_time: {HYPER}}}\nplace: {{ps: 1, success_time: {PH}}}\n"),
-    )
-    .expect("written");
+    let (xml, params) = common::write_xml_sequence(
+        dir.path(),
+        &[("Pick", "pick"), ("Place", "place")],
+        &format!("pick: {{ps: 1, success_time: {HYPER}}}\nplace: {{ps: 1, success_time: {PH}}}\n"),
+    );
     let (code, out, err) = run_btrel(&[
         "report",
         xml.to_str().expect("path"),

@@ -381,27 +381,12 @@ fn few_episodes_keep_the_exponential_with_a_warning() {
 #[test]
 fn xml_params_files_take_the_time_laws() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let xml = dir.path().join("t.xml");
-    std::fs::write(
-        &xml,
-        r#"<root BTCPP_format="4" main_tree_to_execute="Main">
-  <BehaviorTree ID="Main">
-    <Sequence name="seq">
-      <Dock name="dock"/>
-      <Grasp name="grasp"/>
-    </Sequence>
-  </BehaviorTree>
-  <TreeNodesModel><Action ID="Dock"/><Action ID="Grasp"/></TreeNodesModel>
-</root>"#,
-    )
-    .expect("written");
-    let params = dir.path().join("t.params.yaml");
-    std::fs::write(
-        &params,
+    let (xml, params) = common::write_xml_sequence(
+        dir.path(),
+        &[("Dock", "dock"), ("Grasp", "grasp")],
         "dock: {ps: 1, success_time: {shift: 8, erlang: {k: 3, rate: 0.5}}}\n\
          grasp: {ps: 0.5, success_time: {hypoexponential: [1, 4]}, failure_time: {fixed: 2}}\n",
-    )
-    .expect("written");
+    );
     let (code, out, err) = run_btrel(&[
         "report",
         xml.to_str().expect("path"),

@@ -219,3 +219,34 @@ pub fn behaviortree_python() -> Option<std::path::PathBuf> {
         }
     }
 }
+
+/// Writes a BT.CPP v4 file `t.xml` into `dir` — a Sequence `seq` of actions
+/// given as `(ID, name)`, declared in a `<TreeNodesModel>` — and the params
+/// file `t.params.yaml` with `params`; returns both paths.
+pub fn write_xml_sequence(
+    dir: &std::path::Path,
+    actions: &[(&str, &str)],
+    params: &str,
+) -> (std::path::PathBuf, std::path::PathBuf) {
+    let leaves: String = actions
+        .iter()
+        .map(|(id, name)| format!("      <{id} name=\"{name}\"/>\n"))
+        .collect();
+    let model: String = actions
+        .iter()
+        .map(|(id, _)| format!("<Action ID=\"{id}\"/>"))
+        .collect();
+    let xml = dir.join("t.xml");
+    std::fs::write(
+        &xml,
+        format!(
+            "<root BTCPP_format=\"4\" main_tree_to_execute=\"Main\">\n  <BehaviorTree ID=\"Main\">\n    \
+             <Sequence name=\"seq\">\n{leaves}    </Sequence>\n  </BehaviorTree>\n  \
+             <TreeNodesModel>{model}</TreeNodesModel>\n</root>"
+        ),
+    )
+    .expect("tree written");
+    let path = dir.join("t.params.yaml");
+    std::fs::write(&path, params).expect("params written");
+    (xml, path)
+}
