@@ -1299,6 +1299,13 @@ fn warn_endless(tree: &Tree) {
             endless.len() - ENDLESS_WARNINGS
         );
     }
+    if endless.iter().any(|(_, why)| why.contains("restart loop")) {
+        eprintln!(
+            "  help: an action that returns within its tick (e.g. Nav2's synchronous \
+             TruncatePathLocal) is never restarted: give it `tau_s: 0` (and `tau_f: 0`) in the \
+             params file"
+        );
+    }
 }
 
 /// `n thing` / `n things`.

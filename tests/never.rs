@@ -286,3 +286,30 @@ fn compare_refuses_a_tree_that_may_never_return() {
         "{e}"
     );
 }
+
+/// The CLI's warning about a restart loop says how to model an action that
+/// returns within its tick.
+#[test]
+fn restart_loop_warning_gives_the_zero_time_advice() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let xml = dir.path().join("rs.xml");
+    std::fs::write(
+        &xml,
+        "<root BTCPP_format=\"4\"><BehaviorTree ID=\"M\"><ReactiveSequence name=\"RS\">\
+         <A/><B/></ReactiveSequence></BehaviorTree></root>",
+    )
+    .expect("written");
+    let params = dir.path().join("rs.params.yaml");
+    std::fs::write(&params, "A: {ps: 1, mu: 1}\nB: {ps: 0.9, mu: 1, nu: 1}\n").expect("written");
+    let (code, _, err) = common::run_btrel(&[
+        "report",
+        xml.to_str().expect("path"),
+        "--params",
+        params.to_str().expect("path"),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        err.contains("restart loop") && err.contains("give it `tau_s: 0`"),
+        "{err}"
+    );
+}
