@@ -10,7 +10,7 @@ use btrel::fit::timing::Family;
 use btrel::fit::{fit_leaf_with, Counts, Timing, TimingMode};
 use btrel::logs::Declared;
 use btrel::tree::{parse_str, Duration, NodeKind};
-use common::{assert_root_and_curve_within_z, root_figures, run_btrel, simulate_root, tree};
+use common::{root_figures, run_btrel, tree};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Exp1};
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -145,14 +145,7 @@ fn simulation_agrees_with_the_exact_figures_and_curves() {
              failure_time: {hypoexponential: [3, 6]}}}}}, \
            {action: {ps: 0, failure_time: {shift: 1.5, rate: 2}}}]}}",
     ];
-    let times = [0.5, 1.0, 2.0, 4.0];
-    for (i, y) in cases.iter().enumerate() {
-        let t = tree(y);
-        let f = root_figures(&t);
-        let pts = curve(&t, 0, &times, &CurveOptions::default()).expect("curve");
-        let sim = simulate_root(&t, 200_000, &times);
-        assert_root_and_curve_within_z(&format!("case {i}"), f, &pts, &sim);
-    }
+    common::assert_cases_match_simulation(&cases, &[0.5, 1.0, 2.0, 4.0], 200_000);
 }
 
 #[test]

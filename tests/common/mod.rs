@@ -170,6 +170,18 @@ pub fn assert_root_and_curve_within_z(
     }
 }
 
+/// For each YAML tree of `cases`: the root's exact figures and curve at
+/// `times` against `runs` simulated episodes, |z| < [`Z`] (labelled `case i`).
+pub fn assert_cases_match_simulation<S: AsRef<str>>(cases: &[S], times: &[f64], runs: u64) {
+    for (i, y) in cases.iter().enumerate() {
+        let t = tree(y.as_ref());
+        let f = root_figures(&t);
+        let pts = curve(&t, 0, times, &CurveOptions::default()).expect("curve");
+        let sim = simulate_root(&t, runs, times);
+        assert_root_and_curve_within_z(&format!("case {i}"), f, &pts, &sim);
+    }
+}
+
 /// Runs the built binary with `args` (from the crate root): exit code,
 /// standard output, standard error.
 pub fn run_btrel(args: &[&str]) -> (i32, String, String) {
