@@ -1825,6 +1825,7 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
     let mc = optional_count("--mc", &args.mc)?;
     let format = image_format(&args.output, args.format)?;
     let tree = load(&args.tree)?;
+    warn_endless(&tree);
     let nodes = if args.nodes.is_empty() {
         vec![Tree::ROOT]
     } else {

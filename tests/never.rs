@@ -312,4 +312,16 @@ fn restart_loop_warning_gives_the_zero_time_advice() {
         err.contains("restart loop") && err.contains("give it `tau_s: 0`"),
         "{err}"
     );
+    // plot warns too
+    let png = dir.path().join("rs.png");
+    let (code, _, err) = common::run_btrel(&[
+        "plot",
+        xml.to_str().expect("path"),
+        "--params",
+        params.to_str().expect("path"),
+        "-o",
+        png.to_str().expect("path"),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("can run forever"), "{err}");
 }
