@@ -345,7 +345,10 @@ fn referee(python: &Path, cases: &[Case]) -> Vec<Value> {
         .collect();
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("btcpp_referee");
     std::fs::create_dir_all(&dir).expect("temp dir");
-    let file = dir.join("jobs.json");
+    // one file per call: the tests run at once
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let file = dir.join(format!("jobs-{}-{call}.json", std::process::id()));
     std::fs::write(&file, serde_json::to_string(&jobs).expect("jobs")).expect("write jobs");
     let out = Command::new(python)
         .arg(Path::new(ROOT).join("tests/btcpp/referee.py"))
@@ -514,5 +517,81 @@ fn reactive_nodes_with_actions_in_two_children_are_restart_loops() {
             "sequence"
         };
         assert_eq!(kind, want, "{body}");
+    }
+}
+
+/// The simulator's halts against real BT.CPP runs: a RetryUntilSuccessful
+/// over a Parallel that halts a SequenceWithMemory while its second child
+/// runs (A1 1, A2 1 with ps 0.7, the deadline A3 fails at 1.5): BT.CPP v4
+/// keeps the running child's index, so the retry resumes at A2 (P(S) = 0.7,
+/// MTTS = MTTF = 2.5 by hand; a restart would fail every time). btrel
+/// `simulate` (the analysis refuses a Parallel between the index's
+/// follower and the node) against BT.CPP: |z| < 5 for ps with both
+/// standard errors, the mean times within 5 se + one tick per sequential
+/// step (A1, the halt, A2: 3).
+#[test]
+fn simulated_halts_match_behaviortree_cpp_runs() {
+    let Some(python) = python() else { return };
+    let params = json!({"A1": {"ps": 1.0, "tau_s": 1.0},
+        "A2": {"ps": 0.7, "tau_s": 1.0, "tau_f": 1.0}, "A3": {"ps": 0.0, "tau_f": 1.5}});
+    let case = Case {
+        name: "retried parallel halting a sequence with memory",
+        xml: main_tree(
+            r#"<RetryUntilSuccessful num_attempts="2">
+                 <Parallel success_count="1" failure_count="1">
+                   <SequenceWithMemory><A1/><A2/></SequenceWithMemory>
+                   <A3/>
+                 </Parallel>
+               </RetryUntilSuccessful>"#,
+        ),
+        params,
+        runs: 200,
+        scale: 0.01,
+        steps: Some(3.0),
+        btcpp_ps: None,
+        // a Failure keeps the index into the next run of a reused tree
+        fresh_tree: true,
+    };
+    let tree = read(&case).expect("btrel reads the tree");
+    let sim = btrel::simulate(
+        &tree,
+        &btrel::SimOptions {
+            runs: 100_000,
+            per_node: false,
+            ..Default::default()
+        },
+        None,
+    )
+    .expect("simulated");
+    let root = &sim.nodes[0];
+    let run = &referee(&python, std::slice::from_ref(&case))[0];
+    let (ps_b, ps_se) = (f(run, "ps").expect("ps"), f(run, "ps_se").expect("ps_se"));
+    let se = (ps_se.powi(2) + root.ps.se.powi(2)).sqrt();
+    eprintln!(
+        "{}: ps btrel simulate {:.4} ± {:.4}, BT.CPP {ps_b:.4} ± {ps_se:.4}",
+        case.name, root.ps.mean, root.ps.se
+    );
+    assert!(
+        ((ps_b - root.ps.mean) / se).abs() < common::Z,
+        "ps: btrel {} vs BT.CPP {ps_b} (se {se})",
+        root.ps.mean
+    );
+    let tick = f(run, "tick_ms_mean").unwrap_or(0.0) / 1000.0 / case.scale;
+    for (what, est, key) in [("MTTS", &root.mtts, "mtts"), ("MTTF", &root.mttf, "mttf")] {
+        let est = est.as_ref().expect("both outcomes occur");
+        let (mean, se_b) = (
+            f(run, key).expect(key),
+            f(run, &format!("{key}_se")).unwrap(),
+        );
+        let allowed = common::Z * (se_b.powi(2) + est.se.powi(2)).sqrt() + 3.0 * tick;
+        eprintln!(
+            "{what}: btrel simulate {:.4}, BT.CPP {mean:.4} ± {se_b:.4} (allowed {allowed:.4})",
+            est.mean
+        );
+        assert!(
+            (mean - est.mean).abs() < allowed,
+            "{what}: btrel {} vs BT.CPP {mean} (allowed {allowed})",
+            est.mean
+        );
     }
 }

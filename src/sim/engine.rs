@@ -144,17 +144,24 @@ enum Op {
         end: u32,
     },
     /// BT.CPP SequenceWithMemory; its index is `Scratch::rr[slot]`.
+    /// `halted`: a Parallel or PipelineSequence above it may halt it (its
+    /// index changes are journaled, [`Journal`]); `resets`: a halt sets
+    /// the index to 0 (v3's SequenceStar; v4 keeps the running child's).
     SeqMemory {
         first: u32,
         end: u32,
         slot: u32,
+        halted: bool,
+        resets: bool,
     },
-    /// Nav2 RoundRobin; its index is `Scratch::rr[slot]`.
+    /// Nav2 RoundRobin; its index is `Scratch::rr[slot]` (`halted` as for
+    /// [`Op::SeqMemory`]; Nav2's halt sets the index to 0).
     RoundRobin {
         first: u32,
         end: u32,
         wrap: bool,
         slot: u32,
+        halted: bool,
     },
 }
 
@@ -227,6 +234,38 @@ pub(crate) struct Scratch {
     rr: Vec<u32>,
     /// Earlier children of the PipelineSequences being run.
     reruns: Vec<Rerun>,
+    /// Index changes of the nodes a halt may reach ([`Journal`]).
+    journal: Vec<Journal>,
+    /// Parallels and PipelineSequences being run (the journal is kept
+    /// while one is).
+    halters: u32,
+}
+
+/// What a halt needs to know of an index slot's past within one episode.
+///
+/// The episode engine runs a halted child to its end (its draws decide
+/// nothing after the halt), so a node's index may have moved on past the
+/// instant its Parallel or PipelineSequence returned. Where that index is
+/// read again later in the episode (a retry, a RecoveryNode's next
+/// attempt), the slot must hold what the halt left: the index as it was at
+/// that instant, then the node's own halt (Nav2's RoundRobin: 0; BT.CPP
+/// v4's SequenceWithMemory keeps the running child's index, v3's
+/// SequenceStar resets it to 0). The journal records each change with its
+/// (episode) time, and each run of such a node with its interval; when a
+/// halter returns at `h`, the changes after `h` are undone (in reverse
+/// order) and the nodes running at `h` are halted.
+#[derive(Debug, Clone, Copy)]
+enum Journal {
+    /// `rr[slot]` was `old` until instant `at`.
+    Set { slot: u32, old: u32, at: f64 },
+    /// A node with index slot `slot` ran from `from` to `to` (∞: never
+    /// returned); `resets`: its halt sets the index to 0.
+    Run {
+        slot: u32,
+        from: f64,
+        to: f64,
+        resets: bool,
+    },
 }
 
 /// A subtree compiled for fast episodes; its root is `ops[root]`.
@@ -246,6 +285,8 @@ pub(crate) struct Program {
     slots: Vec<usize>,
     /// Total number of children of pipelines (bounds `Scratch::reruns`).
     pipeline_kids: usize,
+    /// Parallels and PipelineSequences around the node being compiled.
+    halters: u32,
     /// `(can succeed, can fail)` of each tree node ([`super::outcomes`]),
     /// shared by the programs of one simulation.
     can: std::sync::Arc<Vec<(bool, bool)>>,
@@ -282,6 +323,7 @@ impl Program {
             modes: Vec::new(),
             slots: Vec::new(),
             pipeline_kids: 0,
+            halters: 0,
             can,
         };
         p.root = p.compile(tree, id);
@@ -335,7 +377,9 @@ impl Program {
                 failure_threshold,
                 children,
             } => {
+                self.halters += 1;
                 let ids: Vec<u32> = children.iter().map(|&c| self.compile(tree, c)).collect();
+                self.halters -= 1;
                 self.parallel_kids += ids.len();
                 let first = self.kids.len() as u32;
                 self.kids.extend(ids);
@@ -369,11 +413,21 @@ impl Program {
                 return self.push(Op::Decorator { child, kind, n });
             }
             NodeKind::Pipeline { children } => return self.pipeline(tree, children),
-            NodeKind::SequenceWithMemory { children, slot, .. } => {
+            NodeKind::SequenceWithMemory {
+                children,
+                slot,
+                halt_resets,
+            } => {
                 let ids: Vec<u32> = children.iter().map(|&c| self.compile(tree, c)).collect();
                 let (first, end) = self.kids_range(ids);
                 let slot = self.slot(*slot);
-                return self.push(Op::SeqMemory { first, end, slot });
+                return self.push(Op::SeqMemory {
+                    first,
+                    end,
+                    slot,
+                    halted: self.halters > 0,
+                    resets: *halt_resets,
+                });
             }
             NodeKind::RoundRobin {
                 children,
@@ -389,6 +443,7 @@ impl Program {
                     end,
                     wrap,
                     slot,
+                    halted: self.halters > 0,
                 });
             }
             NodeKind::Flow(flow) => {
@@ -454,7 +509,9 @@ impl Program {
     /// A PipelineSequence: its children and what re-ticking each does.
     fn pipeline(&mut self, tree: &Tree, children: &[NodeId]) -> u32 {
         use crate::tree::nav2::{retick, Retick};
+        self.halters += 1;
         let ids: Vec<u32> = children.iter().map(|&c| self.compile(tree, c)).collect();
+        self.halters -= 1;
         let modes: Vec<Mode> = children
             .iter()
             .zip(&ids)
@@ -515,6 +572,8 @@ impl Program {
             order: Vec::with_capacity(self.parallel_kids),
             rr: vec![0; self.slots.len()],
             reruns: Vec::with_capacity(self.pipeline_kids),
+            journal: Vec::new(),
+            halters: 0,
         }
     }
 
@@ -525,10 +584,13 @@ impl Program {
     pub(crate) fn episode<R: Rng>(&self, rng: &mut R, scratch: &mut Scratch) -> (bool, f64) {
         // every run starts with the RoundRobins at their first child
         scratch.rr.fill(0);
-        self.run(self.root, rng, scratch)
+        scratch.journal.clear();
+        scratch.halters = 0;
+        self.run(self.root, 0.0, rng, scratch)
     }
 
-    fn run<R: Rng>(&self, op: u32, rng: &mut R, scratch: &mut Scratch) -> (bool, f64) {
+    /// Runs op `op`, started at episode time `at` (the journal's clock).
+    fn run<R: Rng>(&self, op: u32, at: f64, rng: &mut R, scratch: &mut Scratch) -> (bool, f64) {
         match self.ops[op as usize] {
             Op::Leaf(i) => self.leaves[i as usize].run(rng),
             Op::SeqLeaves { first, end } => {
@@ -556,7 +618,7 @@ impl Program {
             Op::Sequence { first, end } => {
                 let mut t = 0.0;
                 for &c in &self.kids[first as usize..end as usize] {
-                    let (ok, d) = self.run(c, rng, scratch);
+                    let (ok, d) = self.run(c, at + t, rng, scratch);
                     t += d;
                     if !ok || !d.is_finite() {
                         return (ok && d.is_finite(), t);
@@ -567,7 +629,7 @@ impl Program {
             Op::Fallback { first, end } => {
                 let mut t = 0.0;
                 for &c in &self.kids[first as usize..end as usize] {
-                    let (ok, d) = self.run(c, rng, scratch);
+                    let (ok, d) = self.run(c, at + t, rng, scratch);
                     t += d;
                     if ok || !d.is_finite() {
                         return (ok && d.is_finite(), t);
@@ -576,67 +638,94 @@ impl Program {
                 (false, t)
             }
             Op::Never => (false, f64::INFINITY),
-            Op::Parallel { first, end, m, f } => self.parallel(first, end, m, f, rng, scratch),
-            Op::Pipeline { first, end } => self.run_pipeline(first, end, rng, scratch),
+            Op::Parallel { first, end, m, f } => self.parallel(first, end, m, f, at, rng, scratch),
+            Op::Pipeline { first, end } => self.run_pipeline(first, end, at, rng, scratch),
             Op::RoundRobin {
                 first,
                 end,
                 wrap,
                 slot,
+                halted,
             } => {
                 let kids = &self.kids[first as usize..end as usize];
                 let n = kids.len() as u32;
                 let mut idx = scratch.rr[slot as usize];
                 let mut t = 0.0;
+                // the index it leaves (unchanged if it never returns)
+                let (kept, mut left) = (idx, idx);
+                let mut ok = false;
                 for _ in 0..n {
-                    let (ok, d) = self.run(kids[idx as usize], rng, scratch);
+                    let d;
+                    (ok, d) = self.run(kids[idx as usize], at + t, rng, scratch);
                     t += d;
                     if !d.is_finite() {
-                        // never returns: the index stays where it is
-                        return (false, t);
+                        (ok, left) = (false, kept);
+                        break;
                     }
                     idx += 1;
                     if idx == n {
                         if !wrap {
                             // Nav2 leaves its loop here, whatever the status
-                            scratch.rr[slot as usize] = 0;
-                            return (false, t);
+                            (ok, left) = (false, 0);
+                            break;
                         }
                         idx = 0;
                     }
                     if ok {
-                        scratch.rr[slot as usize] = idx;
-                        return (true, t);
+                        left = idx;
+                        break;
                     }
+                    // all failed: halt() resets the index
+                    left = 0;
                 }
-                // all failed: halt() resets the index
-                scratch.rr[slot as usize] = 0;
-                (false, t)
+                if halted {
+                    journal_run(scratch, slot, at, at + t, true);
+                    journal_set(scratch, slot, left, at + t);
+                } else {
+                    scratch.rr[slot as usize] = left;
+                }
+                (ok, t)
             }
-            Op::SeqMemory { first, end, slot } => {
+            Op::SeqMemory {
+                first,
+                end,
+                slot,
+                halted,
+                resets,
+            } => {
                 // BT.CPP's sequence_with_memory_node.cpp: start at the kept
                 // index; a Failure keeps it at the failed child, the last
                 // child's Success resets it to 0
                 let kids = &self.kids[first as usize..end as usize];
                 let mut t = 0.0;
                 let start = scratch.rr[slot as usize] as usize;
+                let mut result = (true, 0);
                 for (i, &c) in kids.iter().enumerate().skip(start) {
-                    let (ok, d) = self.run(c, rng, scratch);
+                    if halted && i > start {
+                        // the index while child i runs (what a halt keeps)
+                        journal_set(scratch, slot, i as u32, at + t);
+                    }
+                    let (ok, d) = self.run(c, at + t, rng, scratch);
                     t += d;
-                    if !ok {
-                        scratch.rr[slot as usize] = i as u32;
-                        return (false, t);
+                    if !ok || !d.is_finite() {
+                        result = (false, i as u32);
+                        break;
                     }
                 }
-                scratch.rr[slot as usize] = 0;
-                (true, t)
+                if halted {
+                    journal_run(scratch, slot, at, at + t, resets);
+                    journal_set(scratch, slot, result.1, at + t);
+                } else {
+                    scratch.rr[slot as usize] = result.1;
+                }
+                (result.0, t)
             }
             Op::Flow { first, end } => {
                 let steps = &self.steps[first as usize..end as usize];
                 let (mut state, mut t) = (0u32, 0.0);
                 loop {
                     let step = steps[state as usize];
-                    let (ok, d) = self.run(step.child, rng, scratch);
+                    let (ok, d) = self.run(step.child, at + t, rng, scratch);
                     t += d;
                     if !d.is_finite() {
                         return (false, t);
@@ -651,11 +740,11 @@ impl Program {
             }
             Op::Decorator { child, kind, n } => match kind {
                 DecoratorOp::Invert => {
-                    let (ok, d) = self.run(child, rng, scratch);
+                    let (ok, d) = self.run(child, at, rng, scratch);
                     (!ok && d.is_finite(), d)
                 }
                 DecoratorOp::Force(outcome) => {
-                    let d = self.run(child, rng, scratch).1;
+                    let d = self.run(child, at, rng, scratch).1;
                     (outcome && d.is_finite(), d)
                 }
                 DecoratorOp::Retry | DecoratorOp::Repeat => {
@@ -663,7 +752,7 @@ impl Program {
                     let stop = kind == DecoratorOp::Retry;
                     let mut t = 0.0;
                     for _ in 0..n {
-                        let (ok, d) = self.run(child, rng, scratch);
+                        let (ok, d) = self.run(child, at + t, rng, scratch);
                         t += d;
                         if !d.is_finite() {
                             return (false, t);
@@ -689,15 +778,18 @@ impl Program {
         &self,
         first: u32,
         end: u32,
+        at: f64,
         rng: &mut R,
         scratch: &mut Scratch,
     ) -> (bool, f64) {
         let base = scratch.reruns.len();
+        let journal = scratch.journal.len();
+        scratch.halters += 1;
         let mut t = 0.0;
         let last = end - 1;
         let mut result = None;
         for i in first..end {
-            let (ok, d) = self.run(self.kids[i as usize], rng, scratch);
+            let (ok, d) = self.run(self.kids[i as usize], at + t, rng, scratch);
             let stop = t + d;
             // the earliest failure of a re-run that comes before `stop`
             let mut fail = f64::INFINITY;
@@ -707,7 +799,7 @@ impl Program {
                 // that cannot fail would go on forever: they decide nothing
                 let endless = !stop.is_finite() && !r.can_fail;
                 while r.fail_at == f64::INFINITY && r.next <= stop && !endless {
-                    let (ok, d) = self.run(r.op, rng, scratch);
+                    let (ok, d) = self.run(r.op, at + r.next, rng, scratch);
                     if !d.is_finite() {
                         // a re-run that never returns: no more re-runs
                         r.next = f64::INFINITY;
@@ -765,7 +857,11 @@ impl Program {
             }
         }
         scratch.reruns.truncate(base);
-        result.expect("the last child ends the loop")
+        scratch.halters -= 1;
+        let result = result.expect("the last child ends the loop");
+        // the current child and the re-runs still running are halted
+        halt_at(scratch, journal, at + result.1);
+        result
     }
 
     /// A Parallel node. All children start at 0 and run independently, so
@@ -779,22 +875,26 @@ impl Program {
     /// order, the node returning at the first threshold met (a tick visits
     /// the children in order, as in BehaviorTree.CPP).
     #[inline(never)]
+    #[allow(clippy::too_many_arguments)]
     fn parallel<R: Rng>(
         &self,
         first: u32,
         end: u32,
         m: u32,
         f: u32,
+        at: f64,
         rng: &mut R,
         scratch: &mut Scratch,
     ) -> (bool, f64) {
         let (s0, f0, o0) = (scratch.succ.len(), scratch.fail.len(), scratch.order.len());
+        let journal = scratch.journal.len();
+        scratch.halters += 1;
         let n = (end - first) as usize;
         let m = m as usize;
         let f = (f as usize).min(n - m + 1);
         let book = f == n - m + 1;
         for &c in &self.kids[first as usize..end as usize] {
-            let (ok, d) = self.run(c, rng, scratch);
+            let (ok, d) = self.run(c, at, rng, scratch);
             if ok {
                 scratch.succ.push(d);
             } else {
@@ -820,9 +920,87 @@ impl Program {
         scratch.succ.truncate(s0);
         scratch.fail.truncate(f0);
         scratch.order.truncate(o0);
+        scratch.halters -= 1;
+        // the children still running when it returns are halted
+        halt_at(scratch, journal, at + result.1);
         // children that never return decide nothing: the node returns at
         // its thresholds' first finite time, or never (∞)
         (result.0 && result.1.is_finite(), result.1)
+    }
+}
+
+/// Sets `rr[slot]` to `index` at episode time `at`, journaled while a
+/// halter runs.
+fn journal_set(scratch: &mut Scratch, slot: u32, index: u32, at: f64) {
+    let old = std::mem::replace(&mut scratch.rr[slot as usize], index);
+    if scratch.halters > 0 && old != index {
+        scratch.journal.push(Journal::Set { slot, old, at });
+    }
+}
+
+/// Records that the node with index slot `slot` ran from `from` to `to`.
+fn journal_run(scratch: &mut Scratch, slot: u32, from: f64, to: f64, resets: bool) {
+    if scratch.halters > 0 {
+        scratch.journal.push(Journal::Run {
+            slot,
+            from,
+            to,
+            resets,
+        });
+    }
+}
+
+/// Whether instant `a` comes after instant `h` (not the same instant).
+fn after(a: f64, h: f64) -> bool {
+    a > h && !same_instant(a, h)
+}
+
+/// A halter that started the journal's entries from `from` on returned at
+/// episode time `h` ([`Journal`]): the index changes after `h` are undone,
+/// the runs that had not started by `h` forgotten, and the nodes running at
+/// `h` halted (recorded at `h`, for a halter around this one). With no
+/// halter around, the journal is cleared.
+fn halt_at(scratch: &mut Scratch, from: usize, h: f64) {
+    if scratch.journal.len() == from {
+        return;
+    }
+    if h.is_finite() {
+        let Scratch { journal, rr, .. } = scratch;
+        for e in journal[from..].iter().rev() {
+            if let Journal::Set { slot, old, at } = *e {
+                if after(at, h) {
+                    rr[slot as usize] = old;
+                }
+            }
+        }
+        let kept: Vec<Journal> = journal
+            .drain(from..)
+            .filter(|e| match *e {
+                Journal::Set { at, .. } => !after(at, h),
+                Journal::Run { from, .. } => !after(from, h),
+            })
+            .collect();
+        journal.extend(kept);
+        let mut halted = Vec::new();
+        for e in journal[from..].iter_mut() {
+            if let Journal::Run {
+                slot, to, resets, ..
+            } = e
+            {
+                if after(*to, h) {
+                    *to = h;
+                    if *resets {
+                        halted.push(*slot);
+                    }
+                }
+            }
+        }
+        for slot in halted {
+            journal_set(scratch, slot, 0, h);
+        }
+    }
+    if scratch.halters == 0 {
+        scratch.journal.clear();
     }
 }
 

@@ -212,23 +212,6 @@ pub enum SimError {
     /// over a child that always succeeds): an episode would never end.
     #[error("node '{0}' never returns: its child can never end the loop")]
     NeverReturns(String),
-    /// A RoundRobin that a Parallel or a PipelineSequence above it may halt
-    /// while it runs (which resets its index in Nav2): the simulator lets
-    /// halted children finish, which would keep the wrong index.
-    #[error(
-        "RoundRobin '{0}' is below {1} '{2}', which may halt it while it runs (resetting its \
-         index); the simulator does not model that yet"
-    )]
-    HaltedRoundRobin(String, &'static str, String),
-    /// A SequenceWithMemory that a Parallel or a PipelineSequence above it
-    /// may halt while it runs, where the halt leaves an index other than
-    /// the one a finished run leaves (v4 keeps the running child's index;
-    /// v3 resets it to 0, which differs only after a later child fails).
-    #[error(
-        "SequenceWithMemory '{0}' is below {1} '{2}', which may halt it while it runs (the halt \
-         decides its index); the simulator does not model that yet"
-    )]
-    HaltedSequenceWithMemory(String, &'static str, String),
     /// The worker thread pool could not be created.
     #[error("cannot create the simulation thread pool: {0}")]
     ThreadPool(String),
@@ -374,50 +357,6 @@ pub fn endless_loops(tree: &Tree) -> Vec<(NodeId, String)> {
     out
 }
 
-/// A RoundRobin in the subtree at `root` below a Parallel or a
-/// PipelineSequence (also in that subtree).
-fn halted_round_robin(tree: &Tree, root: NodeId) -> Option<SimError> {
-    use crate::tree::NodeKind;
-    for id in tree.subtree(root) {
-        let robin = match &tree.node(id).kind {
-            NodeKind::RoundRobin { .. } => true,
-            // a halt matters where it leaves another index than a finished
-            // run (which leaves 0 after a Success or a Failure of the first
-            // child)
-            NodeKind::SequenceWithMemory {
-                children,
-                halt_resets,
-                ..
-            } if !*halt_resets
-                || children[1..]
-                    .iter()
-                    .any(|&c| crate::tree::nav2::outcomes(tree, c).1) =>
-            {
-                false
-            }
-            _ => continue,
-        };
-        let mut up = tree.node(id).parent;
-        while let Some(a) = up.filter(|&a| a >= root) {
-            let what = match tree.node(a).kind {
-                NodeKind::Parallel { .. } => "the Parallel",
-                NodeKind::Pipeline { .. } => "the PipelineSequence",
-                _ => {
-                    up = tree.node(a).parent;
-                    continue;
-                }
-            };
-            let (name, by) = (tree.node(id).name.clone(), tree.node(a).name.clone());
-            return Some(if robin {
-                SimError::HaltedRoundRobin(name, what, by)
-            } else {
-                SimError::HaltedSequenceWithMemory(name, what, by)
-            });
-        }
-    }
-    None
-}
-
 /// Simulates the whole tree: root curve and (with `per_node`) every node.
 ///
 /// `progress`, if given, is called with the number of runs completed so far
@@ -459,9 +398,6 @@ pub fn simulate_node(
             node,
             len: tree.nodes.len(),
         });
-    }
-    if let Some(e) = halted_round_robin(tree, node) {
-        return Err(e);
     }
 
     let targets: Vec<usize> = if opts.per_node {
