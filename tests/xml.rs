@@ -354,6 +354,27 @@ fn missing_parameters_are_listed_together() {
     assert!(lines[3].contains("t.xml:7:3: action `D`") && lines[3].contains("missing `ps`"));
 }
 
+/// A RecoveryNode's retries copy its main branch: a leaf without an entry
+/// is listed once, with its number of copies (one entry covers them all).
+#[test]
+fn missing_parameters_of_copies_are_listed_once() {
+    let src = wrap(
+        "<RecoveryNode number_of_retries=\"2\">\n  <Sequence><Action ID=\"A\"/><Action ID=\"B\"/></Sequence>\n  <Action ID=\"R\"/>\n</RecoveryNode>",
+    );
+    let e = err(&src, "R: {ps: 0.5, mu: 1, nu: 1}\n");
+    assert!(
+        e.message
+            .starts_with("missing parameters for 2 nodes in t.params.yaml:"),
+        "{e}"
+    );
+    let lines: Vec<&str> = e.message.lines().skip(1).collect();
+    assert_eq!(lines.len(), 2, "{e}");
+    for (line, id) in lines.iter().zip(["A", "B"]) {
+        assert!(line.contains(&format!("(ID `{id}`)")), "{e}");
+        assert!(line.contains("[3 copies of this element"), "{e}");
+    }
+}
+
 #[test]
 fn params_are_validated_in_the_params_file() {
     let src = wrap("<Sequence><Action ID=\"A\"/><Condition ID=\"C\"/></Sequence>");

@@ -3107,9 +3107,15 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
     };
     let mut used_keys: HashSet<&str> = HashSet::new();
     let mut param_keys: Vec<(usize, String)> = Vec::new();
-    let mut missing: Vec<(usize, Loc, String)> = Vec::new();
+    // (document, location, line, what copies of one element share: its keys)
+    let mut missing: Vec<(usize, Loc, String, Option<String>)> = Vec::new();
     let leaves = std::mem::take(&mut b.leaves);
     for leaf in &leaves {
+        let shared = Some(format!(
+            "{}\0{}",
+            leaf.id,
+            leaf.name_attr.as_deref().unwrap_or("")
+        ));
         let node = &b.nodes[leaf.node];
         let at = node.location.unwrap_or((0, 0));
         let mut keys = vec![node.name.as_str()];
@@ -3142,6 +3148,7 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
                         leaf.id,
                         keys.join(", ")
                     ),
+                    shared,
                 ));
                 continue;
             }
@@ -3153,6 +3160,7 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
                 leaf.doc,
                 at,
                 format!("{who}: no entry (keys tried: {})", keys.join(", ")),
+                shared,
             ));
             continue;
         };
@@ -3163,7 +3171,7 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
             match validate_action(p, &perr)? {
                 Ok(a) => NodeKind::Action(a),
                 Err(m) => {
-                    missing.push((leaf.doc, at, format!("{who} (key `{key}`): {m}")));
+                    missing.push((leaf.doc, at, format!("{who} (key `{key}`): {m}"), shared));
                     continue;
                 }
             }
@@ -3187,6 +3195,7 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
                     leaf.doc,
                     at,
                     format!("{who} (key `{key}`): missing `ps` (probability of success in [0, 1])"),
+                    shared,
                 ));
                 continue;
             };
@@ -3201,13 +3210,40 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
         };
         b.nodes[leaf.node].kind = new_kind;
     }
-    missing.append(&mut b.missing_values);
-    if let Some(&(doc, first, _)) = missing.first() {
-        let lines: Vec<String> = missing
-            .iter()
-            .map(|(d, (l, c), m)| format!("  {}:{l}:{c}: {m}", sources[*d].name))
-            .collect();
-        let n = missing.len();
+    missing.extend(
+        b.missing_values
+            .drain(..)
+            .map(|(d, at, m)| (d, at, m, None)),
+    );
+    if let Some(&(doc, first, ..)) = missing.first() {
+        // copies of one element (a RecoveryNode's retries, a SubTree used
+        // twice) share its keys: one line each, with the number of copies
+        let mut lines: Vec<String> = Vec::new();
+        let mut seen: HashMap<(usize, Loc, &str), (usize, usize)> = HashMap::new();
+        for (d, at, m, shared) in &missing {
+            let (l, c) = at;
+            let line = format!("  {}:{l}:{c}: {m}", sources[*d].name);
+            let Some(shared) = shared else {
+                lines.push(line);
+                continue;
+            };
+            match seen.get_mut(&(*d, *at, shared.as_str())) {
+                Some((_, copies)) => *copies += 1,
+                None => {
+                    seen.insert((*d, *at, shared), (lines.len(), 1));
+                    lines.push(line);
+                }
+            }
+        }
+        for &(line, copies) in seen.values() {
+            if copies > 1 {
+                lines[line].push_str(&format!(
+                    " [{copies} copies of this element (retries, SubTrees): one entry keyed by \
+                     its name or ID covers them all]"
+                ));
+            }
+        }
+        let n = lines.len();
         return Err(b
             .err_in(
                 doc,
