@@ -164,7 +164,7 @@ impl FitStats {
                     c,
                     format!(
                         "`{key}`: `cov` with `ps_se`, `mu_se`, `nu_se` is not a covariance matrix \
-                         (not positive semidefinite; correlations ps–mu {}, ps–nu {}, mu–nu {})",
+                         (not positive semidefinite; correlations ps–mu {:.3}, ps–nu {:.3}, mu–nu {:.3})",
                         r(c.cov.ps_mu, 0, 1),
                         r(c.cov.ps_nu, 0, 2),
                         r(c.cov.mu_nu, 1, 2)
@@ -575,5 +575,47 @@ mod tests {
         let g = rate_law(2.0, Some(0.5), None).unwrap(); // n = 16
         let mean: f64 = (0..n).map(|_| g.sample(&mut rng)).sum::<f64>() / n as f64;
         assert!(((mean - 2.0) / (0.5 / (n as f64).sqrt())).abs() < 5.0);
+    }
+
+    #[test]
+    fn joint_draws_have_the_delta_method_covariance() {
+        // p = 0.7, mu = 0.5, nu = 1 with correlations -0.7, 0.9, -0.7
+        let (p, mu, nu) = (0.7, 0.5, 1.0);
+        let se = [0.05, 0.08, 0.2];
+        let r = [[1.0, -0.7, 0.9], [-0.7, 1.0, -0.7], [0.9, -0.7, 1.0]];
+        let m: Matrix = std::array::from_fn(|i| std::array::from_fn(|j| r[i][j] * se[i] * se[j]));
+        let j = Joint::new(p, mu, nu, &m).unwrap();
+        // by hand: d(logit p)/dp = 1/(0.7·0.3), d(ln mu)/dmu = 2, d(ln nu)/dnu = 1
+        let d = [1.0 / 0.21, 2.0, 1.0];
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(9);
+        let n = 200_000;
+        let xs: Vec<[f64; 3]> = (0..n)
+            .map(|_| {
+                let (a, b, c) = j.sample(&mut rng);
+                [(a / (1.0 - a)).ln(), b.ln(), c.ln()]
+            })
+            .collect();
+        let centre = [(0.7f64 / 0.3).ln(), 0.5f64.ln(), 0.0];
+        for i in 0..3 {
+            let sd = se[i] * d[i];
+            let mean = xs.iter().map(|x| x[i]).sum::<f64>() / n as f64;
+            assert!(
+                ((mean - centre[i]) / (sd / (n as f64).sqrt())).abs() < 5.0,
+                "{i}"
+            );
+            for k in 0..3 {
+                let c = xs
+                    .iter()
+                    .map(|x| (x[i] - centre[i]) * (x[k] - centre[k]))
+                    .sum::<f64>()
+                    / n as f64;
+                let want = r[i][k] * sd * se[k] * d[k];
+                // the sd of a product-moment estimate is below 2·sd_i·sd_k/√n
+                let tol = 5.0 * 2.0 * sd * se[k] * d[k] / (n as f64).sqrt();
+                assert!((c - want).abs() < tol, "{i}{k}: {c} vs {want}");
+            }
+        }
+        // at the boundary there is no logit
+        assert!(Joint::new(1.0, mu, nu, &m).is_none());
     }
 }

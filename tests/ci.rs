@@ -652,3 +652,145 @@ fn joint_draws_cover_a_correlated_figure_with_heavy_halting() {
         covered[1][2]
     );
 }
+
+/// A fitted CSV log with halts through the binary: `fit` writes `cov:`,
+/// `report --ci` reads it and draws jointly (no note); the same file
+/// without `cov:` still works, with a note naming the leaf drawn
+/// independently.
+#[test]
+fn cli_fit_then_ci_with_halts() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(3);
+    let mut csv = String::from("run,node,start,end,status\n");
+    for (i, e) in episodes(&mut rng, 300, (0.7, 0.5, 1.0), 1.5)
+        .iter()
+        .enumerate()
+    {
+        let status = match e.end {
+            End::Success => "success",
+            End::Failure => "failure",
+            End::Halted => "halted",
+        };
+        csv.push_str(&format!("{i},A,0,{},{status}\n", e.duration));
+    }
+    let log = dir.path().join("runs.csv");
+    std::fs::write(&log, csv).unwrap();
+    let params = dir.path().join("p.yaml");
+    let out = bin()
+        .args(["fit", log.to_str().unwrap(), "-o", params.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut text = std::fs::read_to_string(&params).unwrap();
+    assert!(text.contains("# `cov:` (leaves with halts)"), "{text}");
+    assert!(text.contains(", cov: {ps_mu: -"), "{text}");
+    text.push_str("C: {ps: 0.7}\n");
+    std::fs::write(&params, &text).unwrap();
+    let tree = dir.path().join("t.xml");
+    std::fs::write(&tree, SEQUENCE).unwrap();
+    let run = |p: &Path| {
+        let out = bin()
+            .args([
+                "report",
+                tree.to_str().unwrap(),
+                "--params",
+                p.to_str().unwrap(),
+            ])
+            .args(["--ci", "--ci-draws", "200", "--format", "json"])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice::<Value>(&out.stdout).unwrap()
+    };
+    let v = run(&params);
+    assert_eq!(v["ci"]["independent"], serde_json::json!([]));
+    assert!(v["ci"]["method"]
+        .as_str()
+        .unwrap()
+        .contains("jointly normal"));
+    let old = dir.path().join("old.yaml");
+    std::fs::write(&old, without_cov(&text)).unwrap();
+    let v = run(&old);
+    let notes = v["ci"]["independent"].as_array().unwrap();
+    assert_eq!(notes.len(), 1, "{notes:?}");
+    assert!(notes[0]
+        .as_str()
+        .unwrap()
+        .starts_with("a: ps, mu, nu drawn independently"));
+}
+
+/// `cov:` is checked where `--ci` reads it: malformed, without its
+/// standard errors, or not positive semidefinite, it is an error naming
+/// the file, line and column of the mapping.
+#[test]
+fn a_bad_covariance_is_a_located_error() {
+    let head = "# fitted\n";
+    let entry =
+        |fit: &str| format!("{head}A: {{ps: 0.7, mu: 0.5, nu: 1.0, fit: {{halted: 5, {fit}}}}}\n");
+    let se = "ps_se: 0.05, mu_se: 0.1, nu_se: 0.2";
+    // the column of `{` after `cov: ` on line 2
+    let col = |text: &str| text.lines().nth(1).unwrap().find("cov: {").unwrap() + 6;
+    // correlation ps–mu = 0.006 / (0.05 · 0.1) = 1.2: not a covariance
+    let text = entry(&format!(
+        "{se}, cov: {{ps_mu: 0.006, ps_nu: 0.0, mu_nu: 0.0}}"
+    ));
+    let e = read_fit_stats(&text, "p.yaml").unwrap_err();
+    assert!(e.starts_with(&format!("p.yaml:2:{}: ", col(&text))), "{e}");
+    assert!(e.contains("not positive semidefinite"), "{e}");
+    assert!(e.contains("ps–mu 1.200, ps–nu 0.000, mu–nu 0.000"), "{e}");
+    // each pair fine (|corr| 0.9) but the three together impossible:
+    // corr(ps,mu) = corr(ps,nu) = 0.9, corr(mu,nu) = -0.9
+    let text = entry(&format!(
+        "{se}, cov: {{ps_mu: 0.0045, ps_nu: 0.009, mu_nu: -0.018}}"
+    ));
+    let e = read_fit_stats(&text, "p.yaml").unwrap_err();
+    assert!(e.contains("not positive semidefinite"), "{e}");
+    // without the standard errors
+    let text = entry("cov: {ps_mu: 0.001, ps_nu: 0.0, mu_nu: 0.0}");
+    let e = read_fit_stats(&text, "p.yaml").unwrap_err();
+    assert!(e.starts_with(&format!("p.yaml:2:{}: ", col(&text))), "{e}");
+    assert!(
+        e.contains("needs positive `ps_se`, `mu_se` and `nu_se`"),
+        "{e}"
+    );
+    // malformed: a missing key, an unknown key, a list
+    for bad in [
+        "cov: {ps_mu: 0.001, ps_nu: 0.0}",
+        "cov: {ps_mu: 0.001, ps_nu: 0.0, mu_nu: 0.0, nu_ps: 0.0}",
+        "cov: [0.001, 0.0, 0.0]",
+        "cov: {ps_mu: x, ps_nu: 0.0, mu_nu: 0.0}",
+    ] {
+        let text = entry(&format!("{se}, {bad}"));
+        let e = read_fit_stats(&text, "p.yaml").unwrap_err();
+        assert!(e.starts_with("p.yaml:2:"), "{bad}: {e}");
+        assert!(
+            e.contains("cannot read the `fit:` statistics"),
+            "{bad}: {e}"
+        );
+    }
+    // a valid one is read; old entries without it still are
+    let text = entry(&format!(
+        "{se}, cov: {{ps_mu: -0.003, ps_nu: 0.008, mu_nu: -0.012}}"
+    ));
+    let st = &read_fit_stats(&text, "p.yaml").unwrap()["A"];
+    let c = st.cov.unwrap();
+    assert_eq!((c.line, c.column), (2, col(&text)));
+    assert_eq!(c.cov.mu_nu, -0.012);
+    let st = &read_fit_stats(&entry(se), "p.yaml").unwrap()["A"];
+    assert_eq!(st.cov, None);
+    // the analysis itself ignores `fit:` (a bad `cov:` there is --ci's concern)
+    let text = entry(&format!(
+        "{se}, cov: {{ps_mu: 0.006, ps_nu: 0.0, mu_nu: 0.0}}"
+    ));
+    let tree = r#"<root BTCPP_format="4"><BehaviorTree ID="T"><A/></BehaviorTree>
+        <TreeNodesModel><Action ID="A"/></TreeNodesModel></root>"#;
+    assert!(btrel::tree::xml::parse_xml_str_keyed(tree, "t.xml", &text, "p.yaml").is_ok());
+}
