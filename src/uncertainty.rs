@@ -382,12 +382,24 @@ impl Sampler {
                         continue;
                     }
                     if rates.is_some() && missing.is_none() && st.halted.unwrap_or(0) > 0 {
-                        independent.push(format!(
-                            "{}: ps, mu, nu drawn independently — its `fit:` counts halted episodes \
-                             but has no `cov:` (a params file from an older `btrel fit`; fit again \
-                             to draw them jointly)",
-                            node.name
-                        ));
+                        independent.push(match st.cov {
+                            None => format!(
+                                "{}: ps, mu, nu drawn independently — its `fit:` counts halted \
+                                 episodes but has no `cov:` (a params file from an older `btrel \
+                                 fit`; fit again to draw them jointly)",
+                                node.name
+                            ),
+                            Some(c) if c.cov.is_zero() => format!(
+                                "{}: ps, mu, nu drawn independently (its `cov:` is zero)",
+                                node.name
+                            ),
+                            Some(_) => format!(
+                                "{}: ps, mu, nu drawn independently — its `cov:` does not fit its \
+                                 values (ps = {} is not strictly between 0 and 1, or a rate is not \
+                                 positive)",
+                                node.name, a.ps
+                            ),
+                        });
                     }
                     if let Some(r) = rate_of(a.success) {
                         g.mu = rate_law(r, st.mu_se, st.successes.filter(|_| st.halted == Some(0)));
