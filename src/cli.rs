@@ -294,8 +294,9 @@ struct ReportArgs {
 struct CiArgs {
     /// Also give LEVEL confidence intervals (default 0.95; 90 means 0.90) of every figure from the
     /// fitted parameters' sampling uncertainty (the `fit:` statistics `btrel fit` writes in the
-    /// params file): a parametric bootstrap through the engine (ps ~ Beta, rates ~ Gamma,
-    /// percentile intervals). Leaves without `fit:` statistics stay fixed (the output lists them).
+    /// params file): a parametric bootstrap through the engine (ps ~ Beta, rates ~ Gamma; a leaf
+    /// with halted episodes draws ps, mu, nu jointly from the fit's covariance; percentile
+    /// intervals). Leaves without `fit:` statistics stay fixed (the output lists them).
     #[arg(long, value_name = "LEVEL", num_args = 0..=1, default_missing_value = "0.95")]
     ci: Option<String>,
     /// Bootstrap draws, with --ci (default 1000).
@@ -1376,6 +1377,7 @@ fn report(args: ReportArgs) -> Result<(), Failure> {
             nodes: flat.chunks(4).map(|c| [c[0], c[1], c[2], c[3]]).collect(),
             fixed: sampler.fixed.clone(),
             held: sampler.held.clone(),
+            independent: sampler.independent.clone(),
         };
         if format == Format::Csv {
             for note in intervals.notes() {
@@ -1686,7 +1688,7 @@ fn curve(args: CurveArgs) -> Result<(), Failure> {
                     sampler.fixed.join(", ")
                 );
             }
-            for h in &sampler.held {
+            for h in sampler.held.iter().chain(&sampler.independent) {
                 eprintln!("note: {h}");
             }
             Some(flat)

@@ -28,13 +28,18 @@
 //!
 //! Standard errors are the square roots of the diagonal of the inverse
 //! observed information (the negative Hessian of log L at the maximum,
-//! computed analytically). 95% intervals: p ± 1.96·se clipped to [0, 1]
+//! computed analytically); with halts its off-diagonal entries, the
+//! covariances of (p̂, μ̂, ν̂), are kept too ([`covariance`]), where the
+//! matrix is positive definite. 95% intervals: p ± 1.96·se clipped to [0, 1]
 //! (at p = 1 or 0 with n episodes, the exact Clopper–Pearson bound
 //! 0.025^{1/n}); rates on the log scale, `rate·exp(±1.96·se/rate)`.
 
 use crate::logs::{Declared, End, Episode};
 
+pub mod covariance;
 pub mod timing;
+
+pub use covariance::Covariance;
 
 /// Which timing families `fit` considers.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -122,6 +127,9 @@ pub struct Mle {
     pub ps: Estimate,
     pub mu: Option<Estimate>,
     pub nu: Option<Estimate>,
+    /// Covariances of the estimates, where halts couple them and the
+    /// inverse information is positive definite (module docs).
+    pub cov: Option<Covariance>,
     pub em_iterations: usize,
 }
 
@@ -172,6 +180,7 @@ pub fn mle_exponential(c: &Counts) -> Option<Mle> {
                 ps,
                 mu: r,
                 nu: None,
+                cov: None,
                 em_iterations: 0,
             }
         } else {
@@ -179,6 +188,7 @@ pub fn mle_exponential(c: &Counts) -> Option<Mle> {
                 ps,
                 mu: None,
                 nu: r,
+                cov: None,
                 em_iterations: 0,
             }
         });
@@ -268,10 +278,16 @@ pub fn mle_exponential(c: &Counts) -> Option<Mle> {
         se: s,
         ci95: s.map_or((0.0, f64::INFINITY), |s| log_ci(r, s)),
     };
+    // the joint covariance, where halts make it more than the diagonal and
+    // it is a covariance (positive definite: a strict maximum)
+    let joint = cov
+        .filter(|m| !c.censored.is_empty() && covariance::positive_definite(m))
+        .map(|m| Covariance::from_matrix(&m));
     Some(Mle {
         ps,
         mu: Some(rate(mu, se(1))),
         nu: Some(rate(nu, se(2))),
+        cov: joint,
         em_iterations: iterations,
     })
 }
@@ -325,6 +341,8 @@ pub enum Timing {
     Exponential {
         mu: Option<Estimate>,
         nu: Option<Estimate>,
+        /// The covariances of (p̂, μ̂, ν̂), for a leaf with halts ([`Mle::cov`]).
+        cov: Option<Covariance>,
         em_iterations: usize,
     },
     /// `--timing auto`: each outcome's family chosen by BIC, then fitted
@@ -644,6 +662,7 @@ pub fn fit_leaf_with(
                 Timing::Exponential {
                     mu: m.mu,
                     nu: m.nu,
+                    cov: m.cov,
                     em_iterations: m.em_iterations,
                 },
             )
@@ -712,7 +731,9 @@ fn est_fields(out: &mut String, name: &str, e: &Estimate) {
 }
 
 /// One params-file line for a leaf: the parameters, then a `fit:` mapping
-/// with counts, standard errors and intervals (ignored by the analysis).
+/// with counts, standard errors, intervals and, for an exponential leaf with
+/// halts, the covariances `cov: {ps_mu, ps_nu, mu_nu}` (ignored by the
+/// analysis; `--ci` reads them).
 pub fn params_line(f: &LeafFit) -> String {
     let key = serde_json::to_string(&f.key).unwrap_or_else(|_| format!("{:?}", f.key));
     let mut s = format!("{key}: {{ps: {}", num(f.ps.value));
@@ -762,12 +783,20 @@ pub fn params_line(f: &LeafFit) -> String {
         }
     }
     est_fields(&mut stats, "ps", &f.ps);
-    if let Timing::Exponential { mu, nu, .. } = &f.timing {
+    if let Timing::Exponential { mu, nu, cov, .. } = &f.timing {
         if let Some(m) = mu {
             est_fields(&mut stats, "mu", m);
         }
         if let Some(n) = nu {
             est_fields(&mut stats, "nu", n);
+        }
+        if let Some(c) = cov {
+            stats.push_str(&format!(
+                ", cov: {{ps_mu: {}, ps_nu: {}, mu_nu: {}}}",
+                num(c.ps_mu),
+                num(c.ps_nu),
+                num(c.mu_nu)
+            ));
         }
     }
     s.push_str(&format!(", fit: {{{stats}}}}}"));
@@ -954,6 +983,15 @@ pub fn render(f: &Fitted, by: By) -> String {
         s.push_str(
             "# timing: exponential rates by maximum likelihood with halted episodes censored;\n\
              # `fit:` holds counts, standard errors and 95% intervals (ignored by the analysis)\n",
+        );
+    }
+    if f.leaves
+        .iter()
+        .any(|l| matches!(l.timing, Timing::Exponential { cov: Some(_), .. }))
+    {
+        s.push_str(
+            "# `cov:` (leaves with halts): covariances of the estimates of ps, mu and nu, which\n\
+             # halted episodes correlate; `--ci` draws the three jointly\n",
         );
     }
     for (key, c) in &f.unfitted {

@@ -9,26 +9,41 @@
 //!
 //! * `ps` ~ Beta(s + ½, f + ½), with s successes and f failures among the
 //!   completed episodes (the Jeffreys posterior: well calibrated, and proper
-//!   at the boundary ps = 0 or 1). With halted (censored) episodes the
-//!   counts are the effective ones, n = p(1 − p)/se², s = p·n, f = (1 − p)·n.
+//!   at the boundary ps = 0 or 1).
 //! * a rate (`mu`, `nu`) with n events over an exposure T ~ Gamma(shape n,
 //!   rate T), T = n / rate: for exponential times 2·rate·T ~ χ²(2n) exactly,
-//!   so its percentile interval is the exact pivotal one. With halts n is
-//!   the effective (rate / se)².
+//!   so its percentile interval is the exact pivotal one.
+//!
+//! These are drawn independently, which is right to first order when no
+//! episode was halted: a leaf's log-likelihood then separates into a `p`
+//! part (the counts), a `mu` part (the successes' durations) and a `nu`
+//! part (the failures'), so the information is diagonal and the estimators
+//! asymptotically independent.
+//!
+//! **With halts** a censored episode's `log(p e^{−μc} + (1−p) e^{−νc})`
+//! couples the three (correlations ≈ 0.1 at 20% halted, up to 0.9 at 76%;
+//! README), and `btrel fit` writes the covariances of (p̂, μ̂, ν̂) as `fit:
+//! {cov: {ps_mu, ps_nu, mu_nu}}` ([`crate::fit::covariance`]). Such a leaf's
+//! three parameters are drawn together: θ = (logit ps, ln mu, ln nu) ~
+//! N(θ̂, J Σ J), Σ the covariance of (p̂, μ̂, ν̂) (`*_se²` on its diagonal)
+//! and J = diag(1/(p(1−p)), 1/μ, 1/ν) the derivative of the transform (the
+//! delta method), by its Cholesky factor. The maximum-likelihood estimator
+//! is asymptotically normal with the inverse information as covariance, and
+//! so is any smooth transform of it with the transformed covariance (the
+//! MLE of θ is the transformed MLE); on the logit/log scale the normal law
+//! keeps every draw in range (0 < ps < 1, rates > 0) and is closer to the
+//! estimator's skewed law than on the natural scale. A leaf with halts
+//! whose entry has no `cov:` (written by an older `btrel fit`) falls back
+//! to the independent laws with the effective counts n = p(1 − p)/se²
+//! (ps) and (rate/se)² (rates), and is named in [`Sampler::independent`].
 //!
 //! Each draw sets every fitted leaf's parameters (one draw per params key:
 //! leaves sharing a key share it), runs the engine on the whole tree, and
-//! the interval of each figure is the percentile interval of its draws. The
-//! parameters are drawn independently. Without halts that is exact to first
-//! order: a leaf's log-likelihood separates into a `p` part (the counts), a
-//! `mu` part (the successes' durations) and a `nu` part (the failures'), so
-//! the information is diagonal and the estimators asymptotically
-//! independent. With halts it is not: a censored episode's
-//! `log(p e^{−μc} + (1−p) e^{−νc})` couples them (correlations ≈ 0.1 at 20%
-//! halted, up to 0.9 at 76%; README), and that correlation is not kept. Fixed times
-//! (`tau_s`, `tau_f`) and leaves without `fit:` statistics stay fixed, and so
-//! does the ps of an action whose other outcome never happened (it has no
-//! time for it); [`Sampler::fixed`] and [`Sampler::held`] list them.
+//! the interval of each figure is the percentile interval of its draws.
+//! Fixed times (`tau_s`, `tau_f`) and leaves without `fit:` statistics stay
+//! fixed, and so does the ps of an action whose other outcome never happened
+//! (it has no time for it); [`Sampler::fixed`] and [`Sampler::held`] list
+//! them.
 //!
 //! Draw `i` uses its own random stream (seeded from the seed and `i`), so
 //! the intervals do not depend on the number of threads.
@@ -36,11 +51,13 @@
 use std::collections::BTreeMap;
 
 use rand::SeedableRng;
-use rand_distr::{Beta, Distribution, Gamma};
+use rand_distr::{Beta, Distribution, Gamma, StandardNormal};
 use rand_xoshiro::Xoshiro256PlusPlus;
 use rayon::prelude::*;
 use serde::Deserialize;
+use serde_saphyr::Spanned;
 
+use crate::fit::covariance::{cholesky, scale, Covariance, Matrix, NotPsd};
 use crate::tree::{Duration, NodeId, NodeKind, Tree};
 
 /// Draws when none are asked for.
@@ -52,7 +69,8 @@ pub const MAX_VALUES: usize = 25_000_000;
 
 /// One line of the method, for output headers.
 pub const METHOD: &str =
-    "parametric bootstrap: ps ~ Beta(s+1/2, f+1/2), rates ~ Gamma(events, exposure), \
+    "parametric bootstrap: ps ~ Beta(s+1/2, f+1/2), rates ~ Gamma(events, exposure); \
+leaves with halts: (logit ps, ln mu, ln nu) jointly normal with the fit's covariance; \
 figures recomputed per draw, percentile intervals";
 
 /// The `fit:` statistics of one params entry, as `btrel fit` writes them
@@ -71,6 +89,90 @@ pub struct FitStats {
     pub mu_se: Option<f64>,
     #[serde(default)]
     pub nu_se: Option<f64>,
+    /// The covariances of (ps, mu, nu) off the diagonal, written for a leaf
+    /// with halts ([`crate::fit::covariance`]).
+    #[serde(default)]
+    pub cov: Option<CovEntry>,
+}
+
+/// A `cov: {ps_mu, ps_nu, mu_nu}` mapping and where it was written
+/// (1-based line and column).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CovEntry {
+    pub cov: Covariance,
+    pub line: usize,
+    pub column: usize,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCov {
+    ps_mu: f64,
+    ps_nu: f64,
+    mu_nu: f64,
+}
+
+impl<'de> Deserialize<'de> for CovEntry {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let s = Spanned::<RawCov>::deserialize(d)?;
+        Ok(CovEntry {
+            cov: Covariance {
+                ps_mu: s.value.ps_mu,
+                ps_nu: s.value.ps_nu,
+                mu_nu: s.value.mu_nu,
+            },
+            line: s.referenced.line() as usize,
+            column: s.referenced.column() as usize,
+        })
+    }
+}
+
+impl FitStats {
+    /// The standard errors of (ps, mu, nu), when all three are positive.
+    fn standard_errors(&self) -> Option<[f64; 3]> {
+        let se = [self.ps_se?, self.mu_se?, self.nu_se?];
+        se.iter().all(|x| x.is_finite() && *x > 0.0).then_some(se)
+    }
+
+    /// The full covariance matrix of (ps, mu, nu), when `cov` is given.
+    pub fn matrix(&self) -> Option<Matrix> {
+        Some(self.cov?.cov.matrix(self.standard_errors()?))
+    }
+
+    /// Checks `cov`: the standard errors it goes with are given, and the
+    /// matrix they make is a covariance (positive semidefinite).
+    fn check(&self, key: &str) -> Result<(), (CovEntry, String)> {
+        let Some(c) = self.cov else { return Ok(()) };
+        let Some(se) = self.standard_errors() else {
+            return Err((
+                c,
+                format!(
+                    "`{key}`: `cov` needs positive `ps_se`, `mu_se` and `nu_se` beside it \
+                     (the variances of its matrix)"
+                ),
+            ));
+        };
+        let m = c.cov.matrix(se);
+        match cholesky(&m) {
+            Ok(_) => Ok(()),
+            Err(NotPsd::NotFinite) => {
+                Err((c, format!("`{key}`: `cov` has a value that is not finite")))
+            }
+            Err(NotPsd::Block(_)) => {
+                let r = |a: f64, i: usize, j: usize| a / (se[i] * se[j]);
+                Err((
+                    c,
+                    format!(
+                        "`{key}`: `cov` with `ps_se`, `mu_se`, `nu_se` is not a covariance matrix \
+                         (not positive semidefinite; correlations ps–mu {:.3}, ps–nu {:.3}, mu–nu {:.3})",
+                        r(c.cov.ps_mu, 0, 1),
+                        r(c.cov.ps_nu, 0, 2),
+                        r(c.cov.mu_nu, 1, 2)
+                    ),
+                ))
+            }
+        }
+    }
 }
 
 #[derive(Deserialize)]
@@ -80,7 +182,9 @@ struct Entry {
 }
 
 /// Reads the `fit:` statistics of a params file, by key. Entries without
-/// `fit:` are left out.
+/// `fit:` are left out. A `cov:` mapping that is malformed, lacks the
+/// standard errors or is not positive semidefinite is an error at its
+/// line and column.
 pub fn read_fit_stats(text: &str, file: &str) -> Result<BTreeMap<String, FitStats>, String> {
     if text
         .lines()
@@ -97,10 +201,15 @@ pub fn read_fit_stats(text: &str, file: &str) -> Result<BTreeMap<String, FitStat
             e.without_snippet()
         )
     })?;
-    Ok(entries
+    let stats: BTreeMap<String, FitStats> = entries
         .into_iter()
         .filter_map(|(k, e)| e.fit.map(|f| (k, f)))
-        .collect())
+        .collect();
+    for (k, st) in &stats {
+        st.check(k)
+            .map_err(|(c, msg)| format!("{file}:{}:{}: {msg}", c.line, c.column))?;
+    }
+    Ok(stats)
 }
 
 /// The sampling distributions of one params key's parameters.
@@ -110,6 +219,43 @@ struct Group {
     ps: Option<Beta<f64>>,
     mu: Option<Gamma<f64>>,
     nu: Option<Gamma<f64>>,
+    /// (ps, mu, nu) drawn together, for a leaf with halts (module docs);
+    /// then `ps`, `mu` and `nu` are None.
+    joint: Option<Joint>,
+}
+
+/// A normal law of (logit ps, ln mu, ln nu): its mean and the Cholesky
+/// factor of its covariance.
+#[derive(Clone, Copy, Debug)]
+struct Joint {
+    mean: [f64; 3],
+    factor: Matrix,
+}
+
+impl Joint {
+    /// From the estimates (p, μ, ν) and their covariance: the delta method
+    /// through x ↦ (logit x₀, ln x₁, ln x₂), whose derivatives are
+    /// 1/(p(1 − p)), 1/μ, 1/ν. None at p = 0 or 1 or a rate ≤ 0.
+    fn new(p: f64, mu: f64, nu: f64, m: &Matrix) -> Option<Joint> {
+        if !(p > 0.0 && p < 1.0 && mu > 0.0 && nu > 0.0) {
+            return None;
+        }
+        let d = [1.0 / (p * (1.0 - p)), 1.0 / mu, 1.0 / nu];
+        let factor = cholesky(&scale(m, d)).ok()?;
+        Some(Joint {
+            mean: [(p / (1.0 - p)).ln(), mu.ln(), nu.ln()],
+            factor,
+        })
+    }
+
+    /// One draw of (ps, mu, nu).
+    fn sample(&self, rng: &mut Xoshiro256PlusPlus) -> (f64, f64, f64) {
+        let z: [f64; 3] = std::array::from_fn(|_| StandardNormal.sample(rng));
+        let x: [f64; 3] = std::array::from_fn(|i| {
+            self.mean[i] + (0..=i).map(|k| self.factor[i][k] * z[k]).sum::<f64>()
+        });
+        (1.0 / (1.0 + (-x[0]).exp()), x[1].exp(), x[2].exp())
+    }
 }
 
 /// Draws trees whose fitted parameters vary by their sampling
@@ -122,6 +268,9 @@ pub struct Sampler {
     pub fixed: Vec<String>,
     /// Parameters of fitted leaves that stay fixed, and why.
     pub held: Vec<String>,
+    /// Leaves with halts whose `fit:` has no `cov:` (a params file from an
+    /// older `btrel fit`): their ps, mu and nu are drawn independently.
+    pub independent: Vec<String>,
 }
 
 /// Beta(s + ½, f + ½) for ps = p, from the counts (or, with halts, from
@@ -181,7 +330,7 @@ impl Sampler {
     ) -> Sampler {
         let mut groups: Vec<Group> = Vec::new();
         let mut by_key: BTreeMap<&str, usize> = BTreeMap::new();
-        let (mut fixed, mut held) = (Vec::new(), Vec::new());
+        let (mut fixed, mut held, mut independent) = (Vec::new(), Vec::new(), Vec::new());
         for (id, node) in tree.nodes.iter().enumerate() {
             if !node.kind.children().is_empty() {
                 continue;
@@ -200,6 +349,7 @@ impl Sampler {
                 ps: None,
                 mu: None,
                 nu: None,
+                joint: None,
             };
             match &node.kind {
                 NodeKind::Condition { ps } => g.ps = ps_law(*ps, st),
@@ -215,6 +365,41 @@ impl Sampler {
                             "{}: ps held at {} (no {what} was observed, so it has no time)",
                             node.name, a.ps
                         )),
+                    }
+                    let rates = rate_of(a.success).zip(rate_of(a.failure));
+                    let joint = rates
+                        .filter(|_| missing.is_none())
+                        .zip(
+                            st.matrix()
+                                .filter(|_| st.cov.is_some_and(|c| !c.cov.is_zero())),
+                        )
+                        .and_then(|((mu, nu), m)| Joint::new(a.ps, mu, nu, &m));
+                    if let Some(j) = joint {
+                        g.ps = None;
+                        g.joint = Some(j);
+                        by_key.insert(key.as_str(), groups.len());
+                        groups.push(g);
+                        continue;
+                    }
+                    if rates.is_some() && missing.is_none() && st.halted.unwrap_or(0) > 0 {
+                        independent.push(match st.cov {
+                            None => format!(
+                                "{}: ps, mu, nu drawn independently — its `fit:` counts halted \
+                                 episodes but has no `cov:` (a params file from an older `btrel \
+                                 fit`; fit again to draw them jointly)",
+                                node.name
+                            ),
+                            Some(c) if c.cov.is_zero() => format!(
+                                "{}: ps, mu, nu drawn independently (its `cov:` is zero)",
+                                node.name
+                            ),
+                            Some(_) => format!(
+                                "{}: ps, mu, nu drawn independently — its `cov:` does not fit its \
+                                 values (ps = {} is not strictly between 0 and 1, or a rate is not \
+                                 positive)",
+                                node.name, a.ps
+                            ),
+                        });
                     }
                     if let Some(r) = rate_of(a.success) {
                         g.mu = rate_law(r, st.mu_se, st.successes.filter(|_| st.halted == Some(0)));
@@ -249,6 +434,7 @@ impl Sampler {
             groups,
             fixed,
             held,
+            independent,
         }
     }
 
@@ -260,6 +446,7 @@ impl Sampler {
                 usize::from(g.ps.is_some())
                     + usize::from(g.mu.is_some())
                     + usize::from(g.nu.is_some())
+                    + 3 * usize::from(g.joint.is_some())
             })
             .sum()
     }
@@ -276,8 +463,17 @@ impl Sampler {
                     f64::MIN_POSITIVE
                 }
             };
-            let mu = g.mu.map(|d| positive(d.sample(rng)));
-            let nu = g.nu.map(|d| positive(d.sample(rng)));
+            let (ps, mu, nu) = match g.joint {
+                Some(j) => {
+                    let (p, m, n) = j.sample(rng);
+                    (Some(p), Some(positive(m)), Some(positive(n)))
+                }
+                None => (
+                    ps,
+                    g.mu.map(|d| positive(d.sample(rng))),
+                    g.nu.map(|d| positive(d.sample(rng))),
+                ),
+            };
             for &id in &g.nodes {
                 match &mut tree.nodes[id].kind {
                     NodeKind::Condition { ps: p } => {
@@ -391,5 +587,47 @@ mod tests {
         let g = rate_law(2.0, Some(0.5), None).unwrap(); // n = 16
         let mean: f64 = (0..n).map(|_| g.sample(&mut rng)).sum::<f64>() / n as f64;
         assert!(((mean - 2.0) / (0.5 / (n as f64).sqrt())).abs() < 5.0);
+    }
+
+    #[test]
+    fn joint_draws_have_the_delta_method_covariance() {
+        // p = 0.7, mu = 0.5, nu = 1 with correlations -0.7, 0.9, -0.7
+        let (p, mu, nu) = (0.7, 0.5, 1.0);
+        let se = [0.05, 0.08, 0.2];
+        let r = [[1.0, -0.7, 0.9], [-0.7, 1.0, -0.7], [0.9, -0.7, 1.0]];
+        let m: Matrix = std::array::from_fn(|i| std::array::from_fn(|j| r[i][j] * se[i] * se[j]));
+        let j = Joint::new(p, mu, nu, &m).unwrap();
+        // by hand: d(logit p)/dp = 1/(0.7·0.3), d(ln mu)/dmu = 2, d(ln nu)/dnu = 1
+        let d = [1.0 / 0.21, 2.0, 1.0];
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(9);
+        let n = 200_000;
+        let xs: Vec<[f64; 3]> = (0..n)
+            .map(|_| {
+                let (a, b, c) = j.sample(&mut rng);
+                [(a / (1.0 - a)).ln(), b.ln(), c.ln()]
+            })
+            .collect();
+        let centre = [(0.7f64 / 0.3).ln(), 0.5f64.ln(), 0.0];
+        for i in 0..3 {
+            let sd = se[i] * d[i];
+            let mean = xs.iter().map(|x| x[i]).sum::<f64>() / n as f64;
+            assert!(
+                ((mean - centre[i]) / (sd / (n as f64).sqrt())).abs() < 5.0,
+                "{i}"
+            );
+            for k in 0..3 {
+                let c = xs
+                    .iter()
+                    .map(|x| (x[i] - centre[i]) * (x[k] - centre[k]))
+                    .sum::<f64>()
+                    / n as f64;
+                let want = r[i][k] * sd * se[k] * d[k];
+                // the sd of a product-moment estimate is below 2·sd_i·sd_k/√n
+                let tol = 5.0 * 2.0 * sd * se[k] * d[k] / (n as f64).sqrt();
+                assert!((c - want).abs() < tol, "{i}{k}: {c} vs {want}");
+            }
+        }
+        // at the boundary there is no logit
+        assert!(Joint::new(1.0, mu, nu, &m).is_none());
     }
 }

@@ -406,3 +406,391 @@ fn refusals() {
     assert!(e.contains("--ci and --mc"), "{e}");
     assert!(Path::new(FITTED).exists());
 }
+
+// ---------------------------------------------------------------------------
+// Leaves with halts: the joint covariance of (ps, mu, nu)
+// ---------------------------------------------------------------------------
+
+/// `log L` of exponential timing with halts, written here from the model
+/// (successes `ts`, failures `tf`, halts `tc`).
+fn log_likelihood(ts: &[f64], tf: &[f64], tc: &[f64], p: f64, mu: f64, nu: f64) -> f64 {
+    let s: f64 = ts.iter().map(|t| (p * mu).ln() - mu * t).sum();
+    let f: f64 = tf.iter().map(|t| ((1.0 - p) * nu).ln() - nu * t).sum();
+    let c: f64 = tc
+        .iter()
+        .map(|c| (p * (-mu * c).exp() + (1.0 - p) * (-nu * c).exp()).ln())
+        .sum();
+    s + f + c
+}
+
+/// The inverse of a 3×3 matrix by Gauss–Jordan elimination with pivoting.
+fn inverse(m: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let mut a = [[0.0; 6]; 3];
+    for i in 0..3 {
+        a[i][..3].copy_from_slice(&m[i]);
+        a[i][3 + i] = 1.0;
+    }
+    for c in 0..3 {
+        let p = (c..3)
+            .max_by(|&x, &y| a[x][c].abs().total_cmp(&a[y][c].abs()))
+            .unwrap();
+        a.swap(c, p);
+        let d = a[c][c];
+        for v in a[c].iter_mut() {
+            *v /= d;
+        }
+        for r in 0..3 {
+            if r != c {
+                let f = a[r][c];
+                let row = a[c];
+                for (v, x) in a[r].iter_mut().zip(row) {
+                    *v -= f * x;
+                }
+            }
+        }
+    }
+    let mut inv = [[0.0; 3]; 3];
+    for i in 0..3 {
+        inv[i].copy_from_slice(&a[i][3..]);
+    }
+    inv
+}
+
+/// The number after `key: ` in a params line.
+fn field(line: &str, key: &str) -> f64 {
+    let at = line
+        .find(&format!(" {key}: "))
+        .or_else(|| line.find(&format!("{{{key}: ")))
+        .unwrap_or_else(|| panic!("{key} in {line}"));
+    let rest = &line[at + key.len() + 3..];
+    let end = rest.find([',', '}', ']']).unwrap();
+    rest[..end].trim().parse().unwrap()
+}
+
+/// `fit`'s covariance of (p̂, μ̂, ν̂) — the standard errors and the `cov:`
+/// it writes — against the inverse of a finite-difference Hessian of the
+/// log-likelihood written above, at the estimates `fit` writes.
+#[test]
+fn fitted_covariance_is_the_inverse_finite_difference_information() {
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(77);
+    let eps = episodes(&mut rng, 400, (0.7, 0.5, 1.0), 1.5);
+    let pick = |e: End| -> Vec<f64> {
+        eps.iter()
+            .filter(|x| x.end == e)
+            .map(|x| x.duration)
+            .collect()
+    };
+    let (ts, tf, tc) = (pick(End::Success), pick(End::Failure), pick(End::Halted));
+    assert!(tc.len() > 240, "{} halts", tc.len());
+    let f = fit_leaf("A", Declared::Action, Counts::from_episodes(&eps)).unwrap();
+    let line = params_line(&f);
+    let x = [field(&line, "ps"), field(&line, "mu"), field(&line, "nu")];
+    let ll = |y: [f64; 3]| log_likelihood(&ts, &tf, &tc, y[0], y[1], y[2]);
+    // central second differences, steps 1e-4 of each value
+    let mut info = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            let (hi, hj) = (1e-4 * x[i], 1e-4 * x[j]);
+            let at = |si: f64, sj: f64| {
+                let mut y = x;
+                y[i] += si * hi;
+                y[j] += sj * hj;
+                ll(y)
+            };
+            info[i][j] =
+                -(at(1.0, 1.0) - at(1.0, -1.0) - at(-1.0, 1.0) + at(-1.0, -1.0)) / (4.0 * hi * hj);
+        }
+    }
+    let cov = inverse(info);
+    let got_se = [
+        field(&line, "ps_se"),
+        field(&line, "mu_se"),
+        field(&line, "nu_se"),
+    ];
+    let got_cov = [
+        (0, 1, field(&line, "ps_mu")),
+        (0, 2, field(&line, "ps_nu")),
+        (1, 2, field(&line, "mu_nu")),
+    ];
+    for i in 0..3 {
+        let se = cov[i][i].sqrt();
+        assert!(
+            ((got_se[i] - se) / se).abs() < 1e-4,
+            "se {i}: {} vs {se}",
+            got_se[i]
+        );
+    }
+    for (i, j, got) in got_cov {
+        let scale = (cov[i][i] * cov[j][j]).sqrt();
+        assert!(
+            ((got - cov[i][j]) / scale).abs() < 1e-4,
+            "cov {i}{j}: {got} vs {}",
+            cov[i][j]
+        );
+    }
+    // a correlation that is not small, of the sign the README states
+    assert!(got_cov[1].2 / (got_se[0] * got_se[2]) > 0.5, "{line}");
+    // without halts: no `cov:`
+    let eps = episodes(&mut rng, 400, (0.7, 0.5, 1.0), 0.0);
+    let f = fit_leaf("A", Declared::Action, Counts::from_episodes(&eps)).unwrap();
+    assert!(!params_line(&f).contains("cov"), "{}", params_line(&f));
+}
+
+const SEQUENCE: &str = r#"<root BTCPP_format="4" main_tree_to_execute="T">
+  <BehaviorTree ID="T">
+    <Sequence name="root">
+      <A name="a"/>
+      <C name="c"/>
+    </Sequence>
+  </BehaviorTree>
+  <TreeNodesModel><Action ID="A"/><Condition ID="C"/></TreeNodesModel>
+</root>"#;
+
+/// The params text without its `cov:` mappings (as an older `btrel fit`
+/// wrote it).
+fn without_cov(params: &str) -> String {
+    params
+        .lines()
+        .map(|l| match l.find(", cov: {") {
+            Some(i) => {
+                let end = i + l[i..].find('}').unwrap() + 1;
+                format!("{}{}", &l[..i], &l[end..])
+            }
+            None => l.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// Coverage with heavy halting (≈ 70% of A's episodes halted): CSV logs
+/// simulated from known (p, μ, ν), fitted, and the 90% intervals of
+/// Sequence(A, C)'s figures (C a hand-written condition, ps 0.7, fixed).
+/// The root's MTTF, (q/ν + 0.3p/μ)/(q + 0.3p), depends on all three of A's
+/// parameters together: with the joint draws its coverage is nominal within
+/// 3.5 binomial standard errors; the same fits without `cov:` (independent
+/// draws) over-cover it far beyond that (by the asymptotic covariance, the
+/// independent standard deviation of this MTTF is 1.9 times the joint one
+/// here, so 90% intervals would cover ≈ 99.8%). ps = 0.7p and MTTS = 1/μ
+/// depend on one parameter each: both ways cover them.
+#[test]
+fn joint_draws_cover_a_correlated_figure_with_heavy_halting() {
+    let (p, mu, nu) = (0.7, 0.5, 1.0);
+    // C succeeds with 0.7: the root fails when A fails, or when A succeeds
+    // and C fails (probability p·0.3, after A's success time)
+    let truth = [
+        p * 0.7,
+        1.0 / mu,
+        ((1.0 - p) / nu + p * 0.3 / mu) / (1.0 - p + p * 0.3),
+    ];
+    let (reps, n, draws, level) = (400, 2000, 400, 0.9);
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(15);
+    let mut covered = [[0usize; 3]; 2];
+    let (mut halted, mut total) = (0, 0);
+    for rep in 0..reps {
+        let eps = episodes(&mut rng, n, (p, mu, nu), 1.5);
+        let mut csv = String::from("run,node,start,end,status\n");
+        for (i, e) in eps.iter().enumerate() {
+            let status = match e.end {
+                End::Success => "success",
+                End::Failure => "failure",
+                End::Halted => "halted",
+            };
+            csv.push_str(&format!("{i},A,0,{},{status}\n", e.duration));
+        }
+        halted += eps.iter().filter(|e| e.end == End::Halted).count();
+        total += n;
+        let log = btrel::logs::read_bytes(csv.as_bytes(), "run.csv", "csv").unwrap();
+        let fitted = btrel::fit::fit_logs(&[log], btrel::fit::By::Id).unwrap();
+        let params = format!(
+            "{}C: {{ps: 0.7}}\n",
+            btrel::fit::render(&fitted, btrel::fit::By::Id)
+        );
+        assert!(params.contains("cov: {ps_mu: "), "{params}");
+        for (way, text) in [params.clone(), without_cov(&params)].iter().enumerate() {
+            let keyed =
+                btrel::tree::xml::parse_xml_str_keyed(SEQUENCE, "t.xml", text, "p.yaml").unwrap();
+            let stats = read_fit_stats(text, "p.yaml").unwrap();
+            let sampler = Sampler::new(&keyed.tree, &keyed.keys, &stats);
+            assert_eq!(sampler.varied(), 3);
+            assert_eq!(sampler.independent.len(), way, "{:?}", sampler.independent);
+            let ci = sampler
+                .intervals(level, draws, rep as u64, |t| {
+                    btrel::analyze(t, &Default::default()).map(|an| {
+                        let f = an.nodes[0];
+                        vec![Some(f.ps), f.mtts, f.mttf]
+                    })
+                })
+                .unwrap();
+            for k in 0..3 {
+                let (lo, hi) = ci[k].unwrap();
+                covered[way][k] += usize::from(lo <= truth[k] && truth[k] <= hi);
+            }
+        }
+    }
+    let share = halted as f64 / total as f64;
+    eprintln!(
+        "{:.1}% halted; coverage of nominal {level} over {reps} logs (ps, MTTS, MTTF): \
+         joint {:?}, independent {:?}",
+        100.0 * share,
+        covered[0],
+        covered[1]
+    );
+    assert!(share > 0.6, "{share}");
+    let sd = (level * (1.0 - level) / reps as f64).sqrt();
+    let z = |c: usize| (c as f64 / reps as f64 - level) / sd;
+    for (k, what) in ["ps", "MTTS", "MTTF"].iter().enumerate() {
+        assert!(
+            z(covered[0][k]).abs() < 3.5,
+            "joint draws, {what}: coverage {} of {reps} at nominal {level}",
+            covered[0][k]
+        );
+    }
+    // the independent draws miss the correlation: MTTF over-covered
+    assert!(
+        z(covered[1][2]) > 3.5,
+        "independent draws, MTTF: coverage {} of {reps} at nominal {level}",
+        covered[1][2]
+    );
+}
+
+/// A fitted CSV log with halts through the binary: `fit` writes `cov:`,
+/// `report --ci` reads it and draws jointly (no note); the same file
+/// without `cov:` still works, with a note naming the leaf drawn
+/// independently.
+#[test]
+fn cli_fit_then_ci_with_halts() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(3);
+    let mut csv = String::from("run,node,start,end,status\n");
+    for (i, e) in episodes(&mut rng, 300, (0.7, 0.5, 1.0), 1.5)
+        .iter()
+        .enumerate()
+    {
+        let status = match e.end {
+            End::Success => "success",
+            End::Failure => "failure",
+            End::Halted => "halted",
+        };
+        csv.push_str(&format!("{i},A,0,{},{status}\n", e.duration));
+    }
+    let log = dir.path().join("runs.csv");
+    std::fs::write(&log, csv).unwrap();
+    let params = dir.path().join("p.yaml");
+    let out = bin()
+        .args(["fit", log.to_str().unwrap(), "-o", params.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut text = std::fs::read_to_string(&params).unwrap();
+    assert!(text.contains("# `cov:` (leaves with halts)"), "{text}");
+    assert!(text.contains(", cov: {ps_mu: -"), "{text}");
+    text.push_str("C: {ps: 0.7}\n");
+    std::fs::write(&params, &text).unwrap();
+    let tree = dir.path().join("t.xml");
+    std::fs::write(&tree, SEQUENCE).unwrap();
+    let run = |p: &Path| {
+        let out = bin()
+            .args([
+                "report",
+                tree.to_str().unwrap(),
+                "--params",
+                p.to_str().unwrap(),
+            ])
+            .args(["--ci", "--ci-draws", "200", "--format", "json"])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice::<Value>(&out.stdout).unwrap()
+    };
+    let v = run(&params);
+    assert_eq!(v["ci"]["independent"], serde_json::json!([]));
+    assert!(v["ci"]["method"]
+        .as_str()
+        .unwrap()
+        .contains("jointly normal"));
+    let old = dir.path().join("old.yaml");
+    std::fs::write(&old, without_cov(&text)).unwrap();
+    let v = run(&old);
+    let notes = v["ci"]["independent"].as_array().unwrap();
+    assert_eq!(notes.len(), 1, "{notes:?}");
+    assert!(notes[0]
+        .as_str()
+        .unwrap()
+        .starts_with("a: ps, mu, nu drawn independently"));
+}
+
+/// `cov:` is checked where `--ci` reads it: malformed, without its
+/// standard errors, or not positive semidefinite, it is an error naming
+/// the file, line and column of the mapping.
+#[test]
+fn a_bad_covariance_is_a_located_error() {
+    let head = "# fitted\n";
+    let entry =
+        |fit: &str| format!("{head}A: {{ps: 0.7, mu: 0.5, nu: 1.0, fit: {{halted: 5, {fit}}}}}\n");
+    let se = "ps_se: 0.05, mu_se: 0.1, nu_se: 0.2";
+    // the column of `{` after `cov: ` on line 2
+    let col = |text: &str| text.lines().nth(1).unwrap().find("cov: {").unwrap() + 6;
+    // correlation ps–mu = 0.006 / (0.05 · 0.1) = 1.2: not a covariance
+    let text = entry(&format!(
+        "{se}, cov: {{ps_mu: 0.006, ps_nu: 0.0, mu_nu: 0.0}}"
+    ));
+    let e = read_fit_stats(&text, "p.yaml").unwrap_err();
+    assert!(e.starts_with(&format!("p.yaml:2:{}: ", col(&text))), "{e}");
+    assert!(e.contains("not positive semidefinite"), "{e}");
+    assert!(e.contains("ps–mu 1.200, ps–nu 0.000, mu–nu 0.000"), "{e}");
+    // each pair fine (|corr| 0.9) but the three together impossible:
+    // corr(ps,mu) = corr(ps,nu) = 0.9, corr(mu,nu) = -0.9
+    let text = entry(&format!(
+        "{se}, cov: {{ps_mu: 0.0045, ps_nu: 0.009, mu_nu: -0.018}}"
+    ));
+    let e = read_fit_stats(&text, "p.yaml").unwrap_err();
+    assert!(e.contains("not positive semidefinite"), "{e}");
+    // without the standard errors
+    let text = entry("cov: {ps_mu: 0.001, ps_nu: 0.0, mu_nu: 0.0}");
+    let e = read_fit_stats(&text, "p.yaml").unwrap_err();
+    assert!(e.starts_with(&format!("p.yaml:2:{}: ", col(&text))), "{e}");
+    assert!(
+        e.contains("needs positive `ps_se`, `mu_se` and `nu_se`"),
+        "{e}"
+    );
+    // malformed: a missing key, an unknown key, a list
+    for bad in [
+        "cov: {ps_mu: 0.001, ps_nu: 0.0}",
+        "cov: {ps_mu: 0.001, ps_nu: 0.0, mu_nu: 0.0, nu_ps: 0.0}",
+        "cov: [0.001, 0.0, 0.0]",
+        "cov: {ps_mu: x, ps_nu: 0.0, mu_nu: 0.0}",
+    ] {
+        let text = entry(&format!("{se}, {bad}"));
+        let e = read_fit_stats(&text, "p.yaml").unwrap_err();
+        assert!(e.starts_with("p.yaml:2:"), "{bad}: {e}");
+        assert!(
+            e.contains("cannot read the `fit:` statistics"),
+            "{bad}: {e}"
+        );
+    }
+    // a valid one is read; old entries without it still are
+    let text = entry(&format!(
+        "{se}, cov: {{ps_mu: -0.003, ps_nu: 0.008, mu_nu: -0.012}}"
+    ));
+    let st = &read_fit_stats(&text, "p.yaml").unwrap()["A"];
+    let c = st.cov.unwrap();
+    assert_eq!((c.line, c.column), (2, col(&text)));
+    assert_eq!(c.cov.mu_nu, -0.012);
+    let st = &read_fit_stats(&entry(se), "p.yaml").unwrap()["A"];
+    assert_eq!(st.cov, None);
+    // the analysis itself ignores `fit:` (a bad `cov:` there is --ci's concern)
+    let text = entry(&format!(
+        "{se}, cov: {{ps_mu: 0.006, ps_nu: 0.0, mu_nu: 0.0}}"
+    ));
+    let tree = r#"<root BTCPP_format="4"><BehaviorTree ID="T"><A/></BehaviorTree>
+        <TreeNodesModel><Action ID="A"/></TreeNodesModel></root>"#;
+    assert!(btrel::tree::xml::parse_xml_str_keyed(tree, "t.xml", &text, "p.yaml").is_ok());
+}

@@ -27,6 +27,8 @@ pub struct Intervals {
     pub fixed: Vec<String>,
     /// Fitted parameters held fixed, and why.
     pub held: Vec<String>,
+    /// Leaves with halts drawn independently for want of `cov:` statistics.
+    pub independent: Vec<String>,
 }
 
 impl Intervals {
@@ -50,6 +52,7 @@ impl Intervals {
             ));
         }
         v.extend(self.held.iter().cloned());
+        v.extend(self.independent.iter().cloned());
         v
     }
 }
@@ -125,7 +128,8 @@ fn pair(i: Interval) -> Value {
 
 /// JSON: the report's document, each node with `"ci": {"ps": [lo, hi],
 /// "pf", "mtts", "mttf"}`, and a top-level `"ci"` with level, method,
-/// draws, seed and the fixed parameters.
+/// draws, seed, the fixed parameters and the leaves with halts drawn
+/// independently (no `cov:`).
 pub fn report_json(report: &Report, ci: &Intervals) -> Value {
     let mut v = super::json::report_value(report);
     if let Some(nodes) = v.get_mut("nodes").and_then(Value::as_array_mut) {
@@ -148,6 +152,7 @@ pub fn report_json(report: &Report, ci: &Intervals) -> Value {
                 "seed": ci.seed,
                 "fixed": ci.fixed,
                 "held": ci.held,
+                "independent": ci.independent,
             }),
         );
     }
