@@ -37,7 +37,7 @@
 //! refused as mixed timing.
 
 use super::curve::CurveOptions;
-use crate::compile::{counts, phase, AnalysisError};
+use crate::compile::{counts, phase, renewal_law, AnalysisError};
 use crate::solve::chain::PhaseChain;
 use crate::solve::expm;
 use crate::solve::interpolant::{build, BuildError, Interpolant};
@@ -302,23 +302,41 @@ impl Builder<'_> {
 
     /// The child's chain if it has one within the budget, else its law.
     fn piece(&self, id: NodeId) -> Result<Piece, AnalysisError> {
-        match phase::chain_of(self.tree, id, self.max_states) {
-            Ok(chain) => Ok(Piece::Chain(chain)),
-            Err(e @ AnalysisError::StateBudget { .. }) => {
-                let key = (id, self.end.to_bits());
-                if let Some(l) = self.memo.0.borrow().get(&key) {
-                    return Ok(Piece::Law(l.clone()));
-                }
-                let law = self.opaque(id, e)?;
-                self.memo.0.borrow_mut().insert(key, law.clone());
-                Ok(Piece::Law(law))
-            }
-            Err(AnalysisError::NotMarkovian { leaf }) => Err(AnalysisError::MixedTiming {
-                node: self.name(id),
-                leaf,
-            }),
-            Err(e) => Err(e),
+        let key = (id, self.end.to_bits());
+        if let Some(l) = self.memo.0.borrow().get(&key) {
+            return Ok(Piece::Law(l.clone()));
         }
+        // a copy's (a RecoveryNode's retries copy the subtree they retry)
+        let copy = self.memo.0.borrow().iter().find_map(|(&(n, end), l)| {
+            (end == key.1 && self.tree.same_subtree(n, id)).then(|| l.clone())
+        });
+        if let Some(l) = copy {
+            return Ok(Piece::Law(l));
+        }
+        // a renewal race (Nav2's re-planning) or the Sequence that starts it
+        if let Some((atom, density)) = renewal_law::law(self.tree, id, self.end, self.max_states)? {
+            let law = Law { atom, density };
+            self.memo.0.borrow_mut().insert(key, law.clone());
+            return Ok(Piece::Law(law));
+        }
+        let e = match phase::chain_of(self.tree, id, self.max_states) {
+            Ok(chain) => return Ok(Piece::Chain(chain)),
+            Err(e @ AnalysisError::StateBudget { .. }) => e,
+            Err(AnalysisError::NotMarkovian { leaf }) => {
+                let e = AnalysisError::MixedTiming {
+                    node: self.name(id),
+                    leaf,
+                };
+                if !renewal_law::holds_race(self.tree, id) {
+                    return Err(e);
+                }
+                e
+            }
+            Err(e) => return Err(e),
+        };
+        let law = self.opaque(id, e)?;
+        self.memo.0.borrow_mut().insert(key, law.clone());
+        Ok(Piece::Law(law))
     }
 
     /// Densities `π(t)·exit` of a chain, sampled by uniformization.

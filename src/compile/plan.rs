@@ -24,8 +24,9 @@
 //! | 5 | every leaf below phase-type (exponential, Erlang, hypoexponential), the chain within the budget (a Parallel with the book's thresholds: its product ≤ [`super::PRODUCT_LIMIT`]) | [`Representation::Chain`]: the exact phase chain |
 //! | 6 | a Parallel with the book's thresholds (`F ≥ N − M + 1`) | [`Representation::Counted`]: the count programme over the children's own laws |
 //! | 7 | a Parallel whose two thresholds can both be met | [`Representation::Race`]: the race of the children's laws |
-//! | 8 | a leaf below is deterministic, hybrid or shifted | [`Representation::Shifted`]: the shifted phase-type mixture |
-//! | 9 | otherwise (a chain over the budget: a wide Parallel below) | [`Representation::Composed`]: the composed outcome laws (interpolated densities) |
+//! | 8 | a race against a renewal process of re-runs below whose loop's series is long (Nav2's re-planning; the race and the Sequence that starts it are answered by `renewal_curve` first) | [`Representation::Composed`]: the composed outcome laws, the race's own from `renewal_law`; other deterministic parts refused (`RenewalInside`, naming the leaf) |
+//! | 9 | a leaf below is deterministic, hybrid or shifted | [`Representation::Shifted`]: the shifted phase-type mixture |
+//! | 10 | otherwise (a chain over the budget: a wide Parallel below) | [`Representation::Composed`]: the composed outcome laws (interpolated densities) |
 //!
 //! The figures of a Sequence, Fallback, decorator or flow come from its
 //! children's figures over the DTMC of its MRG whatever its representation:
@@ -259,6 +260,9 @@ impl<'t> Plan<'t> {
         if thresholds(kind).is_some() {
             return Ok(Representation::Race);
         }
+        if self.renewal_start(id).is_some() {
+            return Ok(Representation::Composed);
+        }
         if !shape.exponential {
             return Ok(Representation::Shifted);
         }
@@ -421,30 +425,6 @@ impl<'t> Plan<'t> {
                 return Ok(points);
             }
         }
-        // a subtree around such a race needs its law convolved (the loop's
-        // long series otherwise): refused at once, naming the loop
-        let long = self.long_renewals();
-        let inside = if long.is_empty() {
-            0..0
-        } else {
-            self.tree.subtree(id)
-        };
-        if let Some(&(race, _)) = long.iter().find(|(race, _)| inside.contains(race)) {
-            // the node that starts the race: the Sequence it ends
-            let start = match self.tree.node(race).parent {
-                Some(p)
-                    if matches!(&self.tree.node(p).kind,
-                        NodeKind::Sequence { children } if children.last() == Some(&race)) =>
-                {
-                    p
-                }
-                _ => race,
-            };
-            return Err(AnalysisError::RenewalInside {
-                node: node.name.clone(),
-                start: self.tree.node(start).name.clone(),
-            });
-        }
         let points = |f: &dyn Fn(f64) -> (f64, f64)| -> Vec<CurvePoint> {
             times
                 .iter()
@@ -498,6 +478,26 @@ impl<'t> Plan<'t> {
                 }
             }
             Representation::Composed => {
+                if let Some(start) = self.renewal_start(id) {
+                    // the race's law (`renewal_law`) composed with the rest
+                    let start = self.tree.node(start).name.clone();
+                    let refusal = |leaf: String| AnalysisError::RenewalInside {
+                        node: node.name.clone(),
+                        start: start.clone(),
+                        leaf,
+                    };
+                    return law::curve_by_laws(
+                        self.tree,
+                        id,
+                        times,
+                        options,
+                        refusal(self.mixed_leaf(id)),
+                    )
+                    .map_err(|e| match e {
+                        AnalysisError::MixedTiming { leaf, .. } => refusal(leaf),
+                        e => e,
+                    });
+                }
                 let budget = self.over_budget.borrow().get(&id).cloned();
                 let budget = match budget {
                     Some(e) => e,
@@ -526,6 +526,26 @@ impl<'t> Plan<'t> {
                 curve_query::solve_chain(&chain, times, options, &node.name)
             }
         }
+    }
+
+    /// The node that starts a race against a renewal process below `id`
+    /// whose loop's series is long (the Sequence it ends, or the race).
+    fn renewal_start(&self, id: NodeId) -> Option<NodeId> {
+        let long = self.long_renewals();
+        if long.is_empty() {
+            return None;
+        }
+        let inside = self.tree.subtree(id);
+        let &(race, _) = long.iter().find(|(race, _)| inside.contains(race))?;
+        Some(match self.tree.node(race).parent {
+            Some(p)
+                if matches!(&self.tree.node(p).kind,
+                    NodeKind::Sequence { children } if children.last() == Some(&race)) =>
+            {
+                p
+            }
+            _ => race,
+        })
     }
 
     /// The races against a renewal process whose loop's series exceeds
