@@ -24,9 +24,18 @@
 //! | 5 | every leaf below phase-type (exponential, Erlang, hypoexponential), the chain within the budget (a Parallel with the book's thresholds: its product ≤ [`super::PRODUCT_LIMIT`]) | [`Representation::Chain`]: the exact phase chain |
 //! | 6 | a Parallel with the book's thresholds (`F ≥ N − M + 1`) | [`Representation::Counted`]: the count programme over the children's own laws |
 //! | 7 | a Parallel whose two thresholds can both be met | [`Representation::Race`]: the race of the children's laws |
-//! | 8 | a race against a renewal process of re-runs below whose loop's series is long (Nav2's re-planning; the race and the Sequence that starts it are answered by `renewal_curve` first) | [`Representation::Composed`]: the composed outcome laws, the race's own from `renewal_law`; other deterministic parts refused (`RenewalInside`, naming the leaf) |
-//! | 9 | a leaf below is deterministic, hybrid or shifted | [`Representation::Shifted`]: the shifted phase-type mixture |
-//! | 10 | otherwise (a chain over the budget: a wide Parallel below) | [`Representation::Composed`]: the composed outcome laws (interpolated densities) |
+//! | 8 | a leaf below is deterministic, hybrid or shifted | [`Representation::Shifted`]: the shifted phase-type mixture |
+//! | 9 | otherwise (a chain over the budget: a wide Parallel below) | [`Representation::Composed`]: the composed outcome laws (interpolated densities) |
+//!
+//! One rule goes before the table for the curve: a race against a renewal
+//! process of re-runs (Nav2's re-planning) and the Sequence that starts it
+//! are answered by its levels (`renewal_curve`), and a node *above* such a
+//! race by the composed outcome laws (`law::curve_by_laws`) when its
+//! loop's series is long, or when the table's representation refuses the
+//! node as mixed timing — the race's own law from its levels
+//! (`renewal_law`); a deterministic, hybrid or shifted part around it is
+//! refused there ([`AnalysisError::RenewalInside`], naming it). Its
+//! representation, and so its figures, are the table's.
 //!
 //! The figures of a Sequence, Fallback, decorator or flow come from its
 //! children's figures over the DTMC of its MRG whatever its representation:
@@ -260,9 +269,6 @@ impl<'t> Plan<'t> {
         if thresholds(kind).is_some() {
             return Ok(Representation::Race);
         }
-        if self.renewal_start(id).is_some() {
-            return Ok(Representation::Composed);
-        }
         if !shape.exponential {
             return Ok(Representation::Shifted);
         }
@@ -425,6 +431,55 @@ impl<'t> Plan<'t> {
                 return Ok(points);
             }
         }
+        // a node above such a race: the race's law (`renewal_law`) composed
+        // with the rest (module docs) — when its series is long, or when the
+        // table's representation cannot hold the race
+        if self.method != Method::Book {
+            if let Some(start) = self.renewal_start(id, true) {
+                return self.around_renewal(id, start, times, options);
+            }
+        }
+        match self.curve_by_representation(id, times, options) {
+            Err(e @ AnalysisError::MixedTiming { .. }) if self.method != Method::Book => {
+                match self.renewal_start(id, false) {
+                    Some(start) => self.around_renewal(id, start, times, options),
+                    None => Err(e),
+                }
+            }
+            r => r,
+        }
+    }
+
+    /// `π(t)` of node `id` above a race against a renewal process started
+    /// by `start`, by the composed laws (module docs).
+    fn around_renewal(
+        &self,
+        id: NodeId,
+        start: NodeId,
+        times: &[f64],
+        options: &CurveOptions,
+    ) -> Result<Vec<CurvePoint>, AnalysisError> {
+        let start = self.tree.node(start).name.clone();
+        let refusal = |leaf: String| AnalysisError::RenewalInside {
+            node: self.tree.node(id).name.clone(),
+            start: start.clone(),
+            leaf,
+        };
+        let budget = refusal(self.mixed_leaf(id));
+        law::curve_by_laws(self.tree, id, times, options, budget).map_err(|e| match e {
+            AnalysisError::MixedTiming { leaf, .. } => refusal(leaf),
+            e => e,
+        })
+    }
+
+    /// `π(t)` of node `id` by its representation (the planner's table).
+    fn curve_by_representation(
+        &self,
+        id: NodeId,
+        times: &[f64],
+        options: &CurveOptions,
+    ) -> Result<Vec<CurvePoint>, AnalysisError> {
+        let node = self.tree.node(id);
         let points = |f: &dyn Fn(f64) -> (f64, f64)| -> Vec<CurvePoint> {
             times
                 .iter()
@@ -478,26 +533,6 @@ impl<'t> Plan<'t> {
                 }
             }
             Representation::Composed => {
-                if let Some(start) = self.renewal_start(id) {
-                    // the race's law (`renewal_law`) composed with the rest
-                    let start = self.tree.node(start).name.clone();
-                    let refusal = |leaf: String| AnalysisError::RenewalInside {
-                        node: node.name.clone(),
-                        start: start.clone(),
-                        leaf,
-                    };
-                    return law::curve_by_laws(
-                        self.tree,
-                        id,
-                        times,
-                        options,
-                        refusal(self.mixed_leaf(id)),
-                    )
-                    .map_err(|e| match e {
-                        AnalysisError::MixedTiming { leaf, .. } => refusal(leaf),
-                        e => e,
-                    });
-                }
                 let budget = self.over_budget.borrow().get(&id).cloned();
                 let budget = match budget {
                     Some(e) => e,
@@ -529,14 +564,22 @@ impl<'t> Plan<'t> {
     }
 
     /// The node that starts a race against a renewal process below `id`
-    /// whose loop's series is long (the Sequence it ends, or the race).
-    fn renewal_start(&self, id: NodeId) -> Option<NodeId> {
-        let long = self.long_renewals();
-        if long.is_empty() {
-            return None;
-        }
-        let inside = self.tree.subtree(id);
-        let &(race, _) = long.iter().find(|(race, _)| inside.contains(race))?;
+    /// (the Sequence it ends, or the race) whose loop's series is long
+    /// (`long`), or any.
+    fn renewal_start(&self, id: NodeId, long: bool) -> Option<NodeId> {
+        let race = if long {
+            let races = self.long_renewals();
+            if races.is_empty() {
+                return None;
+            }
+            let inside = self.tree.subtree(id);
+            races.iter().find(|(race, _)| inside.contains(race))?.0
+        } else {
+            self.tree.subtree(id).find(|&n| {
+                matches!(self.tree.node(n).kind, NodeKind::Parallel { .. })
+                    && super::renewal::parts(self.tree, n).is_some()
+            })?
+        };
         Some(match self.tree.node(race).parent {
             Some(p)
                 if matches!(&self.tree.node(p).kind,

@@ -41,9 +41,11 @@
 //! system over `[0, d]` (the levels below it start from their own `x(0)`;
 //! every term non-negative, as `W` keeps a copy of what enters a wait, the
 //! stacked matrix's rows sum to at most `1 + c/Λ`, `c` the fastest flux
-//! into waits: the Poisson window is taken at `(Λ + c)d`); the vectors of
-//! its steps are kept, so every time within the level costs one weighted
-//! sum, and `x_k(d)` starts the next level. The stack is truncated below
+//! into waits: the Poisson window is taken at `(Λ + c)d`); each step's
+//! outcome functionals (`S`, `F` above and their densities,
+//! `crate::compile::renewal_law`) are kept — four numbers a step, for
+//! every level — so every time within the level costs one weighted sum,
+//! and `x_k(d)`, summed as the steps go, starts the next level. The stack is truncated below
 //! `M + 1` levels: a contribution of `x_{k−m}(0)` to `x_k(θ)` passes through
 //! `m` re-runs of `C′` whose run times add up to at most `θ ≤ d`; a fresh
 //! run needs a phase change of `C′` unless it succeeds at once (probability
