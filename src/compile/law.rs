@@ -306,35 +306,36 @@ impl Builder<'_> {
         if let Some(l) = self.memo.0.borrow().get(&key) {
             return Ok(Piece::Law(l.clone()));
         }
+        let e = match phase::chain_of(self.tree, id, self.max_states) {
+            Ok(chain) => return Ok(Piece::Chain(chain)),
+            Err(e @ AnalysisError::StateBudget { .. }) => e,
+            // a renewal race (Nav2's re-planning) below: its law from its levels
+            Err(AnalysisError::NotMarkovian { leaf }) if renewal_law::holds_race(self.tree, id) => {
+                AnalysisError::MixedTiming {
+                    node: self.name(id),
+                    leaf,
+                }
+            }
+            Err(AnalysisError::NotMarkovian { leaf }) => {
+                return Err(AnalysisError::MixedTiming {
+                    node: self.name(id),
+                    leaf,
+                })
+            }
+            Err(e) => return Err(e),
+        };
         // a copy's (a RecoveryNode's retries copy the subtree they retry)
         let copy = self.memo.0.borrow().iter().find_map(|(&(n, end), l)| {
             (end == key.1 && self.tree.same_subtree(n, id)).then(|| l.clone())
         });
-        if let Some(l) = copy {
-            return Ok(Piece::Law(l));
-        }
-        // a renewal race (Nav2's re-planning) or the Sequence that starts it
-        if let Some((atom, density)) = renewal_law::law(self.tree, id, self.end, self.max_states)? {
-            let law = Law { atom, density };
-            self.memo.0.borrow_mut().insert(key, law.clone());
-            return Ok(Piece::Law(law));
-        }
-        let e = match phase::chain_of(self.tree, id, self.max_states) {
-            Ok(chain) => return Ok(Piece::Chain(chain)),
-            Err(e @ AnalysisError::StateBudget { .. }) => e,
-            Err(AnalysisError::NotMarkovian { leaf }) => {
-                let e = AnalysisError::MixedTiming {
-                    node: self.name(id),
-                    leaf,
-                };
-                if !renewal_law::holds_race(self.tree, id) {
-                    return Err(e);
-                }
-                e
-            }
-            Err(e) => return Err(e),
+        let law = match copy {
+            Some(l) => l,
+            None => match renewal_law::law(self.tree, id, self.end, self.max_states)? {
+                // the race, or the Sequence that starts it
+                Some((atom, density)) => Law { atom, density },
+                None => self.opaque(id, e)?,
+            },
         };
-        let law = self.opaque(id, e)?;
         self.memo.0.borrow_mut().insert(key, law.clone());
         Ok(Piece::Law(law))
     }

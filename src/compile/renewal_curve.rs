@@ -352,14 +352,14 @@ impl Levels {
         // in the previous level that have ended (their R phases moved by E)
         let mut density_top: [Vec<(usize, f64)>; 2] = [Vec::new(), Vec::new()];
         for (s, row) in a0.iter().enumerate() {
-            for side in 0..2 {
+            for (side, out) in density_top.iter_mut().enumerate() {
                 let rate: f64 = row
                     .iter()
                     .filter(|&&(t, _)| t == acc + side || t == w + nr + side || t == v + nr + side)
                     .map(|&(_, x)| x)
                     .sum();
                 if rate > 0.0 {
-                    density_top[side].push((s, rate));
+                    out.push((s, rate));
                 }
             }
         }
@@ -704,9 +704,9 @@ impl Prepared {
             // the stack: levels level − depth ..= level
             u.iter_mut().for_each(|x| *x = 0.0);
             let lowest = level.saturating_sub(depth);
-            for l in lowest..=level {
+            for (l, x) in starts.iter().enumerate().skip(lowest) {
                 let at = (stack - 1 - (level - l)) * dim;
-                u[at..at + dim].copy_from_slice(&starts[l]);
+                u[at..at + dim].copy_from_slice(x);
             }
             let first_slot = stack - 1 - (level - lowest);
             // the rate: the prefix's phases before its first live one are dead

@@ -641,6 +641,12 @@ impl Tree {
     /// same kinds and parameters in the same places; names aside), as the
     /// lowering of a RecoveryNode's retries makes them.
     pub fn same_subtree(&self, a: NodeId, b: NodeId) -> bool {
+        let (ka, kb) = (&self.node(a).kind, &self.node(b).kind);
+        if std::mem::discriminant(ka) != std::mem::discriminant(kb)
+            || ka.children().len() != kb.children().len()
+        {
+            return false;
+        }
         let (ra, rb) = (self.subtree(a), self.subtree(b));
         if ra.len() != rb.len() {
             return false;
