@@ -1,7 +1,9 @@
 //! `curve` goals: 1,000 time points of search-and-grasp; 1,000 points of a
 //! 10k-leaf tree; a stiff tree (rates 1e-4..1e5) over a 1e7 s horizon;
 //! 1,000 points of one attempt of Nav2's default tree (re-planning at 1 Hz
-//! raced by the follower: the renewal levels) over 300 s.
+//! raced by the follower: the renewal levels) over 300 s, and of that
+//! attempt inside Nav2's RecoveryNode with an exponential recovery (the
+//! race's law composed by the flow around it).
 //!
 //! Run: `cargo bench --bench curve` (one: `cargo bench --bench curve -- nav2`)
 
@@ -57,6 +59,18 @@ fn curves(c: &mut Criterion) {
     let times = grid(300.0, 1000);
     group.bench_function("nav2_default_attempt_1000_points", |b| {
         b.iter(|| curve(&nav2, 0, &times, &CurveOptions::default()).expect("curve"))
+    });
+
+    // the same pipeline inside the published RecoveryNode (6 retries), its
+    // recovery one exponential Spin: the race's law composed by the flow
+    let recovering = btrel::tree::xml::parse_xml_files(
+        Path::new("trees/nav2-default-recovering.xml"),
+        Path::new("trees/nav2-default-recovering.params.yaml"),
+        &[],
+    )
+    .expect("tree");
+    group.bench_function("nav2_default_recovering_1000_points", |b| {
+        b.iter(|| curve(&recovering, 0, &times, &CurveOptions::default()).expect("curve"))
     });
     group.finish();
 }

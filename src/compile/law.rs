@@ -37,7 +37,7 @@
 //! refused as mixed timing.
 
 use super::curve::CurveOptions;
-use crate::compile::{counts, phase, AnalysisError};
+use crate::compile::{counts, phase, renewal_law, AnalysisError};
 use crate::solve::chain::PhaseChain;
 use crate::solve::expm;
 use crate::solve::interpolant::{build, BuildError, Interpolant};
@@ -302,23 +302,42 @@ impl Builder<'_> {
 
     /// The child's chain if it has one within the budget, else its law.
     fn piece(&self, id: NodeId) -> Result<Piece, AnalysisError> {
-        match phase::chain_of(self.tree, id, self.max_states) {
-            Ok(chain) => Ok(Piece::Chain(chain)),
-            Err(e @ AnalysisError::StateBudget { .. }) => {
-                let key = (id, self.end.to_bits());
-                if let Some(l) = self.memo.0.borrow().get(&key) {
-                    return Ok(Piece::Law(l.clone()));
-                }
-                let law = self.opaque(id, e)?;
-                self.memo.0.borrow_mut().insert(key, law.clone());
-                Ok(Piece::Law(law))
-            }
-            Err(AnalysisError::NotMarkovian { leaf }) => Err(AnalysisError::MixedTiming {
-                node: self.name(id),
-                leaf,
-            }),
-            Err(e) => Err(e),
+        let key = (id, self.end.to_bits());
+        if let Some(l) = self.memo.0.borrow().get(&key) {
+            return Ok(Piece::Law(l.clone()));
         }
+        let e = match phase::chain_of(self.tree, id, self.max_states) {
+            Ok(chain) => return Ok(Piece::Chain(chain)),
+            Err(e @ AnalysisError::StateBudget { .. }) => e,
+            // a renewal race (Nav2's re-planning) below: its law from its levels
+            Err(AnalysisError::NotMarkovian { leaf }) if renewal_law::holds_race(self.tree, id) => {
+                AnalysisError::MixedTiming {
+                    node: self.name(id),
+                    leaf,
+                }
+            }
+            Err(AnalysisError::NotMarkovian { leaf }) => {
+                return Err(AnalysisError::MixedTiming {
+                    node: self.name(id),
+                    leaf,
+                })
+            }
+            Err(e) => return Err(e),
+        };
+        // a copy's (a RecoveryNode's retries copy the subtree they retry)
+        let copy = self.memo.0.borrow().iter().find_map(|(&(n, end), l)| {
+            (end == key.1 && self.tree.same_subtree(n, id)).then(|| l.clone())
+        });
+        let law = match copy {
+            Some(l) => l,
+            None => match renewal_law::law(self.tree, id, self.end, self.max_states)? {
+                // the race, or the Sequence that starts it
+                Some((atom, density)) => Law { atom, density },
+                None => self.opaque(id, e)?,
+            },
+        };
+        self.memo.0.borrow_mut().insert(key, law.clone());
+        Ok(Piece::Law(law))
     }
 
     /// Densities `π(t)·exit` of a chain, sampled by uniformization.

@@ -29,6 +29,7 @@ pub mod plan;
 pub(crate) mod race;
 mod renewal;
 mod renewal_curve;
+mod renewal_law;
 pub(crate) mod shifted;
 
 use crate::solve::chain::{AbsorbingChain, Edge, Target};
@@ -204,14 +205,18 @@ pub enum AnalysisError {
     /// but its law composed with the rest is not.
     #[error(
         "node '{node}' holds '{start}', whose re-runs race its later children (a renewal process \
-         of re-plans): the curve of '{start}' is exact, but its law composed with the rest of \
-         the tree around it is not supported yet (the figures of every node are exact)"
+         of re-plans): the curve of '{start}' is exact, and its law composes with the rest of \
+         the tree when every other part has exponential or phase-type times, but '{leaf}' has \
+         deterministic, hybrid or shifted times (not supported yet; the figures of every node \
+         are exact)"
     )]
     RenewalInside {
         /// The node whose curve was asked.
         node: String,
         /// The node that starts the race (the lowered PipelineSequence).
         start: String,
+        /// A part around the race whose law does not compose with it.
+        leaf: String,
     },
     /// A Nav2 node (PipelineSequence, RoundRobin, ...) that is not exactly
     /// one of the primitives where it stands ([`crate::tree::nav2::primitive_view`]).

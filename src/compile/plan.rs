@@ -27,6 +27,16 @@
 //! | 8 | a leaf below is deterministic, hybrid or shifted | [`Representation::Shifted`]: the shifted phase-type mixture |
 //! | 9 | otherwise (a chain over the budget: a wide Parallel below) | [`Representation::Composed`]: the composed outcome laws (interpolated densities) |
 //!
+//! One rule goes before the table for the curve: a race against a renewal
+//! process of re-runs (Nav2's re-planning) and the Sequence that starts it
+//! are answered by its levels (`renewal_curve`), and a node *above* such a
+//! race by the composed outcome laws (`law::curve_by_laws`) when its
+//! loop's series is long, or when the table's representation refuses the
+//! node as mixed timing — the race's own law from its levels
+//! (`renewal_law`); a deterministic, hybrid or shifted part around it is
+//! refused there ([`AnalysisError::RenewalInside`], naming it). Its
+//! representation, and so its figures, are the table's.
+//!
 //! The figures of a Sequence, Fallback, decorator or flow come from its
 //! children's figures over the DTMC of its MRG whatever its representation:
 //! mean times add along paths for any distributions, so this is exact and
@@ -421,30 +431,55 @@ impl<'t> Plan<'t> {
                 return Ok(points);
             }
         }
-        // a subtree around such a race needs its law convolved (the loop's
-        // long series otherwise): refused at once, naming the loop
-        let long = self.long_renewals();
-        let inside = if long.is_empty() {
-            0..0
-        } else {
-            self.tree.subtree(id)
-        };
-        if let Some(&(race, _)) = long.iter().find(|(race, _)| inside.contains(race)) {
-            // the node that starts the race: the Sequence it ends
-            let start = match self.tree.node(race).parent {
-                Some(p)
-                    if matches!(&self.tree.node(p).kind,
-                        NodeKind::Sequence { children } if children.last() == Some(&race)) =>
-                {
-                    p
-                }
-                _ => race,
-            };
-            return Err(AnalysisError::RenewalInside {
-                node: node.name.clone(),
-                start: self.tree.node(start).name.clone(),
-            });
+        // a node above such a race: the race's law (`renewal_law`) composed
+        // with the rest (module docs) — when its series is long, or when the
+        // table's representation cannot hold the race
+        if self.method != Method::Book {
+            if let Some(start) = self.renewal_start(id, true) {
+                return self.around_renewal(id, start, times, options);
+            }
         }
+        match self.curve_by_representation(id, times, options) {
+            Err(e @ AnalysisError::MixedTiming { .. }) if self.method != Method::Book => {
+                match self.renewal_start(id, false) {
+                    Some(start) => self.around_renewal(id, start, times, options),
+                    None => Err(e),
+                }
+            }
+            r => r,
+        }
+    }
+
+    /// `π(t)` of node `id` above a race against a renewal process started
+    /// by `start`, by the composed laws (module docs).
+    fn around_renewal(
+        &self,
+        id: NodeId,
+        start: NodeId,
+        times: &[f64],
+        options: &CurveOptions,
+    ) -> Result<Vec<CurvePoint>, AnalysisError> {
+        let start = self.tree.node(start).name.clone();
+        let refusal = |leaf: String| AnalysisError::RenewalInside {
+            node: self.tree.node(id).name.clone(),
+            start: start.clone(),
+            leaf,
+        };
+        let budget = refusal(self.mixed_leaf(id));
+        law::curve_by_laws(self.tree, id, times, options, budget).map_err(|e| match e {
+            AnalysisError::MixedTiming { leaf, .. } => refusal(leaf),
+            e => e,
+        })
+    }
+
+    /// `π(t)` of node `id` by its representation (the planner's table).
+    fn curve_by_representation(
+        &self,
+        id: NodeId,
+        times: &[f64],
+        options: &CurveOptions,
+    ) -> Result<Vec<CurvePoint>, AnalysisError> {
+        let node = self.tree.node(id);
         let points = |f: &dyn Fn(f64) -> (f64, f64)| -> Vec<CurvePoint> {
             times
                 .iter()
@@ -526,6 +561,34 @@ impl<'t> Plan<'t> {
                 curve_query::solve_chain(&chain, times, options, &node.name)
             }
         }
+    }
+
+    /// The node that starts a race against a renewal process below `id`
+    /// (the Sequence it ends, or the race) whose loop's series is long
+    /// (`long`), or any.
+    fn renewal_start(&self, id: NodeId, long: bool) -> Option<NodeId> {
+        let race = if long {
+            let races = self.long_renewals();
+            if races.is_empty() {
+                return None;
+            }
+            let inside = self.tree.subtree(id);
+            races.iter().find(|(race, _)| inside.contains(race))?.0
+        } else {
+            self.tree.subtree(id).find(|&n| {
+                matches!(self.tree.node(n).kind, NodeKind::Parallel { .. })
+                    && super::renewal::parts(self.tree, n).is_some()
+            })?
+        };
+        Some(match self.tree.node(race).parent {
+            Some(p)
+                if matches!(&self.tree.node(p).kind,
+                    NodeKind::Sequence { children } if children.last() == Some(&race)) =>
+            {
+                p
+            }
+            _ => race,
+        })
     }
 
     /// The races against a renewal process whose loop's series exceeds

@@ -41,9 +41,11 @@
 //! system over `[0, d]` (the levels below it start from their own `x(0)`;
 //! every term non-negative, as `W` keeps a copy of what enters a wait, the
 //! stacked matrix's rows sum to at most `1 + c/Λ`, `c` the fastest flux
-//! into waits: the Poisson window is taken at `(Λ + c)d`); the vectors of
-//! its steps are kept, so every time within the level costs one weighted
-//! sum, and `x_k(d)` starts the next level. The stack is truncated below
+//! into waits: the Poisson window is taken at `(Λ + c)d`); each step's
+//! outcome functionals (`S`, `F` above and their densities,
+//! `crate::compile::renewal_law`) are kept — four numbers a step, for
+//! every level — so every time within the level costs one weighted sum,
+//! and `x_k(d)`, summed as the steps go, starts the next level. The stack is truncated below
 //! `M + 1` levels: a contribution of `x_{k−m}(0)` to `x_k(θ)` passes through
 //! `m` re-runs of `C′` whose run times add up to at most `θ ≤ d`; a fresh
 //! run needs a phase change of `C′` unless it succeeds at once (probability
@@ -179,6 +181,17 @@ struct Levels {
     /// `g = P(C′ succeeds within d)`: also `P(m − 1 fresh runs in a time
     /// d) ≤ g^{m−1}` (each must).
     succeeds_within: f64,
+    /// The densities of Success and Failure as functionals of a level's
+    /// state (`[S, F]`): rates into the outcomes of the level's own
+    /// states, and `−(E·h)_i` on the previous level's `W` (its waits that
+    /// ended: [`Levels::outcomes`]).
+    density_top: [Vec<(usize, f64)>; 2],
+    density_below: [Vec<f64>; 2],
+    /// The outcomes at time 0, and the largest probability of an
+    /// instantaneous Failure of a re-run (`C′`, `C′₀`): an atom after 0
+    /// when a wait ends with one.
+    atoms_at_zero: [f64; 2],
+    instant_failure: f64,
 }
 
 impl Levels {
@@ -334,7 +347,41 @@ impl Levels {
             let (_, ca) = renewal::wait_exponential(c, d)?;
             c.initial_success + c.initial.iter().map(|&(j, x)| x * ca[j][0]).sum::<f64>()
         };
+        // the densities (module docs of `renewal_law`): the rates of the
+        // level's states into its outcomes, less those of the waits entered
+        // in the previous level that have ended (their R phases moved by E)
+        let mut density_top: [Vec<(usize, f64)>; 2] = [Vec::new(), Vec::new()];
+        for (s, row) in a0.iter().enumerate() {
+            for (side, out) in density_top.iter_mut().enumerate() {
+                let rate: f64 = row
+                    .iter()
+                    .filter(|&&(t, _)| t == acc + side || t == w + nr + side || t == v + nr + side)
+                    .map(|&(_, x)| x)
+                    .sum();
+                if rate > 0.0 {
+                    out.push((s, rate));
+                }
+            }
+        }
+        let density_below = [&r.exit_success, &r.exit_failure].map(|h| {
+            (0..nr)
+                .map(|i| -(i..nr).map(|i2| e[i * nr + i2] * h[i2]).sum::<f64>())
+                .collect::<Vec<f64>>()
+        });
+        let atoms_at_zero = match &ch.first {
+            Some(_) => [r.initial_success, r.initial_failure],
+            None => [x0[acc_s], x0[acc_f]],
+        };
+        let instant_failure = ch
+            .first
+            .as_ref()
+            .map_or(0.0, |(_, c0)| c0.initial_failure)
+            .max(c.initial_failure);
         Some(Levels {
+            density_top,
+            density_below,
+            atoms_at_zero,
+            instant_failure,
             succeeds_within: succeeds_within.min(1.0),
             d,
             t0,
@@ -435,6 +482,29 @@ impl Levels {
         cap
     }
 
+    /// `[S, F, s, f]` less the outcomes before the level, of the stack
+    /// with this level's state `top` and the previous one's `below`: `S(t)
+    /// = acc_k + W_k,S + V_k,S − (W_{k−1} e^{Q̄d})_S` (module docs), its
+    /// density `s(t)` the functional `density_*`; likewise Failure.
+    fn outcomes(&self, below: &[f64], top: &[f64]) -> [f64; 4] {
+        let (nr, w, v, acc) = (self.nr, self.w, self.v, self.acc);
+        let mut o = [0.0f64; 4];
+        for side in 0..2 {
+            let left: f64 = (0..nr).map(|i| below[w + i] * self.a[i][side]).sum();
+            o[side] = top[acc + side] + top[w + nr + side] + top[v + nr + side]
+                - (left + below[w + nr + side]);
+            let here: f64 = self.density_top[side]
+                .iter()
+                .map(|&(s, rate)| top[s] * rate)
+                .sum();
+            let ended: f64 = (0..nr)
+                .map(|i| below[w + i] * self.density_below[side][i])
+                .sum();
+            o[2 + side] = here + ended;
+        }
+        o
+    }
+
     /// The next level's start from this one's start and end.
     fn next_start(&self, start: &[f64], end: &[f64]) -> Vec<f64> {
         let (nr, w) = (self.nr, self.w);
@@ -448,20 +518,67 @@ impl Levels {
     }
 }
 
-/// `π(t)` at `times` of node `id` when it is a renewal race, or a Sequence
-/// ending with one after Markovian children (module docs); `None` when it
-/// is not, or a side has no phase chain.
-pub(crate) fn curve(
+/// A renewal race (or the Sequence that starts it) ready for its levels
+/// up to a horizon: its chains, level system and stack depth, within the
+/// budgets (checked before anything is allocated).
+pub(super) struct Prepared {
+    ch: Chains,
+    lv: Levels,
+    /// Levels up to the horizon, and the levels below one that its stack
+    /// keeps.
+    levels: usize,
+    depth: usize,
+    per_step: f64,
+    name: String,
+}
+
+/// One level's outcome functionals step by step: what [`Prepared::run`]
+/// hands over, read at any time within the level by [`Level::at`].
+#[derive(Clone)]
+pub(super) struct Level {
+    /// The level's start `t₀ + kd` (s).
+    pub(super) start: f64,
+    /// The mass entering waits at the start (atoms: they leave together at
+    /// the next level's start, where the densities may jump).
+    pub(super) atoms: f64,
+    lambda: f64,
+    before: [f64; 2],
+    rows: Vec<[f64; 4]>,
+}
+
+impl Level {
+    /// `[S, F, s, f]` at time `θ` within the level: the outcomes by `t =
+    /// start + θ` and their densities at `t`, one weighted sum of the
+    /// steps' functionals each.
+    pub(super) fn at(&self, theta: f64) -> [f64; 4] {
+        let win = poisson_window(self.lambda * theta, POINT_EPS);
+        let mut o = [self.before[0], self.before[1], 0.0, 0.0];
+        for (k, &wgt) in win.weights.iter().enumerate() {
+            let Some(row) = self.rows.get(win.left + k) else {
+                break;
+            };
+            for (a, &b) in o.iter_mut().zip(row) {
+                *a += wgt * b;
+            }
+        }
+        o
+    }
+}
+
+/// Node `id` prepared for its levels up to `t_max` when it is a renewal
+/// race, or a Sequence ending with one after Markovian children (module
+/// docs); `None` when it is not, a side has no phase chain, or the re-run
+/// cannot fail (the race is then R's alone).
+pub(super) fn prepare(
     tree: &Tree,
     id: NodeId,
-    times: &[f64],
-    options: &CurveOptions,
-) -> Result<Option<Vec<CurvePoint>>, AnalysisError> {
-    let max_states = options.max_states;
+    t_max: f64,
+    max_states: usize,
+) -> Result<Option<Prepared>, AnalysisError> {
     let Some(ch) = chains(tree, id, max_states)? else {
         return Ok(None);
     };
-    let name = &tree.node(id).name;
+    let name = tree.node(id).name.clone();
     if ch.first.is_some() && ch.prefix.is_some() {
         // a first wait of its own after a random start: not on the grid
         return Ok(None);
@@ -487,7 +604,6 @@ pub(crate) fn curve(
         // C′ always succeeds at once: never fails, the race is R's alone
         return Ok(None);
     }
-    let t_max = times.iter().copied().fold(0.0, f64::max);
     let levels = if t_max < lv.t0 {
         0
     } else {
@@ -496,11 +612,7 @@ pub(crate) fn curve(
     let depth = lv.depth(levels + 1);
     let stack = depth + 1;
     let lambda_all = lv.q.iter().copied().fold(0.0, f64::max);
-    let steps_of = |lambda: f64, c: f64| {
-        let win = poisson_window((lambda + c) * lv.d, LEVEL_EPS);
-        win.left + win.weights.len()
-    };
-    let steps = steps_of(lambda_all, lv.c);
+    let steps = steps_of(&lv, lambda_all, lv.c);
     // the prefix's phases run out: the later levels step at the rate of
     // the race's own states (the work is counted as it is done too)
     let lambda_race = lv.q[lv.np..].iter().copied().fold(0.0, f64::max);
@@ -509,148 +621,219 @@ pub(crate) fn curve(
     let early_levels = levels.min(2) as f64;
     let work = per_step
         * (early_levels * steps as f64
-            + (levels as f64 - early_levels) * steps_of(lambda_race, c_race) as f64);
-    let cells = (levels as f64 + 4.0 * stack as f64 + 2.0 * steps as f64) * lv.dim as f64;
+            + (levels as f64 - early_levels) * steps_of(&lv, lambda_race, c_race) as f64);
+    // the levels' states, the stack's, and the steps' four functionals
+    // of every level (kept for the law)
+    let cells =
+        (levels as f64 + 4.0 * stack as f64) * lv.dim as f64 + 4.0 * levels as f64 * steps as f64;
     if cells / CELLS_PER_STATE > max_states as f64 {
         return Err(too_large(cells / CELLS_PER_STATE));
     }
-    let stiff = |work: f64| AnalysisError::Stiff {
-        node: name.clone(),
-        work,
-        limit: MAX_WORK,
-    };
     if work > MAX_WORK {
-        return Err(stiff(work));
+        return Err(AnalysisError::Stiff {
+            node: name,
+            work,
+            limit: MAX_WORK,
+        });
     }
-    let mut done = 0.0f64;
+    Ok(Some(Prepared {
+        ch,
+        lv,
+        levels,
+        depth,
+        per_step,
+        name,
+    }))
+}
+
+/// Steps of a level's uniformization at rate `lambda` with flux `c` into
+/// waits.
+fn steps_of(lv: &Levels, lambda: f64, c: f64) -> usize {
+    let win = poisson_window((lambda + c) * lv.d, LEVEL_EPS);
+    win.left + win.weights.len()
+}
+
+impl Prepared {
+    /// The period `d` and the start `t₀` of level 0.
+    pub(super) fn period(&self) -> (f64, f64) {
+        (self.lv.d, self.lv.t0)
+    }
+
+    /// The race's rest `R` (alone before `t₀`).
+    pub(super) fn rest(&self) -> &PhaseChain {
+        &self.ch.rest
+    }
+
+    /// The probabilities of Success and Failure at time 0.
+    pub(super) fn atoms_at_zero(&self) -> [f64; 2] {
+        self.lv.atoms_at_zero
+    }
+
+    /// The largest probability that a re-run fails at its start.
+    pub(super) fn instant_failure(&self) -> f64 {
+        self.lv.instant_failure
+    }
+
+    /// Runs the levels once, in order, handing each to `visit` (module
+    /// docs); the steps keep only the outcome functionals, and the state at
+    /// the level's end starts the next one.
+    pub(super) fn run(
+        &self,
+        mut visit: impl FnMut(usize, Level) -> Result<(), AnalysisError>,
+    ) -> Result<(), AnalysisError> {
+        let lv = &self.lv;
+        let (levels, depth) = (self.levels, self.depth);
+        let stack = depth + 1;
+        let (dim, nr, acc) = (lv.dim, lv.nr, lv.acc);
+        let mut done = 0.0f64;
+        let mut starts: Vec<Vec<f64>> = Vec::with_capacity(levels);
+        let mut before = lv.base;
+        let mut start = lv.x0.clone();
+        let mut u = vec![0.0f64; stack * dim];
+        let mut next = vec![0.0f64; stack * dim];
+        let mut end = vec![0.0f64; dim];
+        for level in 0..levels {
+            // drop prefix mass that no longer matters
+            for x in start[..lv.np].iter_mut() {
+                if x.abs() < DROP {
+                    *x = 0.0;
+                }
+            }
+            let atoms: f64 = start[lv.w..lv.w + nr].iter().sum();
+            starts.push(start.clone());
+            // the stack: levels level − depth ..= level
+            u.iter_mut().for_each(|x| *x = 0.0);
+            let lowest = level.saturating_sub(depth);
+            for (l, x) in starts.iter().enumerate().skip(lowest) {
+                let at = (stack - 1 - (level - l)) * dim;
+                u[at..at + dim].copy_from_slice(x);
+            }
+            let first_slot = stack - 1 - (level - lowest);
+            // the rate: the prefix's phases before its first live one are dead
+            let live_p = (0..lv.np)
+                .find(|&s| (first_slot..stack).any(|l| u[l * dim + s] != 0.0))
+                .unwrap_or(lv.np);
+            let lambda = lv.q[live_p..]
+                .iter()
+                .copied()
+                .fold(0.0, f64::max)
+                .max(1e-300);
+            let c = lv.flux[live_p..].iter().copied().fold(0.0, f64::max);
+            let n_steps = steps_of(lv, lambda, c);
+            done += n_steps as f64 * self.per_step;
+            if done > 2.0 * MAX_WORK {
+                // the prefix lived longer than the estimate assumed
+                return Err(AnalysisError::Stiff {
+                    node: self.name.clone(),
+                    work: done / (level + 1) as f64 * levels as f64,
+                    limit: MAX_WORK,
+                });
+            }
+            let mut rows: Vec<[f64; 4]> = Vec::with_capacity(n_steps);
+            let top = (stack - 1) * dim;
+            let below = top - dim;
+            // the state at the level's end, summed as the steps go
+            let closing = poisson_window(lambda * lv.d, LEVEL_EPS);
+            end.iter_mut().for_each(|x| *x = 0.0);
+            for step in 0..n_steps {
+                rows.push(lv.outcomes(&u[below..top], &u[top..top + dim]));
+                if let Some(&wgt) = step
+                    .checked_sub(closing.left)
+                    .and_then(|k| closing.weights.get(k))
+                {
+                    for (a, &b) in end.iter_mut().zip(&u[top..top + dim]) {
+                        *a += wgt * b;
+                    }
+                }
+                if step + 1 == n_steps {
+                    break;
+                }
+                next.iter_mut().for_each(|x| *x = 0.0);
+                // flux re-entering at once from the level below
+                let mut again = vec![0.0f64; nr];
+                for l in first_slot..stack {
+                    let base = l * dim;
+                    let mut phi = std::mem::take(&mut again);
+                    for s in 0..dim {
+                        let x = u[base + s];
+                        if x == 0.0 {
+                            continue;
+                        }
+                        let x = x / lambda;
+                        next[base + s] += x * (lambda - lv.q[s]);
+                        for &(t, rate) in &lv.a0[s] {
+                            next[base + t] += x * rate;
+                        }
+                        for &(i, rate) in &lv.lag[s] {
+                            phi[i] += x * rate;
+                        }
+                    }
+                    if l + 1 < stack {
+                        again = lv.leave(&phi, &mut next[base + dim..base + 2 * dim]);
+                    } else {
+                        again = vec![0.0f64; nr];
+                    }
+                }
+                std::mem::swap(&mut u, &mut next);
+            }
+            visit(
+                level,
+                Level {
+                    start: lv.t0 + level as f64 * lv.d,
+                    atoms,
+                    lambda,
+                    before,
+                    rows,
+                },
+            )?;
+            if level + 1 < levels {
+                before[0] += end[acc];
+                before[1] += end[acc + 1];
+                start = lv.next_start(&starts[level], &end);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// `π(t)` at `times` of node `id` when it is a renewal race, or a Sequence
+/// ending with one after Markovian children (module docs); `None` when it
+/// is not, or a side has no phase chain.
+pub(crate) fn curve(
+    tree: &Tree,
+    id: NodeId,
+    times: &[f64],
+    options: &CurveOptions,
+) -> Result<Option<Vec<CurvePoint>>, AnalysisError> {
+    let t_max = times.iter().copied().fold(0.0, f64::max);
+    let Some(run) = prepare(tree, id, t_max, options.max_states)? else {
+        return Ok(None);
+    };
+    let name = &run.name;
+    let (d, t0) = run.period();
     let mut out: Vec<Option<CurvePoint>> = vec![None; times.len()];
     // before level 0 (a first wait of its own): R alone
-    let early: Vec<usize> = (0..times.len()).filter(|&k| times[k] < lv.t0).collect();
+    let early: Vec<usize> = (0..times.len()).filter(|&k| times[k] < t0).collect();
     if !early.is_empty() {
         let ts: Vec<f64> = early.iter().map(|&k| times[k]).collect();
-        let pts = curve_query::solve_chain(&ch.rest, &ts, options, name)?;
+        let pts = curve_query::solve_chain(run.rest(), &ts, options, name)?;
         for (k, p) in early.into_iter().zip(pts) {
             out[k] = Some(p);
         }
     }
     // the points of each level, by level
-    let mut by_level: Vec<Vec<(usize, f64)>> = vec![Vec::new(); levels];
+    let mut by_level: Vec<Vec<(usize, f64)>> = vec![Vec::new(); run.levels];
     for (k, &t) in times.iter().enumerate() {
-        if t >= lv.t0 {
-            let s = (t - lv.t0) / lv.d;
-            let level = (s.floor() as usize).min(levels - 1);
-            let theta = (t - lv.t0 - level as f64 * lv.d).clamp(0.0, lv.d);
+        if t >= t0 {
+            let level = (((t - t0) / d).floor() as usize).min(run.levels - 1);
+            let theta = (t - t0 - level as f64 * d).clamp(0.0, d);
             by_level[level].push((k, theta));
         }
     }
-    let (dim, nr, w, v, acc) = (lv.dim, lv.nr, lv.w, lv.v, lv.acc);
-    let mut starts: Vec<Vec<f64>> = Vec::with_capacity(levels);
-    let mut prefix = lv.base;
-    let mut start = lv.x0.clone();
-    let mut u = vec![0.0f64; stack * dim];
-    let mut next = vec![0.0f64; stack * dim];
-    // the top two levels' vectors at every step
-    let mut rec: Vec<f64> = Vec::new();
-    for level in 0..levels {
-        // drop prefix mass that no longer matters
-        for x in start[..lv.np].iter_mut() {
-            if x.abs() < DROP {
-                *x = 0.0;
-            }
-        }
-        starts.push(start.clone());
-        // the stack: levels level − depth ..= level
-        u.iter_mut().for_each(|x| *x = 0.0);
-        let lowest = level.saturating_sub(depth);
-        for (slot, l) in (lowest..=level).enumerate() {
-            let at = (stack - 1 - (level - l)) * dim;
-            u[at..at + dim].copy_from_slice(&starts[l]);
-            let _ = slot;
-        }
-        let first_slot = stack - 1 - (level - lowest);
-        // the rate: the prefix's phases before its first live one are dead
-        let live_p = (0..lv.np)
-            .find(|&s| (first_slot..stack).any(|l| u[l * dim + s] != 0.0))
-            .unwrap_or(lv.np);
-        let lambda = lv.q[live_p..]
-            .iter()
-            .copied()
-            .fold(0.0, f64::max)
-            .max(1e-300);
-        let c = lv.flux[live_p..].iter().copied().fold(0.0, f64::max);
-        let n_steps = steps_of(lambda, c);
-        done += n_steps as f64 * per_step;
-        if done > 2.0 * MAX_WORK {
-            // the prefix lived longer than the estimate assumed
-            return Err(stiff(done / (level + 1) as f64 * levels as f64));
-        }
-        rec.clear();
-        rec.reserve(n_steps * 2 * dim);
-        let top = (stack - 1) * dim;
-        let below = top.saturating_sub(dim);
-        for step in 0..n_steps {
-            rec.extend_from_slice(&u[below..below + dim]);
-            rec.extend_from_slice(&u[top..top + dim]);
-            if step + 1 == n_steps {
-                break;
-            }
-            next.iter_mut().for_each(|x| *x = 0.0);
-            // flux re-entering at once from the level below
-            let mut again = vec![0.0f64; nr];
-            for l in first_slot..stack {
-                let base = l * dim;
-                let mut phi = std::mem::take(&mut again);
-                for s in 0..dim {
-                    let x = u[base + s];
-                    if x == 0.0 {
-                        continue;
-                    }
-                    let x = x / lambda;
-                    next[base + s] += x * (lambda - lv.q[s]);
-                    for &(t, rate) in &lv.a0[s] {
-                        next[base + t] += x * rate;
-                    }
-                    for &(i, rate) in &lv.lag[s] {
-                        phi[i] += x * rate;
-                    }
-                }
-                if l + 1 < stack {
-                    again = lv.leave(&phi, &mut next[base + dim..base + 2 * dim]);
-                } else {
-                    again = vec![0.0f64; nr];
-                }
-            }
-            std::mem::swap(&mut u, &mut next);
-        }
-        let sum_at = |theta: f64, eps: f64, which: usize| -> Vec<f64> {
-            let mut x = vec![0.0f64; dim];
-            let win = poisson_window(lambda * theta, eps);
-            for (k, &wgt) in win.weights.iter().enumerate() {
-                let n = win.left + k;
-                if n >= n_steps {
-                    break;
-                }
-                let row = &rec[(2 * n + which) * dim..(2 * n + which + 1) * dim];
-                for (a, &b) in x.iter_mut().zip(row) {
-                    *a += wgt * b;
-                }
-            }
-            x
-        };
+    run.run(|level, steps| {
         for &(k, theta) in &by_level[level] {
-            let xk = sum_at(theta, POINT_EPS, 1);
-            let xk1 = if level > 0 {
-                sum_at(theta, POINT_EPS, 0)
-            } else {
-                vec![0.0; dim]
-            };
-            let mut o = [0.0f64; 2];
-            for (side, o) in o.iter_mut().enumerate() {
-                let left: f64 = (0..nr).map(|i| xk1[w + i] * lv.a[i][side]).sum();
-                *o = prefix[side] + xk[acc + side] + xk[w + nr + side] + xk[v + nr + side]
-                    - (left + xk1[w + nr + side]);
-            }
-            let (success, failure) = (o[0].clamp(0.0, 1.0), o[1].clamp(0.0, 1.0));
+            let [s, f, _, _] = steps.at(theta);
+            let (success, failure) = (s.clamp(0.0, 1.0), f.clamp(0.0, 1.0));
             out[k] = Some(CurvePoint {
                 t: times[k],
                 success,
@@ -658,13 +841,8 @@ pub(crate) fn curve(
                 running: (1.0 - success - failure).max(0.0),
             });
         }
-        if level + 1 < levels {
-            let end = sum_at(lv.d, LEVEL_EPS, 1);
-            prefix[0] += end[acc];
-            prefix[1] += end[acc + 1];
-            start = lv.next_start(&starts[level], &end);
-        }
-    }
+        Ok(())
+    })?;
     let points: Option<Vec<CurvePoint>> = out.into_iter().collect();
     match points {
         Some(p)

@@ -6,7 +6,7 @@
 //! This is the representation of outcome densities that have no phase chain
 //! (`crate::compile`'s outcome laws). On each panel the function is sampled at the
 //! [`POINTS`] Chebyshev points of the second kind and represented by the
-//! interpolating polynomial (barycentric formula). A panel is accepted when
+//! interpolating polynomial (its Chebyshev coefficients, evaluated by Clenshaw's recurrence). A panel is accepted when
 //! the last two Chebyshev coefficients, times the panel's width, are below
 //! [`MASS_TOLERANCE`]: for an analytic function the coefficients decay
 //! geometrically, so the tail is an *estimate* of the interpolation error
@@ -42,8 +42,6 @@ const MAX_ROUNDS: usize = 64;
 struct Basis {
     /// Chebyshev points of the second kind on `[-1, 1]`, decreasing.
     nodes: [f64; POINTS],
-    /// Barycentric weights.
-    bary: [f64; POINTS],
     /// Row k: the map from values to the k-th Chebyshev coefficient.
     coefficients: Vec<[f64; POINTS]>,
     /// Clenshaw–Curtis weights on `[-1, 1]` (exact for the interpolant).
@@ -58,14 +56,6 @@ fn basis() -> &'static Basis {
         let n = POINTS - 1;
         let pi = std::f64::consts::PI;
         let nodes: [f64; POINTS] = std::array::from_fn(|j| (pi * j as f64 / n as f64).cos());
-        let bary: [f64; POINTS] = std::array::from_fn(|j| {
-            let s = if j % 2 == 0 { 1.0 } else { -1.0 };
-            if j == 0 || j == n {
-                s / 2.0
-            } else {
-                s
-            }
-        });
         // c_k = (2/n) Σ_j'' f_j cos(π j k / n), halved for k = 0 and k = n
         let coefficients: Vec<[f64; POINTS]> = (0..POINTS)
             .map(|k| {
@@ -90,7 +80,6 @@ fn basis() -> &'static Basis {
         });
         Basis {
             nodes,
-            bary,
             coefficients,
             integral,
             gauss: GaussLegendre::new(POINTS),
@@ -124,6 +113,9 @@ pub struct Interpolant {
     prefix: Vec<f64>,
     /// Largest absolute value on each panel's points.
     scale: Vec<f64>,
+    /// Chebyshev coefficients of each panel's polynomial, `POINTS` per
+    /// panel (evaluated by Clenshaw's recurrence: no divisions).
+    chebyshev: Vec<f64>,
 }
 
 /// Why an interpolant could not be built.
@@ -144,6 +136,7 @@ impl Interpolant {
             values: vec![0.0; POINTS],
             prefix: vec![0.0, 0.0],
             scale: vec![0.0],
+            chebyshev: vec![0.0; POINTS],
         }
     }
 
@@ -163,12 +156,36 @@ impl Interpolant {
             scale.push(v.iter().fold(0.0f64, |m, x| m.max(x.abs())));
         }
         edges.push(panels.last().map_or(0.0, |p| p.1));
+        let chebyshev = values
+            .chunks(POINTS)
+            .flat_map(|v| {
+                b.coefficients
+                    .iter()
+                    .map(move |row| row.iter().zip(v).map(|(w, x)| w * x).sum::<f64>())
+            })
+            .collect();
         Interpolant {
             edges,
             values,
             prefix,
             scale,
+            chebyshev,
         }
+    }
+
+    /// The interpolants of consecutive intervals (each one's domain
+    /// starting where the previous one's ends) as one.
+    pub fn join(parts: &[Interpolant]) -> Interpolant {
+        let panels = parts
+            .iter()
+            .flat_map(|p| {
+                (0..p.panels()).map(move |k| {
+                    let v: [f64; POINTS] = std::array::from_fn(|j| p.values[k * POINTS + j]);
+                    (p.edges[k], p.edges[k + 1], v)
+                })
+            })
+            .collect();
+        Interpolant::from_panels(panels)
     }
 
     /// Panel end points.
@@ -197,30 +214,26 @@ impl Interpolant {
         k.clamp(1, self.panels()) - 1
     }
 
-    /// The interpolant of panel `k` at `t` (barycentric formula).
+    /// The interpolant of panel `k` at `t` (Clenshaw's recurrence on its
+    /// Chebyshev coefficients).
     fn eval_in(&self, k: usize, t: f64) -> f64 {
         if self.scale[k] == 0.0 {
             return 0.0;
         }
         let (a, b) = (self.edges[k], self.edges[k + 1]);
         let x = if b > a {
-            (2.0 * t - a - b) / (b - a)
+            ((2.0 * t - a - b) / (b - a)).clamp(-1.0, 1.0)
         } else {
             0.0
         };
-        let basis = basis();
-        let v = &self.values[k * POINTS..(k + 1) * POINTS];
-        let (mut num, mut den) = (0.0, 0.0);
-        for ((&node, &bary), &value) in basis.nodes.iter().zip(&basis.bary).zip(v) {
-            let d = x - node;
-            if d == 0.0 {
-                return value;
-            }
-            let w = bary / d;
-            num += w * value;
-            den += w;
+        let c = &self.chebyshev[k * POINTS..(k + 1) * POINTS];
+        let (mut b1, mut b2) = (0.0, 0.0);
+        for &ck in c[1..].iter().rev() {
+            let b0 = ck + 2.0 * x * b1 - b2;
+            b2 = b1;
+            b1 = b0;
         }
-        num / den
+        c[0] + x * b1 - b2
     }
 
     /// The value at `t` (0 outside the domain).
@@ -281,6 +294,7 @@ impl Interpolant {
             values: self.values.iter().map(|v| c * v).collect(),
             prefix: self.prefix.iter().map(|v| c * v).collect(),
             scale: self.scale.iter().map(|v| c.abs() * v).collect(),
+            chebyshev: self.chebyshev.iter().map(|v| c * v).collect(),
         }
     }
 
@@ -346,15 +360,33 @@ impl Interpolant {
 pub fn build<E>(
     end: f64,
     k: usize,
-    mut sample: impl FnMut(&[f64]) -> Result<Vec<f64>, E>,
+    sample: impl FnMut(&[f64]) -> Result<Vec<f64>, E>,
 ) -> Result<Vec<Interpolant>, BuildError<E>> {
     if end <= 0.0 {
         return Ok(vec![Interpolant::zero(end.max(0.0)); k]);
     }
+    build_on(0.0, end, true, k, sample)
+}
+
+/// [`build`] on `[a, b]` (`a < b`), the first grid graded towards `a`
+/// (`graded`: for a fast transient there) or one panel: for functions
+/// smooth inside `[a, b]` that may jump at its ends (an outcome density
+/// between the instants where it may jump, the pieces joined with
+/// [`Interpolant::join`]).
+pub fn build_on<E>(
+    a: f64,
+    b: f64,
+    graded: bool,
+    k: usize,
+    mut sample: impl FnMut(&[f64]) -> Result<Vec<f64>, E>,
+) -> Result<Vec<Interpolant>, BuildError<E>> {
     const GRID: [f64; 16] = [
         0.0, 1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 0.03, 0.1, 0.2, 0.35, 0.5, 0.65, 0.8, 1.0,
     ];
-    let mut pending: Vec<(f64, f64)> = GRID.windows(2).map(|g| (g[0] * end, g[1] * end)).collect();
+    let grid: &[f64] = if graded { &GRID } else { &[0.0, 1.0] };
+    let (span, end) = (b - a, b.abs().max(b - a));
+    let at = |g: f64| if g == 1.0 { b } else { a + g * span };
+    let mut pending: Vec<(f64, f64)> = grid.windows(2).map(|g| (at(g[0]), at(g[1]))).collect();
     let mut done: Vec<Vec<(f64, f64, [f64; POINTS])>> = vec![Vec::new(); k];
     let basis = basis();
     for _ in 0..MAX_ROUNDS {

@@ -636,4 +636,74 @@ impl Tree {
             .map_or(self.nodes.len(), |p| id + 1 + p);
         id..end
     }
+
+    /// Whether the subtrees of `a` and `b` are copies of each other (the
+    /// same kinds and parameters in the same places; names aside), as the
+    /// lowering of a RecoveryNode's retries makes them.
+    pub fn same_subtree(&self, a: NodeId, b: NodeId) -> bool {
+        let (ka, kb) = (&self.node(a).kind, &self.node(b).kind);
+        if std::mem::discriminant(ka) != std::mem::discriminant(kb)
+            || ka.children().len() != kb.children().len()
+        {
+            return false;
+        }
+        let (ra, rb) = (self.subtree(a), self.subtree(b));
+        if ra.len() != rb.len() {
+            return false;
+        }
+        let shift = |ids: &[NodeId], from: NodeId| -> Vec<usize> {
+            ids.iter().map(|&c| c - from).collect()
+        };
+        ra.zip(rb).all(|(x, y)| {
+            let (kx, ky) = (&self.node(x).kind, &self.node(y).kind);
+            if std::mem::discriminant(kx) != std::mem::discriminant(ky)
+                || shift(kx.children(), a) != shift(ky.children(), b)
+            {
+                return false;
+            }
+            match (kx, ky) {
+                (NodeKind::Action(p), NodeKind::Action(q)) => p == q,
+                (NodeKind::Condition { ps: p }, NodeKind::Condition { ps: q }) => p == q,
+                (
+                    NodeKind::Parallel {
+                        success_threshold: m1,
+                        failure_threshold: f1,
+                        ..
+                    },
+                    NodeKind::Parallel {
+                        success_threshold: m2,
+                        failure_threshold: f2,
+                        ..
+                    },
+                ) => (m1, f1) == (m2, f2),
+                (
+                    NodeKind::RoundRobin {
+                        wrap: w1, slot: s1, ..
+                    },
+                    NodeKind::RoundRobin {
+                        wrap: w2, slot: s2, ..
+                    },
+                ) => (w1, s1) == (w2, s2),
+                (
+                    NodeKind::SequenceWithMemory {
+                        slot: s1,
+                        halt_resets: h1,
+                        ..
+                    },
+                    NodeKind::SequenceWithMemory {
+                        slot: s2,
+                        halt_resets: h2,
+                        ..
+                    },
+                ) => (s1, h1) == (s2, h2),
+                (NodeKind::Flow(f1), NodeKind::Flow(f2)) => f1.states == f2.states,
+                (
+                    NodeKind::Decorator { decorator: d1, .. },
+                    NodeKind::Decorator { decorator: d2, .. },
+                ) => d1 == d2,
+                // Sequence, Fallback, Pipeline: their children alone
+                _ => true,
+            }
+        })
+    }
 }

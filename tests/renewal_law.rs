@@ -1,0 +1,220 @@
+//! The outcome law of a race against a renewal process of re-runs (Nav2's
+//! re-planning PipelineSequence, `compile::renewal_law`) composed with the
+//! tree around it — a RecoveryNode, a Fallback, a Sequence — into the
+//! curve of nodes above the race: the curve's limit against `report`'s
+//! figures (exact, and independent: the figures of a flow come from its
+//! children's figures), against a convolution computed here by quadrature
+//! from the pipeline's own curve, and against simulation of the published
+//! tick semantics (|z| < 5).
+
+mod common;
+use common::*;
+
+use btrel::compile::curve::{curve, CurveOptions};
+use btrel::tree::xml::parse_xml_str;
+use btrel::tree::Tree;
+use std::path::Path;
+
+fn xml(body: &str, params: &str) -> Tree {
+    let text = format!(
+        "<root BTCPP_format=\"4\">\n<BehaviorTree ID=\"T\">\n{body}\n</BehaviorTree>\n</root>\n"
+    );
+    parse_xml_str(&text, "t.xml", params, "t.params.yaml").expect("test tree parses")
+}
+
+/// A pipeline that re-plans every 2 s while the follower runs: a re-plan
+/// succeeds with 0.9, so the loop's series would need 306 re-runs (the
+/// composed law needs none).
+const PIPELINE: &str = "<PipelineSequence name=\"pipe\">\n<Sel/>\n\
+                        <RateController hz=\"0.5\"><Plan/></RateController>\n<Follow/>\n\
+                        </PipelineSequence>";
+
+const PARAMS: &str = "Sel: {ps: 1.0, mu: 100}\nPlan: {ps: 0.9, mu: 2, nu: 4}\n\
+                      Follow: {ps: 0.8, mu: 0.05, nu: 0.1}\n";
+const ACT: &str = "Act: {ps: 0.7, mu: 0.2, nu: 0.3}\n";
+const RECOVER: &str = "Recover: {ps: 0.8, mu: 0.5, nu: 1}\n";
+
+/// The trees around the pipeline: a RecoveryNode with two retries, a
+/// Fallback and a Sequence with an exponential action.
+fn around() -> Vec<(&'static str, Tree)> {
+    vec![
+        (
+            "recovery",
+            xml(
+                &format!(
+                    "<RecoveryNode number_of_retries=\"2\" name=\"top\">\n{PIPELINE}\n<Recover/>\n</RecoveryNode>"
+                ),
+                &format!("{PARAMS}{RECOVER}"),
+            ),
+        ),
+        (
+            "fallback",
+            xml(
+                &format!("<Fallback name=\"top\">\n{PIPELINE}\n<Act/>\n</Fallback>"),
+                &format!("{PARAMS}{ACT}"),
+            ),
+        ),
+        (
+            "sequence",
+            xml(
+                &format!("<Sequence name=\"top\">\n<Act/>\n{PIPELINE}\n</Sequence>"),
+                &format!("{PARAMS}{ACT}"),
+            ),
+        ),
+    ]
+}
+
+fn node(tree: &Tree, name: &str) -> usize {
+    tree.nodes
+        .iter()
+        .position(|n| n.name == name)
+        .expect("the node exists")
+}
+
+#[test]
+fn the_composed_curve_tends_to_the_report() {
+    for (label, t) in around() {
+        let f = root_figures(&t);
+        // the follower's tail is below e^{-40} by 800 s
+        let late = curve(&t, 0, &[800.0], &CurveOptions::default()).expect("curve")[0];
+        assert!(late.running < 1e-12, "{label}: {late:?}");
+        assert!(
+            (late.success - f.ps).abs() < 1e-9,
+            "{label}: {late:?} vs {f:?}"
+        );
+        assert!(
+            (late.failure - f.pf).abs() < 1e-9,
+            "{label}: {late:?} vs {f:?}"
+        );
+        // MTTS from the curve: E[T·1{S}] = ∫ (P(S) − S(t)) dt (trapezoid
+        // on a 0.1 s grid: a check of the order of 1e-3 relative)
+        let times: Vec<f64> = (0..=8000).map(|k| k as f64 * 0.1).collect();
+        let pts = curve(&t, 0, &times, &CurveOptions::default()).expect("curve");
+        let tail: f64 = pts
+            .windows(2)
+            .map(|w| 0.05 * ((f.ps - w[0].success) + (f.ps - w[1].success)))
+            .sum();
+        let mtts = tail / f.ps;
+        let want = f.mtts.expect("it succeeds");
+        assert!(
+            (mtts - want).abs() < 1e-3 * want,
+            "{label}: {mtts} vs {f:?}"
+        );
+    }
+}
+
+#[test]
+fn the_composed_curve_matches_simulation() {
+    // the simulator runs the published PipelineSequence, RateController and
+    // RecoveryNode with their tick semantics, not the lowering
+    let times = [2.0, 5.0, 15.0, 40.0, 100.0];
+    for (label, t) in around() {
+        let pts = curve(&t, 0, &times, &CurveOptions::default()).expect("curve");
+        let sim = simulate_root(&t, 200_000, &times);
+        assert_root_and_curve_within_z(label, root_figures(&t), &pts, &sim);
+    }
+}
+
+/// Gauss–Legendre nodes and weights on [−1, 1] (Newton on P_n).
+fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
+    (0..n)
+        .map(|i| {
+            let mut x = (std::f64::consts::PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
+            let mut dp = 0.0;
+            for _ in 0..100 {
+                let (mut p0, mut p1) = (1.0, x);
+                for k in 2..=n {
+                    let p2 = ((2 * k - 1) as f64 * x * p1 - (k - 1) as f64 * p0) / k as f64;
+                    p0 = p1;
+                    p1 = p2;
+                }
+                dp = n as f64 * (x * p1 - p0) / (x * x - 1.0);
+                let step = p1 / dp;
+                x -= step;
+                if step.abs() < 1e-16 {
+                    break;
+                }
+            }
+            (x, 2.0 / ((1.0 - x * x) * dp * dp))
+        })
+        .collect()
+}
+
+#[test]
+fn a_fallback_after_the_pipeline_is_the_convolution_of_its_failure() {
+    // Fallback(pipe, Act): S(t) = S_P(t) + ∫_0^t F_P(s) s_A(t − s) ds and
+    // F(t) = ∫_0^t F_P(s) f_A(t − s) ds (by parts: F_P(0) = 0 and Act has
+    // no atom), with s_A(u) = 0.7·0.2 e^{−0.2u}, f_A(u) = 0.3·0.3 e^{−0.3u}
+    // and S_P, F_P the pipeline's own curve (the levels, not the law);
+    // 30-point Gauss–Legendre on panels of 0.25 s cut at the period's
+    // multiples, where F_P may kink
+    let (_, t) = around().swap_remove(1);
+    let pipe = node(&t, "pipe");
+    let rule = gauss_legendre(30);
+    let ends: [f64; 4] = [3.0, 10.0, 25.0, 60.0];
+    let mut nodes: Vec<(usize, f64, f64)> = Vec::new(); // (end index, s, weight)
+    for (k, &end) in ends.iter().enumerate() {
+        let panels = (end / 0.25).round() as usize;
+        for p in 0..panels {
+            let (a, b) = (p as f64 * 0.25, (p + 1) as f64 * 0.25);
+            for &(x, w) in &rule {
+                nodes.push((k, (a + b) / 2.0 + (b - a) / 2.0 * x, w * (b - a) / 2.0));
+            }
+        }
+    }
+    let mut times: Vec<f64> = nodes.iter().map(|n| n.1).collect();
+    times.extend_from_slice(&ends);
+    let p = curve(&t, pipe, &times, &CurveOptions::default()).expect("the pipeline's curve");
+    let got = curve(&t, 0, &ends, &CurveOptions::default()).expect("the fallback's curve");
+    for (k, &end) in ends.iter().enumerate() {
+        let (mut s, mut f) = (p[nodes.len() + k].success, 0.0);
+        for (n, pt) in nodes.iter().zip(&p) {
+            if n.0 == k {
+                let u = end - n.1;
+                s += n.2 * pt.failure * 0.7 * 0.2 * (-0.2 * u).exp();
+                f += n.2 * pt.failure * 0.3 * 0.3 * (-0.3 * u).exp();
+            }
+        }
+        let g = got[k];
+        assert!(
+            (g.success - s).abs() < 1e-10 && (g.failure - f).abs() < 1e-10,
+            "t = {end}: composed ({}, {}) vs quadrature ({s}, {f}): diff {:.2e}, {:.2e}",
+            g.success,
+            g.failure,
+            g.success - s,
+            g.failure - f
+        );
+    }
+}
+
+#[test]
+fn a_deterministic_part_around_the_race_is_refused_naming_it() {
+    let t = xml(
+        &format!("<RecoveryNode number_of_retries=\"2\" name=\"top\">\n{PIPELINE}\n<Wait/>\n</RecoveryNode>"),
+        &format!("{PARAMS}Wait: {{ps: 1.0, tau_s: 5.0}}\n"),
+    );
+    let err = curve(&t, 0, &[10.0], &CurveOptions::default())
+        .expect_err("a fixed time around the race is not composed yet")
+        .to_string();
+    assert!(err.contains("'pipe'") && err.contains("Wait"), "{err}");
+    // the pipeline's own curve is exact
+    assert!(curve(&t, node(&t, "pipe"), &[10.0], &CurveOptions::default()).is_ok());
+}
+
+/// Nav2's default pipeline as published inside its RecoveryNode, the
+/// recovery one exponential Spin (`trees/nav2-default-recovering.xml`).
+#[test]
+fn nav2_default_pipeline_in_its_recovery_node_tends_to_the_report() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("trees");
+    let t = btrel::tree::xml::parse_xml_files(
+        &dir.join("nav2-default-recovering.xml"),
+        &dir.join("nav2-default-recovering.params.yaml"),
+        &[],
+    )
+    .expect("the tree parses");
+    let f = root_figures(&t);
+    let late = curve(&t, 0, &[2500.0], &CurveOptions::default()).expect("curve")[0];
+    assert!(late.running < 1e-10, "{late:?}");
+    assert!((late.success - f.ps).abs() < 1e-9, "{late:?} vs {f:?}");
+    assert!((late.failure - f.pf).abs() < 1e-9, "{late:?} vs {f:?}");
+}
