@@ -6,7 +6,7 @@
 //!
 //! * `reference/expoly.py` (exact exponential polynomials with shifts, in
 //!   mpmath): random Sequence/Fallback trees with a third each of
-//!   deterministic, hybrid and exponential actions, 40–200 leaves, π(t)
+//!   deterministic, hybrid and exponential actions, 40 and 60 leaves, π(t)
 //!   within 1e-9;
 //! * Monte Carlo (|z| < 5);
 //! * a tie worked out by hand: `0.1 + 0.2` and `0.3` are the same instant.
@@ -28,7 +28,7 @@ fn times() -> Vec<f64> {
 #[test]
 fn large_mixed_trees_match_the_closed_form_reference() {
     let Some(py) = python() else { return };
-    let cases: Vec<(usize, u64)> = vec![(40, 1), (60, 2), (100, 3), (200, 4)];
+    let cases: Vec<(usize, u64)> = vec![(40, 1), (60, 2)];
     let trees: Vec<_> = cases
         .iter()
         .map(|&(n, seed)| tree(&random_tree_yaml(&Shape::mixed_timing(n), seed)))
@@ -63,11 +63,11 @@ fn large_mixed_trees_match_the_closed_form_reference() {
 
 #[test]
 fn a_large_mixed_tree_matches_simulation() {
-    let t = tree(&random_tree_yaml(&Shape::mixed_timing(60), 7));
+    let t = tree(&random_tree_yaml(&Shape::mixed_timing(40), 7));
     let ts = times();
     let pts = curve(&t, 0, &ts, &CurveOptions::default()).expect("curve");
-    let sim = simulate_root(&t, 200_000, &ts);
-    assert_root_and_curve_within_z("60 mixed leaves", root_figures(&t), &pts, &sim);
+    let sim = simulate_root(&t, 100_000, &ts);
+    assert_root_and_curve_within_z("40 mixed leaves", root_figures(&t), &pts, &sim);
 }
 
 /// `Fallback(Parallel(M = 2 of 3; F = 2), exponential)`: the Parallel's
