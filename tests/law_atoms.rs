@@ -25,7 +25,11 @@ fn times() -> Vec<f64> {
     TIMES.iter().map(|t| t.parse().expect("time")).collect()
 }
 
+/// Ignored by default: reference/expoly.py did not finish these two trees
+/// within 20 minutes (its terms grow with every distinct shift); run with
+/// `cargo test --release --test law_atoms -- --ignored`.
 #[test]
+#[ignore]
 fn large_mixed_trees_match_the_closed_form_reference() {
     let Some(py) = python() else { return };
     let cases: Vec<(usize, u64)> = vec![(40, 1), (60, 2)];
