@@ -3,7 +3,8 @@
 //! 1,000 points of one attempt of Nav2's default tree (re-planning at 1 Hz
 //! raced by the follower: the renewal levels) over 300 s, and of that
 //! attempt inside Nav2's RecoveryNode with an exponential recovery (the
-//! race's law composed by the flow around it).
+//! race's law composed by the flow around it); 1,000 points of a random
+//! 300-leaf tree with mixed timing (composed laws with atoms).
 //!
 //! Run: `cargo bench --bench curve` (one: `cargo bench --bench curve -- nav2`)
 
@@ -48,6 +49,18 @@ fn curves(c: &mut Criterion) {
     let times = grid(1e7, 1000);
     group.bench_function("stiff_horizon_1e7_1000_points", |b| {
         b.iter(|| curve(&stiff, 0, &times, &CurveOptions::default()).expect("curve"))
+    });
+
+    // mixed timing (a third each deterministic, hybrid, exponential): the
+    // shifted mixture exceeds the budget, the composed laws with atoms answer
+    let mixed = parse_str(
+        &random_tree_yaml(&Shape::mixed_timing(300), 1),
+        "mixed300.yaml",
+    )
+    .expect("tree");
+    let times = grid(100.0, 1000);
+    group.bench_function("mixed_300_leaves_1000_points", |b| {
+        b.iter(|| curve(&mixed, 0, &times, &CurveOptions::default()).expect("curve"))
     });
 
     let nav2 = btrel::tree::xml::parse_xml_files(

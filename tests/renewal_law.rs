@@ -187,18 +187,24 @@ fn a_fallback_after_the_pipeline_is_the_convolution_of_its_failure() {
     }
 }
 
+/// A fixed 5 s Wait as the recovery around the race (atoms after 0 in the
+/// composed laws): the curve's limit is `report`'s figures, and the curve
+/// agrees with simulation (|z| < 5) before and after the Wait's instants.
 #[test]
-fn a_deterministic_part_around_the_race_is_refused_naming_it() {
+fn a_fixed_wait_around_the_race_composes() {
     let t = xml(
         &format!("<RecoveryNode number_of_retries=\"2\" name=\"top\">\n{PIPELINE}\n<Wait/>\n</RecoveryNode>"),
         &format!("{PARAMS}Wait: {{ps: 1.0, tau_s: 5.0}}\n"),
     );
-    let err = curve(&t, 0, &[10.0], &CurveOptions::default())
-        .expect_err("a fixed time around the race is not composed yet")
-        .to_string();
-    assert!(err.contains("'pipe'") && err.contains("Wait"), "{err}");
-    // the pipeline's own curve is exact
-    assert!(curve(&t, node(&t, "pipe"), &[10.0], &CurveOptions::default()).is_ok());
+    let f = root_figures(&t);
+    let late = curve(&t, 0, &[800.0], &CurveOptions::default()).expect("curve")[0];
+    assert!(late.running < 1e-12, "{late:?}");
+    assert!((late.success - f.ps).abs() < 1e-9, "{late:?} vs {f:?}");
+    assert!((late.failure - f.pf).abs() < 1e-9, "{late:?} vs {f:?}");
+    let times = [2.0, 4.9, 5.1, 9.0, 15.0, 40.0, 100.0];
+    let pts = curve(&t, 0, &times, &CurveOptions::default()).expect("curve");
+    let sim = simulate_root(&t, 200_000, &times);
+    assert_root_and_curve_within_z("fixed wait", f, &pts, &sim);
 }
 
 /// Nav2's default pipeline as published inside its RecoveryNode, the

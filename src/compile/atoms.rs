@@ -36,7 +36,8 @@ pub struct Atom {
     pub prob: f64,
 }
 
-fn same_time(a: f64, b: f64) -> bool {
+/// Whether two instants are the same (within [`TIME_TOLERANCE`] relative).
+pub(crate) fn same_time(a: f64, b: f64) -> bool {
     (a - b).abs() <= TIME_TOLERANCE * a.abs().max(b.abs()).max(1.0)
 }
 

@@ -1,51 +1,84 @@
-//! `π(t)` of nodes without a phase chain within the budget — wide Parallels
-//! and every node above them — from their *outcome laws*: the probabilities
-//! of an instant Success or Failure, and the sub-densities `s(t)`, `f(t)` of
-//! the return time with each outcome, as piecewise Chebyshev interpolants on
-//! `[0, T]` ([`crate::solve::interpolant`]), T the last requested time.
+//! `π(t)` of nodes that no exact chain, atom list or shifted mixture holds —
+//! wide Parallels, mixed timing beyond the shifted mixture's budget, and
+//! every node above them — from their *outcome laws*: for each outcome a
+//! measure on `[0, T]` made of **atoms** (probabilities of returning at
+//! exactly τ: zero-time conditions, fixed times, a hybrid's cut-off) and a
+//! **sub-density** of the return time, a piecewise Chebyshev interpolant
+//! ([`crate::solve::interpolant`]) whose panels start at the instants where
+//! it may jump or kink; T is the last requested time.
 //!
 //! Laws compose exactly as the tick semantics do; only the interpolation of
 //! each density is approximate (an error estimate of 1e-15 in probability
 //! mass per panel):
 //!
 //! * a subtree with a phase chain: its densities `π(t)·exit` sampled by
-//!   uniformization ([`transient_weighted`]);
+//!   uniformization ([`transient_weighted`]), its instant returns an atom at 0;
+//! * a leaf without one: a fixed time τ is an atom at τ; a hybrid's random
+//!   side `min(X, τ)` the density of X on `[0, τ)` plus an atom `e^{−λτ}` at
+//!   τ; a shifted phase-type time its stages' density shifted by the shift;
 //! * a Parallel with the book's thresholds (`F = N − M + 1`): until it
 //!   returns its children run independently and the thresholds cannot both
 //!   be met, so it has succeeded by t iff at least M children have
-//!   ([`super::curve`]'s count programme); its densities are the time derivatives
-//!   of that count programme, computed in dual numbers from the children's
-//!   probabilities and densities
-//!   ([`counts::status_and_densities_by_counts`]);
+//!   ([`super::curve`]'s count programme); its densities are the time
+//!   derivatives of that count programme, computed in dual numbers from the
+//!   children's probabilities and densities
+//!   ([`counts::status_and_densities_by_counts`]), and its atom at each
+//!   instant where a child has one is the jump of the programme there (the
+//!   children's probabilities just after minus just before: the order of
+//!   simultaneous returns cannot matter, as the thresholds cannot both be
+//!   met);
+//! * a Parallel whose thresholds can both be met is composed only when its
+//!   subtree is deterministic ([`super::atoms`]: ties in child order);
 //! * a Sequence runs its children one after the other, each independent of
 //!   the others and started at the previous one's return: with `G_k` the
 //!   law of the time at which the first k children have all succeeded
-//!   (`G_0 = δ₀`), `G_k = G_{k−1} ⊛ S_k` and the Sequence fails with density
+//!   (`G_0 = δ₀`), `G_k = G_{k−1} ⊛ S_k` and the Sequence fails with
 //!   `Σ_k G_{k−1} ⊛ F_k` and succeeds with `G_n` — where `⊛` convolves
-//!   measures with an atom at 0 and a density, `(a δ₀ + g) ⊛ (b δ₀ + h) =
-//!   ab δ₀ + a h + b g + g * h`. A Fallback is the same with the outcomes
-//!   exchanged. Consecutive children with phase chains are concatenated
-//!   into one chain first (exact, and fewer convolutions);
+//!   measures: `(Σ a_i δ_{τ_i} + g) ⊛ (Σ b_j δ_{σ_j} + h) = Σ a_i b_j
+//!   δ_{τ_i+σ_j} + Σ a_i h(· − τ_i) + Σ b_j g(· − σ_j) + g * h`. A Fallback
+//!   is the same with the outcomes exchanged. Consecutive children with
+//!   phase chains are concatenated into one chain first (exact, and fewer
+//!   convolutions);
 //! * Retry N and Repeat N are a Fallback and a Sequence of N copies,
 //!   composed by binary powering (O(log N) convolutions, stopped once the
 //!   mass still going on within `[0, T]` is negligible); inverter and force
-//!   decorators exchange or merge the outcomes.
+//!   decorators exchange or merge the outcomes; a flow carries the law of
+//!   the time each state is entered.
 //!
-//! A Parallel with independent failure threshold has no such decomposition
-//! (which threshold is met first depends on the joint times) and keeps its
-//! product-chain error; laws with atoms after 0 (deterministic times) are
-//! refused as mixed timing.
+//! **Atoms.** Instants that agree within [`det::TIME_TOLERANCE`] (1e-12
+//! relative, [`same_time`]: the deterministic analysis's and the races'
+//! rule) are one instant — `0.1 + 0.2` and `0.3` are the same — and a curve
+//! point at such an instant counts the atom as returned. Atoms after T are
+//! dropped (they do not change `[0, T]`); atoms below [`ATOM_FLOOR`] are
+//! dropped too, and their mass is added up: a law whose dropped mass
+//! exceeds [`DROPPED_LIMIT`] is refused, so the curve's error is the
+//! interpolation's estimate plus at most that. The pairs of a convolution
+//! are counted before they are allocated: more than the state budget
+//! (`--max-states`) is refused, naming the node.
+//!
+//! **Breaks.** A density may jump at an atom's instant plus a jump of the
+//! density it shifts, and kink at the sum of two jumps; these instants (at
+//! most [`MAX_BREAKS`] per density, the earliest kept; further ones are
+//! resolved by halving panels) start interpolation panels
+//! ([`build_with_breaks`]), so every panel's function is smooth.
+//!
+//! A Parallel with an independent failure threshold over mixed or wide
+//! children has no such decomposition (which threshold is met first depends
+//! on the joint times): it is refused here (its own curve is a race,
+//! `super::race`).
 
+use super::atoms::{self as det, same_time};
 use super::curve::CurveOptions;
+use super::mrg::Outcome;
 use crate::compile::{counts, phase, renewal_law, AnalysisError};
 use crate::solve::chain::PhaseChain;
 use crate::solve::expm;
-use crate::solve::interpolant::{build, BuildError, Interpolant};
+use crate::solve::interpolant::{build_with_breaks, BuildError, Interpolant};
 use crate::solve::transient::{
     absorption_by_phase, transient_split, transient_weighted, uniformization_work, CurvePoint,
     MAX_SINGLE_PASS_STEPS,
 };
-use crate::tree::{Decorator, Flow, FlowNext, NodeId, NodeKind, Tree};
+use crate::tree::{Decorator, Duration, Flow, FlowNext, NodeId, NodeKind, Tree};
 
 /// Dropped Poisson mass in each sampled density.
 const SAMPLE_TOLERANCE: f64 = 1e-16;
@@ -53,30 +86,39 @@ const SAMPLE_TOLERANCE: f64 = 1e-16;
 /// Mass below which the rest of a fold is dropped.
 const NEGLIGIBLE: f64 = 1e-17;
 
+/// Atoms lighter than this are dropped (their mass counted).
+pub const ATOM_FLOOR: f64 = 1e-22;
+
+/// Most atom mass a law may have dropped (else it is refused).
+pub const DROPPED_LIMIT: f64 = 1e-12;
+
+/// Most instants that start interpolation panels, per density.
+pub const MAX_BREAKS: usize = 4096;
+
 const SUCCESS: usize = 0;
 const FAILURE: usize = 1;
 
-/// A node's outcome law on `[0, T]`.
+/// A node's outcome law on `[0, T]`: the measure of its return time with
+/// Success (index 0) and with Failure (1).
 #[derive(Debug, Clone)]
 struct Law {
-    /// Probability of Success (index 0) and Failure (1) at time 0.
-    atom: [f64; 2],
-    /// Sub-densities of the return time with Success and with Failure.
-    density: [Interpolant; 2],
+    parts: [Measure; 2],
 }
 
 impl Law {
     /// The part of the law with outcome `o`.
     fn measure(&self, o: usize) -> Measure {
-        Measure {
-            atom: self.atom[o],
-            density: Some(self.density[o].clone()),
-        }
+        self.parts[o].clone()
     }
 
     /// P(returned outcome `o` by t).
     fn cdf(&self, o: usize, t: f64) -> f64 {
-        self.atom[o] + self.density[o].integral_to(t)
+        self.parts[o].cdf(t)
+    }
+
+    /// Atom mass dropped in building the law.
+    fn dropped(&self) -> f64 {
+        self.parts[SUCCESS].dropped + self.parts[FAILURE].dropped
     }
 }
 
@@ -86,23 +128,57 @@ enum Piece {
     Law(Law),
 }
 
-/// `π(t)` of `id`, a node whose phase chain exceeds the budget, at `times`.
+/// For every node, whether a leaf below (or the node) has a time that is
+/// not phase-type (fixed, hybrid, shifted): its subtree has no phase chain.
+fn non_markovian(tree: &Tree) -> Vec<bool> {
+    let mut out = vec![false; tree.nodes.len()];
+    // pre-order: reverse order is bottom-up
+    for id in (0..tree.nodes.len()).rev() {
+        out[id] = match &tree.node(id).kind {
+            NodeKind::Action(a) => [(a.ps, a.success), (a.pf, a.failure)]
+                .iter()
+                .any(|&(p, d)| {
+                    p > 0.0
+                        && !matches!(d, Some(Duration::Fixed { time: 0.0 }))
+                        && !d.is_some_and(|d| d.is_phase_type())
+                }),
+            kind => kind.children().iter().any(|&c| out[c]),
+        };
+    }
+    out
+}
+
+/// `π(t)` of `id` from its composed law, at `times`; `fallback` is the
+/// error returned where laws cannot help (its chain's budget error, or the
+/// mixed timing that the shifted mixture could not hold).
 pub(super) fn curve_by_laws(
     tree: &Tree,
     id: NodeId,
     times: &[f64],
     options: &CurveOptions,
-    budget_error: AnalysisError,
+    fallback: AnalysisError,
 ) -> Result<Vec<CurvePoint>, AnalysisError> {
     let end = times.iter().copied().fold(0.0, f64::max);
     let memo = LawMemo::default();
-    let law = Builder {
+    let mixed = non_markovian(tree);
+    let b = Builder {
         tree,
         end,
         max_states: options.max_states,
         memo: &memo,
+        mixed: &mixed,
+    };
+    let law = b.opaque(id, fallback)?;
+    if law.dropped() > DROPPED_LIMIT {
+        return Err(AnalysisError::Numerical {
+            node: b.name(id),
+            what: format!(
+                "its law has {:.1e} probability in atoms below {ATOM_FLOOR:e} (more than \
+                 {DROPPED_LIMIT:e})",
+                law.dropped()
+            ),
+        });
     }
-    .opaque(id, budget_error)?;
     Ok(times
         .iter()
         .map(|&t| {
@@ -167,12 +243,14 @@ pub(crate) fn counted_parallel_times(
     // a power of two, so that the ancestors of a nested Parallel meet the
     // same horizons and reuse its memoised law
     let mut end = 2f64.powi(start.log2().ceil() as i32);
+    let mixed = non_markovian(tree);
     for _ in 0..MAX_DOUBLINGS {
         let b = Builder {
             tree,
             end,
             max_states,
             memo,
+            mixed: &mixed,
         };
         // laws depend on the horizon
         let pieces = children
@@ -181,8 +259,8 @@ pub(crate) fn counted_parallel_times(
             .collect::<Result<Vec<_>, _>>()?;
         let law = b.counted_from(id, children, &pieces, m)?;
         let moments = [
-            law.density[SUCCESS].first_moment(),
-            law.density[FAILURE].first_moment(),
+            law.parts[SUCCESS].first_moment(),
+            law.parts[FAILURE].first_moment(),
         ];
         let mut beyond = 0.0;
         for ((piece, &mean), &c) in pieces.iter().zip(child_mean_times).zip(children) {
@@ -194,8 +272,7 @@ pub(crate) fn counted_parallel_times(
                     p[0].time_to_success + p[0].time_to_failure
                 }
                 Piece::Law(l) => {
-                    let done =
-                        l.density[SUCCESS].first_moment() + l.density[FAILURE].first_moment();
+                    let done = l.parts[SUCCESS].first_moment() + l.parts[FAILURE].first_moment();
                     let running = 1.0 - l.cdf(SUCCESS, end) - l.cdf(FAILURE, end);
                     (mean - done - end * running.max(0.0)).max(0.0)
                 }
@@ -272,6 +349,8 @@ struct Builder<'a> {
     end: f64,
     max_states: usize,
     memo: &'a LawMemo,
+    /// [`non_markovian`] of the tree.
+    mixed: &'a [bool],
 }
 
 /// Laws already built, by node and horizon: a node's law is built once per
@@ -285,13 +364,15 @@ impl Builder<'_> {
         self.tree.node(id).name.clone()
     }
 
+    /// `k` interpolants on `[0, T]` with panels starting at `breaks`.
     fn interpolate(
         &self,
         id: NodeId,
         k: usize,
+        breaks: &[f64],
         sample: impl FnMut(&[f64]) -> Result<Vec<f64>, AnalysisError>,
     ) -> Result<Vec<Interpolant>, AnalysisError> {
-        build(self.end, k, sample).map_err(|e| match e {
+        build_with_breaks(self.end, breaks, k, sample).map_err(|e| match e {
             BuildError::Sample(e) => e,
             BuildError::NotConverged => AnalysisError::Numerical {
                 node: self.name(id),
@@ -300,50 +381,85 @@ impl Builder<'_> {
         })
     }
 
+    /// One interpolated density with panels starting at `breaks`.
+    fn density(
+        &self,
+        id: NodeId,
+        breaks: &[f64],
+        sample: impl FnMut(&[f64]) -> Result<Vec<f64>, AnalysisError>,
+    ) -> Result<Interpolant, AnalysisError> {
+        let d = self.interpolate(id, 1, breaks, sample)?.remove(0);
+        Ok(d)
+    }
+
     /// The child's chain if it has one within the budget, else its law.
     fn piece(&self, id: NodeId) -> Result<Piece, AnalysisError> {
+        let fallback = if self.mixed[id] {
+            AnalysisError::MixedTiming {
+                node: self.name(id),
+                leaf: self.mixed_leaf(id),
+            }
+        } else {
+            match phase::chain_of(self.tree, id, self.max_states) {
+                Ok(chain) => return Ok(Piece::Chain(chain)),
+                Err(e @ AnalysisError::StateBudget { .. }) => e,
+                Err(e) => return Err(e),
+            }
+        };
         let key = (id, self.end.to_bits());
         if let Some(l) = self.memo.0.borrow().get(&key) {
             return Ok(Piece::Law(l.clone()));
         }
-        let e = match phase::chain_of(self.tree, id, self.max_states) {
-            Ok(chain) => return Ok(Piece::Chain(chain)),
-            Err(e @ AnalysisError::StateBudget { .. }) => e,
-            // a renewal race (Nav2's re-planning) below: its law from its levels
-            Err(AnalysisError::NotMarkovian { leaf }) if renewal_law::holds_race(self.tree, id) => {
-                AnalysisError::MixedTiming {
-                    node: self.name(id),
-                    leaf,
-                }
+        let law = if renewal_law::holds_race(self.tree, id) {
+            // a renewal race (Nav2's re-planning) below; a copy's law (a
+            // RecoveryNode's retries copy the subtree they retry) is reused
+            let copy = self.memo.0.borrow().iter().find_map(|(&(n, end), l)| {
+                (end == key.1 && self.tree.same_subtree(n, id)).then(|| l.clone())
+            });
+            match copy {
+                Some(l) => l,
+                None => match renewal_law::law(self.tree, id, self.end, self.max_states)? {
+                    // the race, or the Sequence that starts it: its law from
+                    // its levels
+                    Some((atom, [success, failure])) => Law {
+                        parts: [
+                            self.measure(vec![(0.0, atom[0])], Some(success), Vec::new(), 0.0),
+                            self.measure(vec![(0.0, atom[1])], Some(failure), Vec::new(), 0.0),
+                        ],
+                    },
+                    None => self.opaque(id, fallback)?,
+                },
             }
-            Err(AnalysisError::NotMarkovian { leaf }) => {
-                return Err(AnalysisError::MixedTiming {
-                    node: self.name(id),
-                    leaf,
-                })
-            }
-            Err(e) => return Err(e),
-        };
-        // a copy's (a RecoveryNode's retries copy the subtree they retry)
-        let copy = self.memo.0.borrow().iter().find_map(|(&(n, end), l)| {
-            (end == key.1 && self.tree.same_subtree(n, id)).then(|| l.clone())
-        });
-        let law = match copy {
-            Some(l) => l,
-            None => match renewal_law::law(self.tree, id, self.end, self.max_states)? {
-                // the race, or the Sequence that starts it
-                Some((atom, density)) => Law { atom, density },
-                None => self.opaque(id, e)?,
-            },
+        } else {
+            self.opaque(id, fallback)?
         };
         self.memo.0.borrow_mut().insert(key, law.clone());
         Ok(Piece::Law(law))
     }
 
-    /// Densities `π(t)·exit` of a chain, sampled by uniformization.
+    /// The first leaf below `id` without a phase-type time.
+    fn mixed_leaf(&self, id: NodeId) -> String {
+        let d = self
+            .tree
+            .subtree(id)
+            .find(|&d| self.mixed[d] && self.tree.node(d).kind.children().is_empty())
+            .unwrap_or(id);
+        self.name(d)
+    }
+
+    /// The child's law (a chain's sampled).
+    fn law(&self, id: NodeId) -> Result<Law, AnalysisError> {
+        match self.piece(id)? {
+            Piece::Law(l) => Ok(l),
+            Piece::Chain(c) => self.chain_law(id, &c),
+        }
+    }
+
+    /// Densities `π(t)·exit` of a chain, sampled by uniformization; its
+    /// instant returns as atoms at 0.
     fn chain_law(&self, id: NodeId, chain: &PhaseChain) -> Result<Law, AnalysisError> {
         let weights = [&chain.exit_success[..], &chain.exit_failure[..]];
-        let mut d = self.interpolate(id, 2, |points| {
+        let mut d = self.interpolate(id, 2, &[], |points| {
             let rows = sample_weighted(chain, points, &weights)
                 .ok_or_else(|| stiff(self.tree, id, chain, self.end))?;
             Ok(rows.iter().flat_map(|r| [r[2], r[3]]).collect())
@@ -351,16 +467,135 @@ impl Builder<'_> {
         let failure = d.pop().expect("two densities");
         let success = d.pop().expect("two densities");
         Ok(Law {
-            atom: [chain.initial_success, chain.initial_failure],
-            density: [success, failure],
+            parts: [
+                self.measure(
+                    vec![(0.0, chain.initial_success)],
+                    Some(success),
+                    Vec::new(),
+                    0.0,
+                ),
+                self.measure(
+                    vec![(0.0, chain.initial_failure)],
+                    Some(failure),
+                    Vec::new(),
+                    0.0,
+                ),
+            ],
         })
     }
 
-    /// The law of a node without a chain (`budget_error` is what its chain
+    /// A measure from its parts: atoms sorted, merged at the same instant,
+    /// dropped after T or below [`ATOM_FLOOR`] (their mass added to
+    /// `dropped`); breaks sorted, merged, inside `(0, T)`, at most
+    /// [`MAX_BREAKS`].
+    fn measure(
+        &self,
+        mut atoms: Vec<(f64, f64)>,
+        density: Option<Interpolant>,
+        mut breaks: Vec<f64>,
+        mut dropped: f64,
+    ) -> Measure {
+        let end = self.end;
+        atoms.retain(|&(t, p)| p != 0.0 && (t <= end || same_time(t, end)));
+        atoms.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut merged: Vec<(f64, f64)> = Vec::with_capacity(atoms.len());
+        for (t, p) in atoms {
+            match merged.last_mut() {
+                Some(l) if same_time(l.0, t) => l.1 += p,
+                _ => merged.push((t, p)),
+            }
+        }
+        merged.retain(|&(_, p)| {
+            let keep = p.abs() >= ATOM_FLOOR;
+            if !keep {
+                dropped += p.abs();
+            }
+            keep
+        });
+        breaks.retain(|&b| b > 0.0 && b < end && !same_time(b, 0.0) && !same_time(b, end));
+        breaks.sort_by(f64::total_cmp);
+        breaks.dedup_by(|b, a| same_time(*a, *b));
+        breaks.truncate(MAX_BREAKS);
+        Measure {
+            atoms: merged,
+            density,
+            breaks,
+            dropped,
+        }
+    }
+
+    /// The law of a leaf without a phase chain: each outcome's time as
+    /// atoms and a density.
+    fn leaf_law(&self, id: NodeId) -> Result<Law, AnalysisError> {
+        let NodeKind::Action(a) = &self.tree.node(id).kind else {
+            unreachable!("a leaf without a chain is an action")
+        };
+        Ok(Law {
+            parts: [
+                self.leaf_measure(id, a.ps, a.success)?,
+                self.leaf_measure(id, a.pf, a.failure)?,
+            ],
+        })
+    }
+
+    /// An outcome of probability `p` taking `d`.
+    fn leaf_measure(
+        &self,
+        id: NodeId,
+        p: f64,
+        d: Option<Duration>,
+    ) -> Result<Measure, AnalysisError> {
+        let Some(d) = d.filter(|_| p > 0.0) else {
+            return Ok(Measure::zero());
+        };
+        match d {
+            Duration::Fixed { time } => Ok(self.measure(vec![(time, p)], None, Vec::new(), 0.0)),
+            // min(X, cap): X's density before cap, the rest at cap
+            Duration::TruncatedExponential { rate, cap } => {
+                let density = self.density(id, &[cap], |points| {
+                    Ok(points
+                        .iter()
+                        .map(|&t| {
+                            if t < cap {
+                                p * rate * (-rate * t).exp()
+                            } else {
+                                0.0
+                            }
+                        })
+                        .collect())
+                })?;
+                let rest = p * (-rate * cap).exp();
+                Ok(self.measure(vec![(cap, rest)], Some(density), vec![cap], 0.0))
+            }
+            // the stages' density, shifted
+            Duration::Exponential { .. } | Duration::PhaseType { .. } => {
+                let shift = d.shift();
+                let chain = d
+                    .stages()
+                    .expect("exponential and phase-type times have stages")
+                    .chain();
+                let weights = [&chain.exit_success[..]];
+                let density = self.density(id, &[shift], |points| {
+                    let local: Vec<f64> = points.iter().map(|&t| (t - shift).max(0.0)).collect();
+                    let rows = sample_weighted(&chain, &local, &weights)
+                        .ok_or_else(|| stiff(self.tree, id, &chain, self.end))?;
+                    Ok(points
+                        .iter()
+                        .zip(rows)
+                        .map(|(&t, r)| if t >= shift { p * r[2] } else { 0.0 })
+                        .collect())
+                })?;
+                Ok(self.measure(Vec::new(), Some(density), vec![shift], 0.0))
+            }
+        }
+    }
+
+    /// The law of a node without a chain (`fallback` is what its chain
     /// construction reported, returned where laws cannot help).
-    fn opaque(&self, id: NodeId, budget_error: AnalysisError) -> Result<Law, AnalysisError> {
+    fn opaque(&self, id: NodeId, fallback: AnalysisError) -> Result<Law, AnalysisError> {
         let node = self.tree.node(id);
         match &node.kind {
+            NodeKind::Action(_) => self.leaf_law(id),
             NodeKind::Parallel {
                 success_threshold,
                 failure_threshold,
@@ -368,6 +603,11 @@ impl Builder<'_> {
             } if *failure_threshold >= children.len() + 1 - success_threshold => {
                 self.counted(id, children, *success_threshold)
             }
+            // thresholds that can both be met: ties in child order
+            NodeKind::Parallel { .. } => match det::atoms(self.tree, id, self.max_states)? {
+                Some(atoms) => Ok(self.atoms_law(&atoms)),
+                None => Err(fallback),
+            },
             // Nav2 nodes as their primitive equivalents (`primitive_view`)
             NodeKind::Sequence { children }
             | NodeKind::Pipeline { children }
@@ -377,18 +617,12 @@ impl Builder<'_> {
             }
             NodeKind::Flow(flow) => self.flow(id, flow),
             NodeKind::Decorator { decorator, child } => {
-                let law = match self.piece(*child)? {
-                    Piece::Law(l) => l,
-                    // the child fits, so its copies are what exceeded the budget
-                    Piece::Chain(c) => self.chain_law(*child, &c)?,
-                };
+                // a child that fits: its copies are what exceeded the budget
+                let law = self.law(*child)?;
                 match decorator.as_primitive() {
                     Decorator::Inverter => {
-                        let [s, f] = law.density;
-                        Ok(Law {
-                            atom: [law.atom[FAILURE], law.atom[SUCCESS]],
-                            density: [f, s],
-                        })
+                        let [s, f] = law.parts;
+                        Ok(Law { parts: [f, s] })
                     }
                     Decorator::ForceSuccess | Decorator::ForceFailure => {
                         let both = self.add(id, &law.measure(SUCCESS), &law.measure(FAILURE))?;
@@ -411,7 +645,22 @@ impl Builder<'_> {
                     }
                 }
             }
-            _ => Err(budget_error),
+            _ => Err(fallback),
+        }
+    }
+
+    /// The law of a deterministic subtree's return instants.
+    fn atoms_law(&self, atoms: &[det::Atom]) -> Law {
+        let side = |o: Outcome| {
+            let a = atoms
+                .iter()
+                .filter(|a| a.outcome == o)
+                .map(|a| (a.time, a.prob))
+                .collect();
+            self.measure(a, None, Vec::new(), 0.0)
+        };
+        Law {
+            parts: [side(Outcome::Success), side(Outcome::Failure)],
         }
     }
 
@@ -424,7 +673,42 @@ impl Builder<'_> {
         self.counted_from(id, children, &pieces, m)
     }
 
-    /// [`Self::counted`] from the children's pieces.
+    /// Per child and point: `[S, F, s, f]` (the chains sampled in one pass
+    /// each).
+    fn columns(
+        &self,
+        children: &[NodeId],
+        pieces: &[Piece],
+        points: &[f64],
+    ) -> Result<Vec<Vec<[f64; 4]>>, AnalysisError> {
+        pieces
+            .iter()
+            .zip(children)
+            .map(|(p, &c)| match p {
+                Piece::Chain(chain) => {
+                    let weights = [&chain.exit_success[..], &chain.exit_failure[..]];
+                    sample_weighted(chain, points, &weights)
+                        .map(|rows| rows.iter().map(|r| [r[0], r[1], r[2], r[3]]).collect())
+                        .ok_or_else(|| stiff(self.tree, c, chain, self.end))
+                }
+                Piece::Law(l) => Ok(points
+                    .iter()
+                    .map(|&t| {
+                        [
+                            l.cdf(SUCCESS, t),
+                            l.cdf(FAILURE, t),
+                            l.parts[SUCCESS].density_at(t),
+                            l.parts[FAILURE].density_at(t),
+                        ]
+                    })
+                    .collect()),
+            })
+            .collect()
+    }
+
+    /// [`Self::counted`] from the children's pieces: the atom at each
+    /// instant where a child has one is the jump of the count programme
+    /// there; the densities between, its derivative.
     fn counted_from(
         &self,
         id: NodeId,
@@ -433,39 +717,54 @@ impl Builder<'_> {
         m: usize,
     ) -> Result<Law, AnalysisError> {
         let f_cap = children.len() + 1 - m;
-        let atoms: Vec<(f64, f64)> = pieces
+        // every child's instants, and where its densities may jump or kink
+        let mut instants = vec![0.0];
+        let mut breaks = Vec::new();
+        for p in pieces {
+            if let Piece::Law(l) = p {
+                for part in &l.parts {
+                    instants.extend(part.atoms.iter().map(|a| a.0));
+                    breaks.extend(part.atoms.iter().map(|a| a.0));
+                    breaks.extend_from_slice(&part.breaks);
+                }
+            }
+        }
+        instants.sort_by(f64::total_cmp);
+        instants.dedup_by(|b, a| same_time(*a, *b));
+        // the probabilities just after each instant, and just before
+        let after = self.columns(children, pieces, &instants)?;
+        let mut atoms = [Vec::new(), Vec::new()];
+        for (k, &t) in instants.iter().enumerate() {
+            let right: Vec<(f64, f64)> = after.iter().map(|c| (c[k][0], c[k][1])).collect();
+            let left: Vec<(f64, f64)> = if k == 0 && t == 0.0 {
+                vec![(0.0, 0.0); children.len()]
+            } else {
+                pieces
+                    .iter()
+                    .zip(&right)
+                    .map(|(p, &r)| match p {
+                        // continuous after 0
+                        Piece::Chain(_) => r,
+                        Piece::Law(l) => {
+                            (l.parts[SUCCESS].cdf_left(t), l.parts[FAILURE].cdf_left(t))
+                        }
+                    })
+                    .collect()
+            };
+            let (s1, f1) = counts::status_by_counts(&right, m, f_cap);
+            let (s0, f0) = counts::status_by_counts(&left, m, f_cap);
+            atoms[SUCCESS].push((t, s1 - s0));
+            atoms[FAILURE].push((t, f1 - f0));
+        }
+        let dropped: f64 = pieces
             .iter()
             .map(|p| match p {
-                Piece::Chain(c) => (c.initial_success, c.initial_failure),
-                Piece::Law(l) => (l.atom[SUCCESS], l.atom[FAILURE]),
+                Piece::Chain(_) => 0.0,
+                Piece::Law(l) => l.dropped(),
             })
-            .collect();
-        let (atom_s, atom_f) = counts::status_by_counts(&atoms, m, f_cap);
-        let mut d = self.interpolate(id, 2, |points| {
-            // per child and point: [S, F, s, f]
-            let columns = pieces
-                .iter()
-                .zip(children)
-                .map(|(p, &c)| match p {
-                    Piece::Chain(chain) => {
-                        let weights = [&chain.exit_success[..], &chain.exit_failure[..]];
-                        sample_weighted(chain, points, &weights)
-                            .map(|rows| rows.iter().map(|r| [r[0], r[1], r[2], r[3]]).collect())
-                            .ok_or_else(|| stiff(self.tree, c, chain, self.end))
-                    }
-                    Piece::Law(l) => Ok(points
-                        .iter()
-                        .map(|&t| {
-                            [
-                                l.cdf(SUCCESS, t),
-                                l.cdf(FAILURE, t),
-                                l.density[SUCCESS].eval(t),
-                                l.density[FAILURE].eval(t),
-                            ]
-                        })
-                        .collect::<Vec<[f64; 4]>>()),
-                })
-                .collect::<Result<Vec<_>, _>>()?;
+            .sum();
+        let mut d = self.interpolate(id, 2, &breaks, |points| {
+            let columns = self.columns(children, pieces, points)?;
             let mut row = vec![[0.0; 4]; children.len()];
             let mut out = Vec::with_capacity(2 * points.len());
             for k in 0..points.len() {
@@ -479,9 +778,12 @@ impl Builder<'_> {
         })?;
         let failure = d.pop().expect("two densities");
         let success = d.pop().expect("two densities");
+        let [atoms_s, atoms_f] = atoms;
         Ok(Law {
-            atom: [atom_s, atom_f],
-            density: [success, failure],
+            parts: [
+                self.measure(atoms_s, Some(success), breaks.clone(), dropped),
+                self.measure(atoms_f, Some(failure), breaks, 0.0),
+            ],
         })
     }
 
@@ -520,10 +822,7 @@ impl Builder<'_> {
         let laws = flow
             .children
             .iter()
-            .map(|&c| match self.piece(c)? {
-                Piece::Law(l) => Ok(l),
-                Piece::Chain(chain) => self.chain_law(c, &chain),
-            })
+            .map(|&c| self.law(c))
             .collect::<Result<Vec<_>, AnalysisError>>()?;
         let mut entered: Vec<Option<Measure>> = vec![None; flow.states.len()];
         entered[0] = Some(Measure::unit());
@@ -554,15 +853,7 @@ impl Builder<'_> {
                 });
             }
         }
-        let [s, f] = ends;
-        let zero = || Interpolant::zero(self.end);
-        Ok(Law {
-            atom: [s.atom, f.atom],
-            density: [
-                s.density.unwrap_or_else(zero),
-                f.density.unwrap_or_else(zero),
-            ],
-        })
+        Ok(Law { parts: ends })
     }
 
     /// Children's laws run in turn; a Sequence (`sequence`) goes on after a
@@ -576,9 +867,9 @@ impl Builder<'_> {
             if reach.mass() < NEGLIGIBLE {
                 break;
             }
-            let here = self.convolve(id, &reach, &law.measure(stop))?;
+            let here = self.convolve(id, &reach, &law.parts[stop])?;
             stopped = self.add(id, &stopped, &here)?;
-            reach = self.convolve(id, &reach, &law.measure(go))?;
+            reach = self.convolve(id, &reach, &law.parts[go])?;
         }
         Ok(self.law_from(go, reach, stopped))
     }
@@ -617,59 +908,110 @@ impl Builder<'_> {
     }
 
     fn law_from(&self, go: usize, going: Measure, stopped: Measure) -> Law {
-        let zero = || Interpolant::zero(self.end);
-        let mut law = Law {
-            atom: [0.0; 2],
-            density: [zero(), zero()],
-        };
-        law.atom[go] = going.atom;
-        law.atom[1 - go] = stopped.atom;
-        law.density[go] = going.density.unwrap_or_else(zero);
-        law.density[1 - go] = stopped.density.unwrap_or_else(zero);
-        law
+        let mut parts = [Measure::zero(), Measure::zero()];
+        parts[go] = going;
+        parts[1 - go] = stopped;
+        Law { parts }
     }
 
-    /// `(a δ₀ + g) ⊛ (b δ₀ + h) = ab δ₀ + a h + b g + g * h`.
+    /// `(Σ a_i δ_{τ_i} + g) ⊛ (Σ b_j δ_{σ_j} + h) = Σ a_i b_j δ_{τ_i+σ_j} +
+    /// Σ a_i h(· − τ_i) + Σ b_j g(· − σ_j) + g * h`.
     fn convolve(&self, id: NodeId, x: &Measure, y: &Measure) -> Result<Measure, AnalysisError> {
-        let atom = x.atom * y.atom;
-        let density = match (&x.density, &y.density) {
-            (None, None) => None,
-            (None, Some(h)) => Some(h.scaled(x.atom)),
-            (Some(g), None) => Some(g.scaled(y.atom)),
-            (Some(g), Some(h)) => Some(
-                self.interpolate(id, 1, |points| {
-                    let conv = g.convolve_many(h, points);
-                    Ok(points
-                        .iter()
-                        .zip(conv)
-                        .map(|(&t, c)| x.atom * h.eval(t) + y.atom * g.eval(t) + c)
-                        .collect())
-                })?
-                .remove(0),
-            ),
-        };
-        Ok(Measure { atom, density })
+        let pairs = x.atoms.len() as f64 * y.atoms.len() as f64;
+        if pairs > self.max_states as f64 {
+            return Err(AnalysisError::StateBudget {
+                node: self.name(id),
+                states: pairs,
+                budget: self.max_states,
+            });
+        }
+        let dropped = x.dropped + y.dropped;
+        // δ_0-only factors scale the other
+        for (a, b) in [(x, y), (y, x)] {
+            if a.density.is_none() && a.atoms.len() == 1 && a.atoms[0].0 == 0.0 {
+                let c = a.atoms[0].1;
+                let mut out = b.clone();
+                out.atoms.iter_mut().for_each(|t| t.1 *= c);
+                out.density = b.density.as_ref().map(|d| d.scaled(c));
+                out.dropped = c.abs() * b.dropped + a.dropped;
+                return Ok(out);
+            }
+        }
+        let end = self.end;
+        let mut atoms = Vec::with_capacity(pairs as usize);
+        for &(a, p) in &x.atoms {
+            for &(b, q) in &y.atoms {
+                if a + b <= end || same_time(a + b, end) {
+                    atoms.push((a + b, p * q));
+                }
+            }
+        }
+        if x.density.is_none() && y.density.is_none() {
+            return Ok(self.measure(atoms, None, Vec::new(), dropped));
+        }
+        // a density jumps at an atom plus a jump of the density it shifts
+        // (g * h is continuous: its kinks are resolved by halving panels)
+        let limit = 4 * MAX_BREAKS;
+        let mut breaks: Vec<f64> = Vec::new();
+        for (a, b) in [(x, y), (y, x)] {
+            if b.density.is_none() {
+                continue;
+            }
+            for &(t, _) in &a.atoms {
+                if breaks.len() >= limit || t > end {
+                    break;
+                }
+                breaks.push(t);
+                breaks.extend(b.breaks.iter().map(|s| t + s).take_while(|&s| s < end));
+            }
+        }
+        let breaks = self.measure(Vec::new(), None, breaks, 0.0).breaks;
+        let density = self.density(id, &breaks, |points| {
+            let conv = match (&x.density, &y.density) {
+                (Some(g), Some(h)) => g.convolve_many(h, points),
+                _ => vec![0.0; points.len()],
+            };
+            Ok(points
+                .iter()
+                .zip(conv)
+                .map(|(&t, c)| {
+                    c + shifted(&x.atoms, y.density.as_ref(), t)
+                        + shifted(&y.atoms, x.density.as_ref(), t)
+                })
+                .collect())
+        })?;
+        Ok(self.measure(atoms, Some(density), breaks, dropped))
     }
 
     fn add(&self, id: NodeId, x: &Measure, y: &Measure) -> Result<Measure, AnalysisError> {
         let density = match (&x.density, &y.density) {
             (None, d) | (d, None) => d.clone(),
-            (Some(g), Some(h)) => Some(
-                self.interpolate(id, 1, |points| {
+            (Some(g), Some(h)) => {
+                let breaks: Vec<f64> = x.breaks.iter().chain(&y.breaks).copied().collect();
+                let breaks = self.measure(Vec::new(), None, breaks, 0.0).breaks;
+                Some(self.density(id, &breaks, |points| {
                     Ok(points.iter().map(|&t| g.eval(t) + h.eval(t)).collect())
-                })?
-                .remove(0),
-            ),
+                })?)
+            }
         };
-        Ok(Measure {
-            atom: x.atom + y.atom,
-            density,
-        })
+        let atoms = x.atoms.iter().chain(&y.atoms).copied().collect();
+        let breaks = x.breaks.iter().chain(&y.breaks).copied().collect();
+        Ok(self.measure(atoms, density, breaks, x.dropped + y.dropped))
     }
 }
 
-/// `(go, stop)`: the outcome on which a Sequence (`sequence`) or Fallback
-/// goes on to its next child, and the one on which it returns.
+/// `Σ a_i h(t − τ_i)` over `atoms` `(τ_i, a_i)` (sorted), 0 without `h`.
+fn shifted(atoms: &[(f64, f64)], h: Option<&Interpolant>, t: f64) -> f64 {
+    let Some(h) = h else { return 0.0 };
+    atoms
+        .iter()
+        .take_while(|a| a.0 <= t)
+        .map(|&(tau, a)| a * h.eval(t - tau))
+        .sum()
+}
+
+/// `(go, stop)`: the outcome on which a Sequence (`sequence`) goes on to
+/// its next child, and the one on which it returns.
 fn outcomes(sequence: bool) -> (usize, usize) {
     if sequence {
         (SUCCESS, FAILURE)
@@ -678,31 +1020,61 @@ fn outcomes(sequence: bool) -> (usize, usize) {
     }
 }
 
-/// A measure on `[0, T]`: an atom at 0 and a density (`None` = 0).
-#[derive(Debug, Clone)]
+/// A measure on `[0, T]`: atoms `(instant, mass)` (sorted, distinct
+/// instants) and a density (`None` = 0) that may jump or kink at `breaks`.
+#[derive(Debug, Clone, Default)]
 struct Measure {
-    atom: f64,
+    atoms: Vec<(f64, f64)>,
     density: Option<Interpolant>,
+    breaks: Vec<f64>,
+    /// Mass of the atoms dropped below [`ATOM_FLOOR`].
+    dropped: f64,
 }
 
 impl Measure {
     /// `δ₀`.
     fn unit() -> Measure {
         Measure {
-            atom: 1.0,
-            density: None,
+            atoms: vec![(0.0, 1.0)],
+            ..Measure::default()
         }
     }
 
     fn zero() -> Measure {
-        Measure {
-            atom: 0.0,
-            density: None,
-        }
+        Measure::default()
     }
 
     /// Mass within the horizon.
     fn mass(&self) -> f64 {
-        self.atom.abs() + self.density.as_ref().map_or(0.0, Interpolant::total)
+        self.atoms.iter().map(|a| a.1.abs()).sum::<f64>()
+            + self.density.as_ref().map_or(0.0, Interpolant::total)
+    }
+
+    /// The mass in `[0, t]`: an atom at t (within [`same_time`]) counts.
+    fn cdf(&self, t: f64) -> f64 {
+        let k = self
+            .atoms
+            .partition_point(|a| a.0 <= t || same_time(a.0, t));
+        self.atoms[..k].iter().map(|a| a.1).sum::<f64>()
+            + self.density.as_ref().map_or(0.0, |d| d.integral_to(t))
+    }
+
+    /// The mass in `[0, t)`: an atom at t does not count.
+    fn cdf_left(&self, t: f64) -> f64 {
+        let k = self
+            .atoms
+            .partition_point(|a| a.0 < t && !same_time(a.0, t));
+        self.atoms[..k].iter().map(|a| a.1).sum::<f64>()
+            + self.density.as_ref().map_or(0.0, |d| d.integral_to(t))
+    }
+
+    fn density_at(&self, t: f64) -> f64 {
+        self.density.as_ref().map_or(0.0, |d| d.eval(t))
+    }
+
+    /// `∫ t dμ` over the horizon.
+    fn first_moment(&self) -> f64 {
+        self.atoms.iter().map(|a| a.0 * a.1).sum::<f64>()
+            + self.density.as_ref().map_or(0.0, Interpolant::first_moment)
     }
 }

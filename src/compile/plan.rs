@@ -24,7 +24,7 @@
 //! | 5 | every leaf below phase-type (exponential, Erlang, hypoexponential), the chain within the budget (a Parallel with the book's thresholds: its product ≤ [`super::PRODUCT_LIMIT`]) | [`Representation::Chain`]: the exact phase chain |
 //! | 6 | a Parallel with the book's thresholds (`F ≥ N − M + 1`) | [`Representation::Counted`]: the count programme over the children's own laws |
 //! | 7 | a Parallel whose two thresholds can both be met | [`Representation::Race`]: the race of the children's laws |
-//! | 8 | a leaf below is deterministic, hybrid or shifted | [`Representation::Shifted`]: the shifted phase-type mixture |
+//! | 8 | a leaf below is deterministic, hybrid or shifted | [`Representation::Shifted`]: the shifted phase-type mixture; where it exceeds the budget (every distinct sum of fixed times is a component) or cannot hold a Parallel below, the curve comes from the composed outcome laws with atoms at any instant ([`law`]) |
 //! | 9 | otherwise (a chain over the budget: a wide Parallel below) | [`Representation::Composed`]: the composed outcome laws (interpolated densities) |
 //!
 //! One rule goes before the table for the curve: a race against a renewal
@@ -72,7 +72,8 @@ pub enum Representation {
     Counted,
     /// A Parallel whose thresholds can both be met: a race of its children.
     Race,
-    /// A shifted phase-type mixture (mixed timing).
+    /// A shifted phase-type mixture (mixed timing); the composed laws
+    /// where the mixture exceeds the budget or cannot hold a Parallel.
     Shifted,
     /// Composed outcome laws (interpolated densities; a wide Parallel below).
     Composed,
@@ -524,12 +525,19 @@ impl<'t> Plan<'t> {
             }
             Representation::Race => race::curve(self, id, times),
             Representation::Shifted => {
-                match super::shifted::shifted_law(self.tree, id, self.max_states)? {
-                    Some(law) => curve_query::curve_by_shifted(&law, times, options, &node.name),
-                    None => Err(AnalysisError::MixedTiming {
-                        node: node.name.clone(),
-                        leaf: self.mixed_leaf(id),
-                    }),
+                let mixed = AnalysisError::MixedTiming {
+                    node: node.name.clone(),
+                    leaf: self.mixed_leaf(id),
+                };
+                match super::shifted::shifted_law(self.tree, id, self.max_states) {
+                    Ok(Some(law)) => {
+                        curve_query::curve_by_shifted(&law, times, options, &node.name)
+                    }
+                    // too many components, or a form the mixture cannot hold
+                    Ok(None) | Err(AnalysisError::StateBudget { .. }) => {
+                        law::curve_by_laws(self.tree, id, times, options, mixed)
+                    }
+                    Err(e) => Err(e),
                 }
             }
             Representation::Composed => {

@@ -362,10 +362,62 @@ pub fn build<E>(
     k: usize,
     sample: impl FnMut(&[f64]) -> Result<Vec<f64>, E>,
 ) -> Result<Vec<Interpolant>, BuildError<E>> {
+    build_with_breaks(end, &[], k, sample)
+}
+
+/// Relative grid of the first panels of `[0, end]`, graded towards 0
+/// (where fast phases decay).
+const GRID: [f64; 16] = [
+    0.0, 1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 0.03, 0.1, 0.2, 0.35, 0.5, 0.65, 0.8, 1.0,
+];
+
+/// Relative grid of the first panels between two breaks, graded towards
+/// the break that starts them (a density that jumps there may start a fast
+/// phase).
+const SEGMENT_GRID: [f64; 6] = [0.0, 1e-4, 1e-2, 0.1, 0.5, 1.0];
+
+/// Relative distance from a break at which a panel's end point is sampled:
+/// a function that jumps there is sampled on the panel's side, whatever
+/// the rounding of the instant (a sum of fixed times) that it jumps at.
+const BREAK_NUDGE: f64 = 1e-13;
+
+/// [`build`] for functions that may jump or kink at `breaks` (instants in
+/// `(0, end)`, any order; others are ignored): panels start at every break,
+/// so that each panel's function is smooth (its values at a break are
+/// sampled [`BREAK_NUDGE`] inside the panel: one-sided limits).
+/// `[0, first break]` starts from
+/// [`build`]'s grid graded towards 0, every later segment from a coarser
+/// grid graded towards its break; panels are then halved as in [`build`].
+pub fn build_with_breaks<E>(
+    end: f64,
+    breaks: &[f64],
+    k: usize,
+    sample: impl FnMut(&[f64]) -> Result<Vec<f64>, E>,
+) -> Result<Vec<Interpolant>, BuildError<E>> {
     if end <= 0.0 {
         return Ok(vec![Interpolant::zero(end.max(0.0)); k]);
     }
-    build_on(0.0, end, true, k, sample)
+    let mut cuts: Vec<f64> = breaks
+        .iter()
+        .copied()
+        .filter(|&b| b > 1e-13 * end && b < end * (1.0 - 1e-13))
+        .collect();
+    cuts.sort_by(f64::total_cmp);
+    cuts.dedup_by(|b, a| *b - *a <= 1e-13 * end);
+    cuts.push(end);
+    let mut pending: Vec<(f64, f64)> =
+        Vec::with_capacity(GRID.len() + SEGMENT_GRID.len() * cuts.len());
+    let mut from = 0.0;
+    for (i, &to) in cuts.iter().enumerate() {
+        let grid: &[f64] = if i == 0 { &GRID } else { &SEGMENT_GRID };
+        let width = to - from;
+        pending.extend(grid.windows(2).map(|g| {
+            let b = if g[1] == 1.0 { to } else { from + g[1] * width };
+            (from + g[0] * width, b)
+        }));
+        from = to;
+    }
+    refine(pending, &cuts, end, k, sample)
 }
 
 /// [`build`] on `[a, b]` (`a < b`), the first grid graded towards `a`
@@ -378,15 +430,26 @@ pub fn build_on<E>(
     b: f64,
     graded: bool,
     k: usize,
-    mut sample: impl FnMut(&[f64]) -> Result<Vec<f64>, E>,
+    sample: impl FnMut(&[f64]) -> Result<Vec<f64>, E>,
 ) -> Result<Vec<Interpolant>, BuildError<E>> {
-    const GRID: [f64; 16] = [
-        0.0, 1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 0.03, 0.1, 0.2, 0.35, 0.5, 0.65, 0.8, 1.0,
-    ];
     let grid: &[f64] = if graded { &GRID } else { &[0.0, 1.0] };
     let (span, end) = (b - a, b.abs().max(b - a));
     let at = |g: f64| if g == 1.0 { b } else { a + g * span };
-    let mut pending: Vec<(f64, f64)> = grid.windows(2).map(|g| (at(g[0]), at(g[1]))).collect();
+    let pending: Vec<(f64, f64)> = grid.windows(2).map(|g| (at(g[0]), at(g[1]))).collect();
+    refine(pending, &[], end, k, sample)
+}
+
+/// Halves the `pending` panels until every component's Chebyshev tail,
+/// times the panel's width, is below [`MASS_TOLERANCE`] (or its rounding
+/// floor, relative to `end`); at the `cuts` (sorted) the panels' end values
+/// are one-sided limits.
+fn refine<E>(
+    mut pending: Vec<(f64, f64)>,
+    cuts: &[f64],
+    end: f64,
+    k: usize,
+    mut sample: impl FnMut(&[f64]) -> Result<Vec<f64>, E>,
+) -> Result<Vec<Interpolant>, BuildError<E>> {
     let mut done: Vec<Vec<(f64, f64, [f64; POINTS])>> = vec![Vec::new(); k];
     let basis = basis();
     for _ in 0..MAX_ROUNDS {
@@ -395,7 +458,18 @@ pub fn build_on<E>(
         }
         let points: Vec<f64> = pending
             .iter()
-            .flat_map(|&(a, b)| panel_points(a, b))
+            .flat_map(|&(a, b)| {
+                let mut p = panel_points(a, b);
+                // at a break, the one-sided limit from inside the panel
+                let nudge = |x: f64| (BREAK_NUDGE * x.abs().max(1.0)).min((b - a) / 64.0);
+                if cuts.binary_search_by(|c| c.total_cmp(&b)).is_ok() && b < end {
+                    p[0] = b - nudge(b);
+                }
+                if cuts.binary_search_by(|c| c.total_cmp(&a)).is_ok() {
+                    p[POINTS - 1] = a + nudge(a);
+                }
+                p
+            })
             .collect();
         let values = sample(&points).map_err(BuildError::Sample)?;
         if values.len() != points.len() * k || values.iter().any(|v| !v.is_finite()) {
@@ -493,6 +567,36 @@ mod tests {
             assert!((f.convolve_at(&g, t) - exact).abs() < 1e-13, "t={t}");
             assert!((g.convolve_at(&f, t) - exact).abs() < 1e-13, "t={t}");
         }
+    }
+
+    #[test]
+    fn panels_start_at_breaks_where_the_function_jumps() {
+        // e^{−t} before 0.1 + 0.2, 3 e^{−t} from then on: ∫_0^t in closed form
+        let at = 0.1 + 0.2;
+        let f = |t: f64| if t < at { (-t).exp() } else { 3.0 * (-t).exp() };
+        let g =
+            build_with_breaks::<()>(5.0, &[at], 1, |pts| Ok(pts.iter().map(|&t| f(t)).collect()))
+                .unwrap()
+                .remove(0);
+        assert!(g.edges().contains(&at));
+        for t in [0.1, 0.3, 0.7, 5.0] {
+            let exact = if t < at {
+                -(-t).exp_m1()
+            } else {
+                -(-at).exp_m1() + 3.0 * ((-at).exp() - (-t).exp())
+            };
+            assert!((g.integral_to(t) - exact).abs() < 1e-14, "t={t}");
+        }
+        // without the break the jump is chased by halving: many more panels
+        let h = build::<()>(5.0, 1, |pts| Ok(pts.iter().map(|&t| f(t)).collect()))
+            .unwrap()
+            .remove(0);
+        assert!(
+            g.panels() * 2 < h.panels(),
+            "{} vs {}",
+            g.panels(),
+            h.panels()
+        );
     }
 
     #[test]

@@ -1,6 +1,8 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
+pub mod expoly;
+
 use btrel::curve::{curve, CurveOptions};
 use btrel::sim::{simulate, Estimate, SimOptions, SimResult};
 use btrel::tree::{parse_str, Tree};
