@@ -125,7 +125,7 @@ impl Law {
 /// A child as its chain (when it has one) or its law.
 enum Piece {
     Chain(PhaseChain),
-    Law(Law),
+    Law(Box<Law>),
 }
 
 /// For every node, whether a leaf below (or the node) has a time that is
@@ -408,7 +408,7 @@ impl Builder<'_> {
         };
         let key = (id, self.end.to_bits());
         if let Some(l) = self.memo.0.borrow().get(&key) {
-            return Ok(Piece::Law(l.clone()));
+            return Ok(Piece::Law(Box::new(l.clone())));
         }
         let law = if renewal_law::holds_race(self.tree, id) {
             // a renewal race (Nav2's re-planning) below; a copy's law (a
@@ -434,7 +434,7 @@ impl Builder<'_> {
             self.opaque(id, fallback)?
         };
         self.memo.0.borrow_mut().insert(key, law.clone());
-        Ok(Piece::Law(law))
+        Ok(Piece::Law(Box::new(law)))
     }
 
     /// The first leaf below `id` without a phase-type time.
@@ -450,7 +450,7 @@ impl Builder<'_> {
     /// The child's law (a chain's sampled).
     fn law(&self, id: NodeId) -> Result<Law, AnalysisError> {
         match self.piece(id)? {
-            Piece::Law(l) => Ok(l),
+            Piece::Law(l) => Ok(*l),
             Piece::Chain(c) => self.chain_law(id, &c),
         }
     }
@@ -805,7 +805,7 @@ impl Builder<'_> {
                         let chain = phase::concatenate(std::mem::take(&mut run), sequence);
                         laws.push(self.chain_law(id, &chain)?);
                     }
-                    laws.push(l);
+                    laws.push(*l);
                 }
             }
         }
