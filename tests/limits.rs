@@ -45,18 +45,20 @@ fn sixteen_stiff_subtrees_are_reported() {
 }
 
 #[test]
-fn a_mixed_timing_tree_too_large_for_its_shifted_mixture_is_refused_within_the_budget() {
-    // a 300-leaf random Sequence/Fallback tree, a third each deterministic,
-    // hybrid and exponential actions: its shifted phase-type mixture would
-    // hold ~4e7 phases. The convolutions were built before the budget was
-    // checked: 24 s and 4.5 GB, and under a 2 GB address-space limit the
-    // process aborted ("memory allocation failed"). Now the size is checked
-    // before each convolution: a refusal (exit 1) naming the budget, under
-    // the same limit.
+fn a_mixed_timing_tree_too_large_for_its_shifted_mixture_is_answered_within_the_memory_limit() {
+    // a random Sequence/Fallback tree, a third each deterministic, hybrid
+    // and exponential actions. At 300 leaves its shifted phase-type mixture
+    // would hold ~4e7 phases: its convolutions were built before the budget
+    // was checked (24 s and 4.5 GB, and under a 2 GB address-space limit
+    // the process aborted); then the size was checked first and the curve
+    // refused. Now the mixture hands over to the composed laws with atoms
+    // where it exceeds the budget: a 40-leaf tree is answered under the same
+    // 2 GB limit, every point written (its values: tests/law_atoms.rs and
+    // tests/mixed_timing.rs; 300 leaves take about a minute, README).
     use btrel::generate::{random_tree_yaml, Shape};
     let dir = tempfile::tempdir().unwrap();
-    let file = dir.path().join("mixed300.yaml");
-    std::fs::write(&file, random_tree_yaml(&Shape::mixed_timing(300), 1)).unwrap();
+    let file = dir.path().join("mixed40.yaml");
+    std::fs::write(&file, random_tree_yaml(&Shape::mixed_timing(40), 1)).unwrap();
     let out = dir.path().join("c.csv");
     let script = format!(
         "ulimit -v 2000000; exec '{}' curve '{}' --t-end 100 --points 1000 -o '{}'",
@@ -69,7 +71,7 @@ fn a_mixed_timing_tree_too_large_for_its_shifted_mixture_is_refused_within_the_b
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(1), "{stderr}");
-    assert!(stderr.contains("more than the budget"), "{stderr}");
-    assert!(!out.exists(), "nothing half-written");
+    assert_eq!(o.status.code(), Some(0), "{stderr}");
+    let csv = std::fs::read_to_string(&out).unwrap();
+    assert_eq!(csv.lines().count(), 1001, "a header and 1,000 points");
 }
