@@ -199,14 +199,8 @@ fn nav2_default_attempt_curve_tends_to_the_report() {
     assert!((late.success - f.ps).abs() < 1e-10, "{late:?} vs {f:?}");
     assert!((late.failure - f.pf).abs() < 1e-10, "{late:?} vs {f:?}");
     // MTTS from the curve: E[T·1{S}] = ∫ (P(S) − S(t)) dt over the levels
-    let times: Vec<f64> = (0..=15000).map(|k| k as f64 * 0.1).collect();
-    let pts = curve(&t, 0, &times, &CurveOptions::default()).expect("curve");
     // trapezoid on a 0.1 s grid: a check of the order of 1e-3 relative
-    let tail: f64 = pts
-        .windows(2)
-        .map(|w| 0.05 * ((f.ps - w[0].success) + (f.ps - w[1].success)))
-        .sum();
-    let mtts = tail / f.ps;
+    let mtts = mtts_by_trapezoid(&t, f.ps, 15000);
     assert!(
         (mtts - f.mtts.unwrap()).abs() < 1e-3 * f.mtts.unwrap(),
         "{mtts} vs {f:?}"

@@ -88,13 +88,7 @@ fn the_composed_curve_tends_to_the_report() {
         );
         // MTTS from the curve: E[T·1{S}] = ∫ (P(S) − S(t)) dt (trapezoid
         // on a 0.1 s grid: a check of the order of 1e-3 relative)
-        let times: Vec<f64> = (0..=8000).map(|k| k as f64 * 0.1).collect();
-        let pts = curve(&t, 0, &times, &CurveOptions::default()).expect("curve");
-        let tail: f64 = pts
-            .windows(2)
-            .map(|w| 0.05 * ((f.ps - w[0].success) + (f.ps - w[1].success)))
-            .sum();
-        let mtts = tail / f.ps;
+        let mtts = mtts_by_trapezoid(&t, f.ps, 8000);
         let want = f.mtts.expect("it succeeds");
         assert!(
             (mtts - want).abs() < 1e-3 * want,
