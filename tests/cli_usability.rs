@@ -427,18 +427,18 @@ fn hints_are_options_of(cmd: &str, err: &str) {
 
 #[test]
 fn analysis_hints_name_only_options_of_the_command() {
-    // mixed timing not answered exactly: a mixed Parallel whose two
-    // thresholds can both be met, inside a Sequence, where the shifted
-    // mixture is over a small budget (the composed laws hold no such race)
+    // mixed timing not answered exactly: a mixed Parallel with an
+    // independent failure threshold inside a Sequence (the composed laws
+    // hold no such race)
     let mixed = fixture(
         "mixed.yaml",
         "tree: {sequence: {children: [{action: {ps: 0.9, mu: 1, nu: 1}}, {parallel: \
-         {success_threshold: 1, failure_threshold: 1, children: [\
+         {success_threshold: 2, failure_threshold: 1, children: [\
          {action: {name: timer, ps: 0.5, tau_s: 3, tau_f: 1}}, \
-         {action: {ps: 0.8, mu: 2, nu: 4}}]}}]}}\n",
+         {action: {ps: 0.8, mu: 2, nu: 4}}, {action: {ps: 0.7, mu: 1, nu: 1}}]}}]}}\n",
     );
     let m = mixed.path.to_str().unwrap();
-    let (code, _, err) = run(&["curve", m, "--times", "1", "--max-states", "20"]);
+    let (code, _, err) = run(&["curve", m, "--times", "1"]);
     assert_eq!(code, 1, "{err}");
     assert!(
         err.contains("'timer'") && err.contains("btrel simulate"),
@@ -446,6 +446,45 @@ fn analysis_hints_name_only_options_of_the_command() {
     );
     assert!(err.contains("--timing deterministic"), "{err}");
     hints_are_options_of("curve", &err);
+
+    // a race with a fixed time that the shifted mixture holds, over a small
+    // budget: the refusal names the budget and a larger one, which answers
+    let race = fixture(
+        "race.yaml",
+        "tree: {sequence: {children: [{action: {ps: 0.9, mu: 1, nu: 1}}, {parallel: \
+         {success_threshold: 1, failure_threshold: 1, children: [\
+         {action: {name: timer, ps: 0.5, tau_s: 3, tau_f: 1}}, \
+         {action: {ps: 0.8, mu: 2, nu: 4}}]}}]}}\n",
+    );
+    let r = race.path.to_str().unwrap();
+    let mut budget = 20;
+    let mut refusals = 0;
+    loop {
+        let b = budget.to_string();
+        let (code, _, err) = run(&["curve", r, "--times", "1", "--max-states", &b]);
+        if code == 0 {
+            break;
+        }
+        assert_eq!(code, 1, "{err}");
+        assert!(!err.contains("mixes deterministic"), "{err}");
+        hints_are_options_of("curve", &err);
+        let at = err
+            .find("`--max-states ")
+            .expect("a larger budget is named");
+        let named: usize = err[at + 14..]
+            .split('`')
+            .next()
+            .and_then(|n| n.parse().ok())
+            .expect("a number");
+        assert!(named > budget, "{err}");
+        budget = named;
+        refusals += 1;
+        assert!(
+            refusals < 5,
+            "the named budgets do not reach an answer: {err}"
+        );
+    }
+    assert!(refusals >= 1, "a budget of 20 is too small for this race");
 
     // a budget exceeded: report has --method and --max-states, no --timing
     let f = fixture(

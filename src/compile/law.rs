@@ -606,7 +606,12 @@ impl Builder<'_> {
             // thresholds that can both be met: ties in child order
             NodeKind::Parallel { .. } => match det::atoms(self.tree, id, self.max_states)? {
                 Some(atoms) => Ok(self.atoms_law(&atoms)),
-                None => Err(fallback),
+                // the shifted mixture holds such a race within a budget:
+                // where it is over the budget, the budget is what stops it
+                None => match super::shifted::shifted_law(self.tree, id, self.max_states) {
+                    Err(e @ AnalysisError::StateBudget { .. }) => Err(e),
+                    _ => Err(fallback),
+                },
             },
             // Nav2 nodes as their primitive equivalents (`primitive_view`)
             NodeKind::Sequence { children }

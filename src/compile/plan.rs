@@ -533,9 +533,17 @@ impl<'t> Plan<'t> {
                     Ok(Some(law)) => {
                         curve_query::curve_by_shifted(&law, times, options, &node.name)
                     }
-                    // too many components, or a form the mixture cannot hold
-                    Ok(None) | Err(AnalysisError::StateBudget { .. }) => {
-                        law::curve_by_laws(self.tree, id, times, options, mixed)
+                    // a form the mixture cannot hold
+                    Ok(None) => law::curve_by_laws(self.tree, id, times, options, mixed),
+                    // too many components: where the composed laws cannot
+                    // hold the node either, the budget is what stops it
+                    Err(e @ AnalysisError::StateBudget { .. }) => {
+                        law::curve_by_laws(self.tree, id, times, options, e.clone()).map_err(|l| {
+                            match l {
+                                AnalysisError::MixedTiming { .. } => e,
+                                l => l,
+                            }
+                        })
                     }
                     Err(e) => Err(e),
                 }
