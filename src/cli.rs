@@ -1622,6 +1622,45 @@ fn simulate(args: SimulateArgs) -> Result<(), Failure> {
     })
 }
 
+/// A spinner with the elapsed time on standard error (a terminal only),
+/// shown once the work it watches has taken more than a second: a curve of
+/// a large mixed-timing tree can take minutes, with nothing else to show.
+struct Spinner(Option<indicatif::ProgressBar>);
+
+impl Spinner {
+    fn start(message: String) -> Spinner {
+        use std::io::IsTerminal;
+        if !io::stderr().is_terminal() {
+            return Spinner(None);
+        }
+        let bar = indicatif::ProgressBar::hidden();
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{spinner} {msg} ({elapsed}; `btrel simulate` estimates it in seconds)",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+        );
+        bar.set_message(message);
+        let watch = bar.clone();
+        std::thread::spawn(move || {
+            std::thread::sleep(std::time::Duration::from_secs(1));
+            if !watch.is_finished() {
+                watch.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+                watch.enable_steady_tick(std::time::Duration::from_millis(200));
+            }
+        });
+        Spinner(Some(bar))
+    }
+}
+
+impl Drop for Spinner {
+    fn drop(&mut self) {
+        if let Some(bar) = &self.0 {
+            bar.finish_and_clear();
+        }
+    }
+}
+
 fn curve(args: CurveArgs) -> Result<(), Failure> {
     if matches!(args.timing, TimingArg::Deterministic) && matches!(args.method, MethodArg::Book) {
         return Err(Failure::input(
@@ -1652,8 +1691,10 @@ fn curve(args: CurveArgs) -> Result<(), Failure> {
         .transpose()?;
     let mut curves = Vec::with_capacity(nodes.len());
     for &id in &nodes {
+        let spinner = Spinner::start(format!("computing π(t) of '{}'", tree.node(id).name));
         let points = btrel::curve::curve(&tree, id, &times, &options)
             .map_err(analysis_failure(Cmd::Curve, options.method))?;
+        drop(spinner);
         let simulated = match &sim {
             Some(o) => Some(run_simulation(&tree, id, o)?.curve),
             None => None,
@@ -1939,7 +1980,10 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
             timing: *timing,
             ..base
         };
-        match btrel::curve::curve(t, *id, &times, &options) {
+        let spinner = Spinner::start(format!("computing π(t) of '{}'", t.node(*id).name));
+        let computed = btrel::curve::curve(t, *id, &times, &options);
+        drop(spinner);
+        match computed {
             Ok(points) => {
                 exact_drawn = true;
                 series.extend(curve_series(label, &points, *style))
