@@ -45,6 +45,9 @@ node is one of
 Numbers are decimal strings, read exactly. Output (stdout, JSON): per tree,
 the nodes in pre-order, each {"ps", "pf", "mtts", "mttf", "success":
 [S(t)...], "failure": [F(t)...]} as decimal strings (null where undefined).
+With an optional "horizon": "H" (at least every time) in the input, only
+what starts by H is kept (below) and each node has "success" and "failure"
+only: exact at every t <= H, and much faster on large trees.
 """
 
 import json
@@ -58,6 +61,17 @@ from mpmath import mp, mpf
 mp.dps = 60
 
 ZERO = Fraction(0)
+
+# With a horizon H (the job's "horizon"), atoms and terms that start after H
+# are dropped as they are made: they are zero on [0, H], and every operation
+# (convolution, sums, products, integrals) only moves a start later, so every
+# value at t <= H is unchanged. Masses and moments then cover [0, H] only and
+# are not reported.
+HORIZON = None
+
+
+def beyond(tau):
+    return HORIZON is not None and tau > HORIZON
 
 
 def exp_neg(lam, x):
@@ -78,7 +92,7 @@ class Fn:
         self.terms = dict(terms or {})
 
     def add_term(self, k, lam, tau, c):
-        if c == 0:
+        if c == 0 or beyond(tau):
             return
         key = (k, lam, tau)
         self.terms[key] = self.terms.get(key, mpf(0)) + c
@@ -93,7 +107,7 @@ class Fn:
         return Fn({key: c * a for key, c in self.terms.items()})
 
     def shift(self, d):
-        return Fn({(k, lam, tau + d): c for (k, lam, tau), c in self.terms.items()})
+        return Fn({(k, lam, tau + d): c for (k, lam, tau), c in self.terms.items() if not beyond(tau + d)})
 
     def __mul__(self, other):
         out = Fn()
@@ -188,7 +202,7 @@ class Measure:
     __slots__ = ("atoms", "dens")
 
     def __init__(self, atoms=None, dens=None):
-        self.atoms = dict(atoms or {})
+        self.atoms = {tau: w for tau, w in (atoms or {}).items() if not beyond(tau)}
         self.dens = dens if dens is not None else Fn()
 
     def __add__(self, other):
@@ -201,7 +215,8 @@ class Measure:
         atoms = {}
         for t1, w1 in self.atoms.items():
             for t2, w2 in other.atoms.items():
-                atoms[t1 + t2] = atoms.get(t1 + t2, mpf(0)) + w1 * w2
+                if not beyond(t1 + t2):
+                    atoms[t1 + t2] = atoms.get(t1 + t2, mpf(0)) + w1 * w2
         dens = Fn()
         for t1, w1 in self.atoms.items():
             dens = dens + other.dens.shift(t1).scale(w1)
@@ -235,7 +250,7 @@ class Measure:
 
 
 def delta(tau, w=1):
-    return Measure({tau: mpf(w)})
+    return Measure() if beyond(tau) else Measure({tau: mpf(w)})
 
 
 def side(w, dur):
@@ -414,25 +429,29 @@ def num(x):
 
 
 def main():
+    global HORIZON
     job = json.load(sys.stdin)
     times = [Fraction(t) for t in job["times"]]
+    if job.get("horizon") is not None:
+        HORIZON = Fraction(job["horizon"])
+        assert all(t <= HORIZON for t in times), "every time within the horizon"
     result = []
     for tree in job["trees"]:
         laws = []
         law(tree, laws)
         nodes = []
         for s, f in laws:
-            ps, pf = s.mass(), f.mass()
-            nodes.append(
-                {
-                    "ps": num(ps),
-                    "pf": num(pf),
-                    "mtts": num(s.moment() / ps) if ps > mpf(10) ** -40 else None,
-                    "mttf": num(f.moment() / pf) if pf > mpf(10) ** -40 else None,
-                    "success": [num(s.cdf(t)) for t in times],
-                    "failure": [num(f.cdf(t)) for t in times],
-                }
-            )
+            node = {
+                "success": [num(s.cdf(t)) for t in times],
+                "failure": [num(f.cdf(t)) for t in times],
+            }
+            if HORIZON is None:
+                # masses and moments over all time (not known within a horizon)
+                ps, pf = s.mass(), f.mass()
+                node["ps"], node["pf"] = num(ps), num(pf)
+                node["mtts"] = num(s.moment() / ps) if ps > mpf(10) ** -40 else None
+                node["mttf"] = num(f.moment() / pf) if pf > mpf(10) ** -40 else None
+            nodes.append(node)
         result.append(nodes)
     json.dump(result, sys.stdout)
 

@@ -104,7 +104,27 @@ pub fn to_json(t: &Tree, id: NodeId) -> Option<Value> {
 /// The reference's answer for `trees` (JSON forms) at `times` (decimal
 /// strings): per tree, the nodes in pre-order (see reference/expoly.py).
 pub fn expoly(py: &PathBuf, times: &[&str], trees: &[Value]) -> Vec<Vec<Value>> {
-    let input = json!({"times": times, "trees": trees}).to_string();
+    run_expoly(py, json!({"times": times, "trees": trees}))
+}
+
+/// [`expoly`] keeping only what starts by `horizon` (at least every time):
+/// each node's `success` and `failure` at the times, exact, without masses
+/// or moments — for trees whose laws over all time are too large.
+#[allow(dead_code)]
+pub fn expoly_within(
+    py: &PathBuf,
+    times: &[&str],
+    horizon: &str,
+    trees: &[Value],
+) -> Vec<Vec<Value>> {
+    run_expoly(
+        py,
+        json!({"times": times, "horizon": horizon, "trees": trees}),
+    )
+}
+
+fn run_expoly(py: &PathBuf, job: Value) -> Vec<Vec<Value>> {
+    let input = job.to_string();
     let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("reference/expoly.py");
     let mut child = Command::new(py)
         .arg(&script)
