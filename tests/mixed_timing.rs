@@ -296,3 +296,62 @@ fn bt_cpp_sleep_and_delay_are_fixed_times() {
         );
     }
 }
+
+/// `P(Gamma(n, rate) ≤ x)` for an integer shape `n` (Erlang).
+fn erlang_cdf(n: u32, rate: f64, x: f64) -> f64 {
+    if x <= 0.0 {
+        return 0.0;
+    }
+    let (mut term, mut sum) = (1.0, 1.0);
+    for k in 1..n {
+        term *= rate * x / k as f64;
+        sum += term;
+    }
+    1.0 - (-rate * x).exp() * sum
+}
+
+/// BT.CPP's `Timeout` over a loop with a fixed wait whose series, unbounded,
+/// exceeds the budget (`p = 0.999`: the unrolled repetitions would hold
+/// about 4e6 phases): the deadline ends the node by 3 s, so only the
+/// repetitions that start by then are built (`shifted_law_within`).
+///
+/// Closed form: the watch loop repeats `wait 0.1; check` until the check
+/// fails (each check Exp(20) long whatever its outcome, failing w.p.
+/// 0.001), so after N ~ Geometric(0.001) checks it fails at `L = 0.1 N +
+/// Gamma(N, 20)`; then `fix` succeeds after Y ~ Exp(1) w.p. 0.9. With `x =
+/// t − 0.1 n`, `P(Gamma(n, 20) + Y ≤ x) = P(Gamma(n, 20) ≤ x) − e^{−x}
+/// (20/19)^n P(Gamma(n, 19) ≤ x)`, so `S(t) = 0.9 Σ_n 0.001·0.999^{n−1}
+/// P(Gamma(n, 20) + Y ≤ t − 0.1 n)` for t < 3, and `P(S) = S(3⁻)`.
+#[test]
+fn a_timeout_over_a_long_loop_with_a_fixed_wait_is_exact() {
+    let yaml = "tree: {parallel: {name: timeout, success_threshold: 1, failure_threshold: 1, \
+        children: [{action: {name: deadline, ps: 0.0, pf: 1.0, tau_f: 3}}, \
+        {fallback: {children: [{until_failure: {name: watch, child: {sequence: {children: [\
+        {action: {ps: 1.0, tau_s: 0.1}}, {action: {name: check, ps: 0.999, mu: 20, nu: 20}}]}}}}, \
+        {action: {name: fix, ps: 0.9, mu: 1, nu: 2}}]}}]}}";
+    let s = |t: f64| -> f64 {
+        (1..)
+            .map(|n: u32| (n, t - 0.1 * n as f64))
+            .take_while(|&(_, x)| x > 0.0)
+            .map(|(n, x)| {
+                let pn = 0.001 * 0.999f64.powi(n as i32 - 1);
+                let both = erlang_cdf(n, 20.0, x)
+                    - (-x).exp() * (20.0f64 / 19.0).powi(n as i32) * erlang_cdf(n, 19.0, x);
+                0.9 * pn * both
+            })
+            .sum()
+    };
+    let t = tree(yaml);
+    let f = root_figures(&t);
+    close("ps", f.ps, s(3.0));
+    close("pf", f.pf, 1.0 - s(3.0));
+    let times = [1.0, 2.0, 2.95, 3.0, 5.0];
+    let pts = btrel::curve::curve(&t, 0, &times, &Default::default()).expect("curve");
+    for p in &pts {
+        let want = if p.t < 3.0 { s(p.t) } else { s(3.0) };
+        close(&format!("S({})", p.t), p.success, want);
+    }
+    assert_eq!(pts[3].running, 0.0, "{pts:?}");
+    let sim = simulate_root(&t, 400_000, &times);
+    assert_root_and_curve_within_z("timeout over a loop", f, &pts, &sim);
+}

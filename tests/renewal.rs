@@ -652,3 +652,112 @@ fn nav2_default_attempt_is_reported_exactly_and_matches_simulation() {
     println!("Nav2 default attempt: {f:?} in {:?}", started.elapsed());
     assert_root_matches_simulation(&tree, 100_000);
 }
+
+/// `(ps, MTTS, MTTF)` of the race of the loop's time L (transform `lam`)
+/// against R, given R's Success density `Σ c e^{−λt}` (`success`) and its
+/// running probability `Σ r e^{−κt}` (`running`): the node succeeds iff R
+/// succeeds before L, so `P(S) = Σ c I(λ)`, `E[T·1{S}] = Σ c J(λ)` and
+/// `E[T] = ∫ P(R running) P(L > t) dt = Σ r I(κ)` ([`i_j`]).
+fn race_of_sums(
+    lam: &dyn Fn(f64) -> (f64, f64),
+    success: &[(f64, f64)],
+    running: &[(f64, f64)],
+) -> (f64, f64, f64) {
+    let (mut ps, mut ts, mut mean) = (0.0, 0.0, 0.0);
+    for &(c, l) in success {
+        let (i, j) = i_j(lam, l);
+        ps += c * i;
+        ts += c * j;
+    }
+    for &(r, k) in running {
+        mean += r * i_j(lam, k).0;
+    }
+    (ps, ts / ps, (mean - ts) / (1.0 - ps))
+}
+
+/// MoveIt Pro's `mpc_pose_tracking` shape: a Parallel with success
+/// threshold 2 and failure threshold 1 over a loop that never returns (its
+/// body cannot fail), a loop that re-runs an action after a fixed wait until
+/// it fails, and two actions A and B. The first loop counts towards no
+/// threshold; the second never succeeds and its Failure fails the node; so
+/// the node is the race of the second loop's time L against R =
+/// Parallel{2, 1}(A, B): with A succeeding w.p. `pa` after Exp(μa), failing
+/// after Exp(νa) (`qa = 1 − pa`), likewise B, R's Success density is
+/// `pa pb (μa e^{−μa t} + μb e^{−μb t} − (μa + μb) e^{−(μa+μb)t})` and its
+/// running probability `P(no failure by t) − P(both succeeded by t)`, a sum
+/// of exponentials.
+#[test]
+fn a_wider_parallel_with_a_loop_is_the_race_of_the_loop_and_the_rest() {
+    let (d, p, a, b) = (0.1, 0.99, 10.0, 100.0);
+    let (pa, ma, na, pb, mb, nb) = (0.98, 5.0, 5.0, 0.9, 0.1, 0.2);
+    let (qa, qb) = (1.0 - pa, 1.0 - pb);
+    let lam = |x: f64| {
+        loop_transform(
+            d,
+            &[Path {
+                coef: p,
+                rates: vec![a],
+            }],
+            &[Path {
+                coef: 1.0 - p,
+                rates: vec![b],
+            }],
+            x,
+        )
+    };
+    let success = [
+        (pa * pb * ma, ma),
+        (pa * pb * mb, mb),
+        (-pa * pb * (ma + mb), ma + mb),
+    ];
+    let running = [
+        (pa * qb, nb),
+        (qa * pb, na),
+        (qa * qb, na + nb),
+        (pa * pb, ma),
+        (pa * pb, mb),
+        (-pa * pb, ma + mb),
+    ];
+    let want = race_of_sums(&lam, &success, &running);
+    let process = format!(
+        "{{until_failure: {{name: watch, child: {{sequence: {{children: [\
+         {{action: {{ps: 1.0, tau_s: {d}}}}}, {{action: {{name: check, ps: {p}, mu: {a}, nu: {b}}}}}]}}}}}}}}"
+    );
+    let endless = "{until_failure: {name: endless, child: {sequence: {children: [\
+         {action: {ps: 1.0, tau_s: 0.01}}, {action: {ps: 1.0, mu: 30}}]}}}}";
+    let node = format!(
+        "{{parallel: {{name: node, success_threshold: 2, failure_threshold: 1, children: [\
+         {endless}, {process}, {{action: {{name: A, ps: {pa}, mu: {ma}, nu: {na}}}}}, \
+         {{action: {{name: B, ps: {pb}, mu: {mb}, nu: {nb}}}}}]}}}}"
+    );
+    let t = tree(&format!("tree: {node}"));
+    assert_figures("Parallel{2, 1}", root_figures(&t), want, 1e-9);
+    // its curve (by levels of the wait) tends to the closed form's ps
+    let late = curve(&t, 0, &[400.0], &CurveOptions::default()).expect("curve")[0];
+    assert!(late.running < 1e-12, "{late:?}");
+    assert!(
+        (late.success - want.0).abs() < 1e-9,
+        "{late:?} vs {}",
+        want.0
+    );
+
+    // BT.CPP's Timeout over it (a 15 s deadline racing it, the deadline
+    // first): its law is the race's, cut at 15 s, where the rest fails
+    let tt = tree(&format!(
+        "tree: {{parallel: {{name: timeout, success_threshold: 1, failure_threshold: 1, children: [\
+         {{action: {{name: deadline, ps: 0.0, pf: 1.0, tau_f: 15}}}}, {node}]}}}}"
+    ));
+    let f = root_figures(&tt);
+    // P(S) is the race's S(15) (it has no atom there), from its curve
+    let s15 = curve(&t, 0, &[15.0], &CurveOptions::default()).expect("curve")[0].success;
+    assert!((f.ps - s15).abs() < 1e-9, "{f:?} vs S(15) = {s15}");
+    assert!(f.ps < want.0 && (f.ps + f.pf - 1.0).abs() < 1e-12, "{f:?}");
+    let times = [1.0, 10.0, 14.9, 15.0, 30.0];
+    let pts = curve(&tt, 0, &times, &CurveOptions::default()).expect("curve");
+    assert!(
+        pts[4].running == 0.0 && (pts[4].success - f.ps).abs() < 1e-9,
+        "{pts:?}"
+    );
+    let sim = simulate_root(&tt, 200_000, &times);
+    assert_root_and_curve_within_z("timeout", f, &pts, &sim);
+}

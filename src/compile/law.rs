@@ -148,6 +148,90 @@ fn non_markovian(tree: &Tree) -> Vec<bool> {
     out
 }
 
+/// A Parallel with thresholds M = 1, F = 1 over a deadline — an action that
+/// fails at a fixed time `D > 0` and cannot succeed — and one other child:
+/// BT.CPP's `Timeout` (the deadline first) or a user's race.
+pub(crate) struct DeadlineRace {
+    /// `D` (s).
+    pub(crate) time: f64,
+    /// The raced child.
+    pub(crate) child: NodeId,
+    /// The deadline comes first in child order (it wins a tie at `D`).
+    pub(crate) deadline_first: bool,
+}
+
+/// Node `id` as a [`DeadlineRace`], if it is one.
+pub(crate) fn deadline_race(tree: &Tree, id: NodeId) -> Option<DeadlineRace> {
+    let NodeKind::Parallel {
+        success_threshold: 1,
+        failure_threshold: 1,
+        children,
+    } = &tree.node(id).kind
+    else {
+        return None;
+    };
+    let [a, b] = children[..] else {
+        return None;
+    };
+    let deadline = |c: NodeId| match &tree.node(c).kind {
+        NodeKind::Action(x) if x.ps == 0.0 && x.pf == 1.0 => match x.failure {
+            Some(Duration::Fixed { time }) if time > 0.0 && time.is_finite() => Some(time),
+            _ => None,
+        },
+        _ => None,
+    };
+    match (deadline(a), deadline(b)) {
+        (Some(time), _) => Some(DeadlineRace {
+            time,
+            child: b,
+            deadline_first: true,
+        }),
+        (None, Some(time)) => Some(DeadlineRace {
+            time,
+            child: a,
+            deadline_first: false,
+        }),
+        (None, None) => None,
+    }
+}
+
+/// The figures `[P(S), P(F), E[T·1{S}], E[T·1{F}]]` of a deadline race
+/// (`Timeout`) whose child holds a race against a renewal process below
+/// (Nav2's re-planning, MoveIt Pro's `KeepRunningUntilFailure` beside an
+/// action): the node has returned by its deadline `D`, so its composed law
+/// on `[0, D]` is all of it (the child's law from its levels, see
+/// [`renewal_law`]); `None` for any other node. Exact but for the
+/// interpolation's estimate (1e-15 of mass per panel).
+pub(crate) fn deadline_figures(
+    tree: &Tree,
+    id: NodeId,
+    max_states: usize,
+) -> Result<Option<[f64; 4]>, AnalysisError> {
+    let Some(race) = deadline_race(tree, id) else {
+        return Ok(None);
+    };
+    if !renewal_law::holds_race(tree, race.child) {
+        return Ok(None);
+    }
+    let memo = LawMemo::default();
+    let mixed = non_markovian(tree);
+    let b = Builder {
+        tree,
+        end: race.time,
+        max_states,
+        memo: &memo,
+        mixed: &mixed,
+    };
+    let law = b.deadline(id, &race)?;
+    let [s, f] = &law.parts;
+    Ok(Some([
+        s.mass(),
+        f.mass(),
+        s.first_moment(),
+        f.first_moment(),
+    ]))
+}
+
 /// `π(t)` of `id` from its composed law, at `times`; `fallback` is the
 /// error returned where laws cannot help (its chain's budget error, or the
 /// mixed timing that the shifted mixture could not hold).
@@ -594,6 +678,13 @@ impl Builder<'_> {
     /// construction reported, returned where laws cannot help).
     fn opaque(&self, id: NodeId, fallback: AnalysisError) -> Result<Law, AnalysisError> {
         let node = self.tree.node(id);
+        if let Some(d) = deadline_race(self.tree, id) {
+            match self.deadline(id, &d) {
+                // a child without a composed law: as any race below
+                Err(AnalysisError::Unbounded { .. } | AnalysisError::MixedTiming { .. }) => {}
+                r => return r,
+            }
+        }
         match &node.kind {
             NodeKind::Action(_) => self.leaf_law(id),
             NodeKind::Parallel {
@@ -652,6 +743,56 @@ impl Builder<'_> {
             }
             _ => Err(fallback),
         }
+    }
+
+    /// A deadline racing one child (BT.CPP `Timeout`, [`deadline_race`]):
+    /// the child's law before the deadline `D`, and Failure at `D` for
+    /// what it has not returned by then; at `D` itself the deadline wins a
+    /// tie when it comes first in child order (BT.CPP's `Timeout`), the
+    /// child's return otherwise. Exact but for re-interpolating the
+    /// child's densities cut at `D` (the usual estimate).
+    fn deadline(&self, id: NodeId, race: &DeadlineRace) -> Result<Law, AnalysisError> {
+        let law = self.law(race.child)?;
+        let d = race.time;
+        if d > self.end && !same_time(d, self.end) {
+            // the deadline is after the horizon: the child's law is the node's
+            return Ok(law);
+        }
+        let before = |t: f64| {
+            if race.deadline_first {
+                t < d && !same_time(t, d)
+            } else {
+                t < d || same_time(t, d)
+            }
+        };
+        let cut = |m: &Measure| -> Result<Measure, AnalysisError> {
+            let atoms = m.atoms.iter().copied().filter(|a| before(a.0)).collect();
+            let density = match &m.density {
+                None => None,
+                Some(den) => {
+                    let mut breaks = m.breaks.clone();
+                    breaks.push(d);
+                    Some(self.density(id, &breaks, |points| {
+                        Ok(points
+                            .iter()
+                            .map(|&t| if t < d { den.eval(t) } else { 0.0 })
+                            .collect())
+                    })?)
+                }
+            };
+            let mut breaks = m.breaks.clone();
+            breaks.push(d);
+            Ok(self.measure(atoms, density, breaks, m.dropped))
+        };
+        let success = cut(&law.parts[SUCCESS])?;
+        let failure = cut(&law.parts[FAILURE])?;
+        let rest = (1.0 - success.mass() - failure.mass()).max(0.0);
+        let mut atoms = failure.atoms.clone();
+        atoms.push((d, rest));
+        let failure = self.measure(atoms, failure.density, failure.breaks, failure.dropped);
+        Ok(Law {
+            parts: [success, failure],
+        })
     }
 
     /// The law of a deterministic subtree's return instants.

@@ -480,6 +480,26 @@ pub fn concatenate(chains: Vec<PhaseChain>, sequence: bool) -> PhaseChain {
     out
 }
 
+/// The chain of a Parallel (named `name`) with thresholds `m` and `f` over
+/// children with `chains`, refused when it would exceed `max_states`.
+pub(crate) fn parallel_chain(
+    name: &str,
+    chains: &[PhaseChain],
+    m: usize,
+    f: usize,
+    max_states: usize,
+) -> Result<PhaseChain, AnalysisError> {
+    let policy = Policy::Parallel {
+        success_threshold: m,
+        failure_threshold: f,
+    };
+    product(chains, policy, max_states).ok_or_else(|| AnalysisError::StateBudget {
+        node: name.to_string(),
+        states: chains.iter().map(|c| (c.len() + 2) as f64).product(),
+        budget: max_states,
+    })
+}
+
 const SUCCEEDED: u32 = u32::MAX - 1;
 const FAILED: u32 = u32::MAX;
 

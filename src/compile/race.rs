@@ -47,7 +47,7 @@ use super::{atoms, counts, AnalysisError, Figures, Plan, Representation};
 use crate::solve::chain::PhaseChain;
 use crate::solve::quadrature::GaussLegendre;
 use crate::tree::nav2::MAX_RERUN_TERMS;
-use crate::tree::{NodeId, NodeKind};
+use crate::tree::{Duration, NodeId, NodeKind};
 
 /// Points of the quadrature rule (the error is estimated against half).
 const RULE: usize = 24;
@@ -127,10 +127,15 @@ impl Racer {
     /// ([`Plan`]): its phase chain, a shifted mixture (deterministic, mixed
     /// or looping subtrees), or a counted Parallel or race of its children's
     /// laws.
-    pub(crate) fn build(plan: &Plan, id: NodeId) -> Result<Racer, AnalysisError> {
+    ///
+    /// Exact on `[0, horizon]` only (a child of a node that has returned by
+    /// `horizon` whatever happens; `f64::INFINITY` for all time): a shifted
+    /// mixture keeps only the components that start by then
+    /// ([`shifted::shifted_law_within`]).
+    fn build_within(plan: &Plan, id: NodeId, horizon: f64) -> Result<Racer, AnalysisError> {
         let tree = plan.tree();
         let node = tree.node(id);
-        let shifted = || match shifted::shifted_law(tree, id, plan.max_states())? {
+        let shifted = || match shifted::shifted_law_within(tree, id, plan.max_states(), horizon)? {
             Some(law) => Ok(Racer::Shifted(law)),
             None => Err(AnalysisError::MixedTiming {
                 node: node.name.clone(),
@@ -147,7 +152,7 @@ impl Racer {
             },
             Representation::Atoms | Representation::Shifted => shifted(),
             Representation::Counted | Representation::Race => {
-                let (m, f, kids) = parallel_racers(plan, id)?;
+                let (m, f, kids) = parallel_racers(plan, id, horizon)?;
                 if !is_race(kids.len(), m, f) {
                     return Ok(Racer::Counted {
                         m,
@@ -662,26 +667,61 @@ pub fn resolve_instant(rows: &[Row], m: usize, f: usize) -> (f64, f64) {
 }
 
 /// The thresholds `(M, F capped at N − M + 1)` of Parallel `id` and its
-/// children's laws.
-fn parallel_racers(plan: &Plan, id: NodeId) -> Result<(usize, usize, Vec<Racer>), AnalysisError> {
+/// children's laws, exact on `[0, horizon]` and up to the instant by which
+/// the node has surely returned ([`sure_return`]), after which they are
+/// never read.
+fn parallel_racers(
+    plan: &Plan,
+    id: NodeId,
+    horizon: f64,
+) -> Result<(usize, usize, Vec<Racer>), AnalysisError> {
+    let tree = plan.tree();
     let NodeKind::Parallel {
         success_threshold: m,
         failure_threshold: f,
         children,
-    } = &plan.tree().node(id).kind
+    } = &tree.node(id).kind
     else {
         unreachable!("counted nodes and races are Parallel nodes")
     };
+    let f = (*f).min(children.len() + 1 - m);
+    let horizon = horizon.min(sure_return(tree, *m, f, children));
     let kids = children
         .iter()
-        .map(|&c| Racer::build(plan, c))
+        .map(|&c| Racer::build_within(plan, c, horizon))
         .collect::<Result<Vec<_>, _>>()?;
-    Ok((*m, (*f).min(children.len() + 1 - m), kids))
+    Ok((*m, f, kids))
+}
+
+/// An instant by which a Parallel with thresholds `m` and `f` (capped) has
+/// surely returned, or infinity: with `m = f = 1` (it returns with its first
+/// child, BT.CPP's `Timeout`) the earliest time by which a leaf child has
+/// surely returned — a deadline's fixed time.
+fn sure_return(tree: &crate::tree::Tree, m: usize, f: usize, children: &[NodeId]) -> f64 {
+    if m != 1 || f != 1 {
+        return f64::INFINITY;
+    }
+    let latest = |c: NodeId| -> Option<f64> {
+        let NodeKind::Action(a) = &tree.node(c).kind else {
+            return None;
+        };
+        let side = |p: f64, d: Option<Duration>| match (p > 0.0, d) {
+            (false, _) => Some(0.0),
+            (true, Some(Duration::Fixed { time })) => Some(time),
+            _ => None,
+        };
+        (a.ps + a.pf >= 1.0).then_some(())?;
+        Some(side(a.ps, a.success)?.max(side(a.pf, a.failure)?))
+    };
+    children
+        .iter()
+        .filter_map(|&c| latest(c))
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// The race node `id` (a Parallel whose thresholds can both be met).
 fn race_of(plan: &Plan, id: NodeId) -> Result<Race, AnalysisError> {
-    let (m, f, kids) = parallel_racers(plan, id)?;
+    let (m, f, kids) = parallel_racers(plan, id, f64::INFINITY)?;
     Race::new(plan.tree().node(id).name.clone(), m, f, kids)
 }
 
@@ -698,6 +738,15 @@ pub(crate) fn figures(
         Renewal::Figures(f) => return Ok(f),
         Renewal::TooLarge { error, terms } if terms > MAX_RERUN_TERMS as f64 => return Err(error),
         Renewal::TooLarge { .. } | Renewal::NotApplicable => {}
+    }
+    // a deadline over such a race (its law by levels, cut at the deadline)
+    if let Some([ps, pf, ts, tf]) = super::law::deadline_figures(tree, id, max_states)? {
+        return Ok(Figures {
+            ps,
+            pf,
+            mtts: (ps > 0.0).then(|| ts / ps),
+            mttf: (pf > 0.0).then(|| tf / pf),
+        });
     }
     let race = race_of(plan, id)?;
     let scale = child_figures

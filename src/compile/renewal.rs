@@ -63,6 +63,7 @@ use super::{phase, AnalysisError, Figures};
 use crate::solve::chain::PhaseChain;
 use crate::solve::dd::Dd;
 use crate::solve::expm::{self, MAX_DENSE_STATES};
+use crate::tree::nav2::outcomes;
 use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
 
 /// Most operations (exponential and passes) the method takes on.
@@ -95,7 +96,39 @@ pub(super) struct Parts {
     /// A first cycle that differs: its wait `d₀` (s) and re-run `C′₀`.
     pub(super) first: Option<(f64, NodeId)>,
     /// The raced subtree `R`.
-    pub(super) rest: NodeId,
+    pub(super) rest: Rest,
+}
+
+/// The side `R` that the re-run process races.
+pub(super) enum Rest {
+    /// A subtree.
+    Node(NodeId),
+    /// The other returning children of a wider Parallel (`node`) with
+    /// failure threshold 1: `R` is their Parallel with success threshold
+    /// `m` and failure threshold 1 (see [`parts`]).
+    Parallel {
+        node: NodeId,
+        m: usize,
+        children: Vec<NodeId>,
+    },
+}
+
+/// The phase chain of `R`.
+pub(super) fn rest_chain(
+    tree: &Tree,
+    rest: &Rest,
+    max_states: usize,
+) -> Result<PhaseChain, AnalysisError> {
+    match rest {
+        Rest::Node(n) => phase::chain_of(tree, *n, max_states),
+        Rest::Parallel { node, m, children } => {
+            let chains = children
+                .iter()
+                .map(|&c| phase::chain_of(tree, c, max_states))
+                .collect::<Result<Vec<_>, _>>()?;
+            phase::parallel_chain(&tree.node(*node).name, &chains, *m, 1, max_states)
+        }
+    }
 }
 
 /// The time of `w` when it is a wait: an action with ps 1 and a fixed
@@ -148,25 +181,64 @@ fn process(tree: &Tree, p: NodeId) -> Option<Process> {
     Some((d, c, Some((d0, c0))))
 }
 
-/// `Parallel{1, 1}(process, R)` (either order) with a re-run process.
+/// `Parallel{1, 1}(process, R)` (either order) with a re-run process; or
+/// a Parallel with M ≥ 1 and (effective) failure threshold 1 over one
+/// re-run process, children that never return (an endless loop: they
+/// count towards neither threshold) and others: the process never
+/// succeeds and its Failure fails the node, so the node is the race of the
+/// process against `R` = Parallel{M, 1}(the others), which returns when
+/// M of them have succeeded or one has failed (MoveIt Pro's
+/// `KeepRunningUntilFailure` beside the actions it watches).
 pub(super) fn parts(tree: &Tree, id: NodeId) -> Option<Parts> {
     let NodeKind::Parallel {
-        success_threshold: 1,
-        failure_threshold: 1,
+        success_threshold: m,
+        failure_threshold: f,
         children,
     } = &tree.node(id).kind
     else {
         return None;
     };
-    let [a, b] = children[..] else {
+    let (m, n) = (*m, children.len());
+    if m == 0 || m > n || (*f).min(n + 1 - m) != 1 {
+        return None;
+    }
+    // two children: the process (which may never return) and R
+    if let [a, b] = children[..] {
+        if m == 1 && *f == 1 {
+            let (p, rest) = if process(tree, a).is_some() {
+                (a, b)
+            } else {
+                (b, a)
+            };
+            let (wait, rerun, first) = process(tree, p)?;
+            return Some(Parts {
+                process: p,
+                wait,
+                rerun,
+                first,
+                rest: Rest::Node(rest),
+            });
+        }
+    }
+    let returning: Vec<NodeId> = children
+        .iter()
+        .copied()
+        .filter(|&c| outcomes(tree, c) != (false, false))
+        .collect();
+    let mut procs = returning.iter().filter(|&&c| process(tree, c).is_some());
+    let (Some(&p), None) = (procs.next(), procs.next()) else {
         return None;
     };
-    let (p, rest) = if process(tree, a).is_some() {
-        (a, b)
-    } else {
-        (b, a)
-    };
     let (wait, rerun, first) = process(tree, p)?;
+    let others: Vec<NodeId> = returning.iter().copied().filter(|&c| c != p).collect();
+    let rest = match others[..] {
+        _ if m <= others.len() => Rest::Parallel {
+            node: id,
+            m,
+            children: others,
+        },
+        _ => return None,
+    };
     Some(Parts {
         process: p,
         wait,
@@ -227,7 +299,14 @@ pub(crate) fn figures(
         }
     };
     let terms = series_terms(&c);
-    let r = match chain(p.rest)? {
+    let r = match rest_chain(tree, &p.rest, max_states).map_or_else(
+        |e| match e {
+            e @ AnalysisError::StateBudget { .. } => Ok(Err(Some(e))),
+            AnalysisError::NotMarkovian { .. } => Ok(Err(None)),
+            e => Err(e),
+        },
+        |c| Ok(Ok(c)),
+    )? {
         Ok(r) => r,
         Err(None) => return Ok(Renewal::NotApplicable),
         Err(Some(error)) => return Ok(Renewal::TooLarge { error, terms }),

@@ -121,7 +121,12 @@ fn chains(tree: &Tree, id: NodeId, max_states: usize) -> Result<Option<Chains>, 
             None => return Ok(None),
         }
     }
-    let (Some(rest), Some(rerun)) = (chain(p.rest)?, chain(p.rerun)?) else {
+    let rest = match renewal::rest_chain(tree, &p.rest, max_states) {
+        Ok(c) => Some(c),
+        Err(AnalysisError::NotMarkovian { .. }) => None,
+        Err(e) => return Err(e),
+    };
+    let (Some(rest), Some(rerun)) = (rest, chain(p.rerun)?) else {
         return Ok(None);
     };
     let first = match p.first {

@@ -150,6 +150,13 @@ fn same_time(a: f64, b: f64) -> bool {
     (a - b).abs() <= atoms::TIME_TOLERANCE * a.abs().max(b.abs()).max(1.0)
 }
 
+/// Whether a component shifted by `shift` starts by `horizon` (the same
+/// instant within [`atoms::TIME_TOLERANCE`]): one that starts later is zero
+/// on `[0, horizon]` and is dropped.
+fn starts_by(shift: f64, horizon: f64) -> bool {
+    shift <= horizon || same_time(shift, horizon)
+}
+
 /// Merges atoms at the same instant and drops zero weights.
 fn tidy(mut comps: Vec<Component>) -> Vec<Component> {
     comps.retain(|c| c.weight != 0.0);
@@ -175,16 +182,31 @@ fn tidy(mut comps: Vec<Component>) -> Vec<Component> {
 /// `a ⊛ b` for every pair, or `Err(size)` — before allocating anything —
 /// when the result would hold more than `room` phases (each component
 /// counted as at least one), `size` an upper bound of what it would hold.
-fn convolve(a: &[Component], b: &[Component], room: usize) -> Result<Vec<Component>, f64> {
-    let phases = |v: &[Component]| v.iter().map(|c| c.chain.len()).sum::<usize>() as f64;
-    let (na, nb) = (a.len() as f64, b.len() as f64);
-    let size = na * nb + nb * phases(a) + na * phases(b);
+fn convolve(
+    a: &[Component],
+    b: &[Component],
+    room: usize,
+    horizon: f64,
+) -> Result<Vec<Component>, f64> {
+    // the pairs that start by the horizon and their phases
+    let (mut pairs, mut size) = (0usize, 0.0f64);
+    for x in a {
+        for y in b {
+            if starts_by(x.shift + y.shift, horizon) {
+                pairs += 1;
+                size += 1.0 + (x.chain.len() + y.chain.len()) as f64;
+            }
+        }
+    }
     if size > room as f64 {
         return Err(size);
     }
-    let mut out = Vec::with_capacity(a.len() * b.len());
+    let mut out = Vec::with_capacity(pairs);
     for x in a {
         for y in b {
+            if !starts_by(x.shift + y.shift, horizon) {
+                continue;
+            }
             out.push(Component {
                 shift: x.shift + y.shift,
                 weight: x.weight * y.weight,
@@ -220,6 +242,42 @@ pub fn shifted_law(
     id: NodeId,
     max_states: usize,
 ) -> Result<Option<ShiftedLaw>, AnalysisError> {
+    shifted_law_within(tree, id, max_states, f64::INFINITY)
+}
+
+/// [`shifted_law`] exact on `[0, horizon]` only: components that start
+/// after `horizon` are dropped as they are made (every operation only moves
+/// a start later), so a loop's series stops where its repetitions start
+/// beyond the horizon. For a node whose parent has returned by `horizon`
+/// whatever happens (a child of a `Timeout`'s race): its law after that
+/// instant is never read. Without a horizon (`f64::INFINITY`) it is
+/// [`shifted_law`].
+pub fn shifted_law_within(
+    tree: &Tree,
+    id: NodeId,
+    max_states: usize,
+    horizon: f64,
+) -> Result<Option<ShiftedLaw>, AnalysisError> {
+    let law = shifted_law_unclipped(tree, id, max_states, horizon)?;
+    Ok(law.map(|l| {
+        let clip = |v: Vec<Component>| -> Vec<Component> {
+            v.into_iter()
+                .filter(|c| starts_by(c.shift, horizon))
+                .collect()
+        };
+        ShiftedLaw {
+            success: clip(l.success),
+            failure: clip(l.failure),
+        }
+    }))
+}
+
+fn shifted_law_unclipped(
+    tree: &Tree,
+    id: NodeId,
+    max_states: usize,
+    horizon: f64,
+) -> Result<Option<ShiftedLaw>, AnalysisError> {
     let node = tree.node(id);
     // Markovian subtrees: their exact chain, one component per outcome
     match phase::phase_chain(tree, id, max_states) {
@@ -252,7 +310,7 @@ pub fn shifted_law(
     let children = node.kind.children();
     let mut laws = Vec::with_capacity(children.len());
     for &c in children {
-        match shifted_law(tree, c, max_states)? {
+        match shifted_law_within(tree, c, max_states, horizon)? {
             Some(l) => laws.push(l),
             None => return Ok(None),
         }
@@ -268,11 +326,13 @@ pub fn shifted_law(
         // Nav2 nodes as their primitive equivalents (`primitive_view`)
         NodeKind::Sequence { .. }
         | NodeKind::Pipeline { .. }
-        | NodeKind::SequenceWithMemory { .. } => in_turn(laws, true, tree, id, max_states)?,
-        NodeKind::Fallback { .. } | NodeKind::RoundRobin { .. } => {
-            in_turn(laws, false, tree, id, max_states)?
+        | NodeKind::SequenceWithMemory { .. } => {
+            in_turn(laws, true, tree, id, max_states, horizon)?
         }
-        NodeKind::Flow(flow) => through_flow(&laws, flow, tree, id, max_states)?,
+        NodeKind::Fallback { .. } | NodeKind::RoundRobin { .. } => {
+            in_turn(laws, false, tree, id, max_states, horizon)?
+        }
+        NodeKind::Flow(flow) => through_flow(&laws, flow, tree, id, max_states, horizon)?,
         NodeKind::Decorator { decorator, .. } => {
             let l = laws.pop().expect("a decorator has a child");
             match decorator.as_primitive() {
@@ -289,15 +349,18 @@ pub fn shifted_law(
                     failure: l.success.into_iter().chain(l.failure).collect(),
                 },
                 Decorator::Retry { attempts } => {
-                    in_turn(vec![l; attempts], false, tree, id, max_states)?
+                    in_turn(vec![l; attempts], false, tree, id, max_states, horizon)?
                 }
-                Decorator::Repeat { times } => in_turn(vec![l; times], true, tree, id, max_states)?,
+                Decorator::Repeat { times } => {
+                    in_turn(vec![l; times], true, tree, id, max_states, horizon)?
+                }
                 Decorator::UntilFailure | Decorator::UntilSuccess => loop_series(
                     l,
                     *decorator == Decorator::UntilSuccess,
                     tree,
                     id,
                     max_states,
+                    horizon,
                 )?,
                 Decorator::Rate { .. } | Decorator::SingleTrigger => {
                     unreachable!("as_primitive maps Nav2 decorators to repeat 1")
@@ -335,6 +398,7 @@ fn in_turn(
     tree: &Tree,
     id: NodeId,
     max_states: usize,
+    horizon: f64,
 ) -> Result<ShiftedLaw, AnalysisError> {
     // `going`: the law of having continued through the children so far
     let mut going = vec![atom(0.0, 1.0)];
@@ -347,12 +411,12 @@ fn in_turn(
         };
         let over = |size: f64, now: usize| budget(tree, id, size + now as f64, max_states);
         let now = held(&[&going, &stopped]);
-        let s = convolve(&going, &stop, max_states.saturating_sub(now))
+        let s = convolve(&going, &stop, max_states.saturating_sub(now), horizon)
             .map_err(|size| over(size, now))?;
         stopped.extend(s);
         let now = held(&[&stopped]);
         going = tidy(
-            convolve(&going, &cont, max_states.saturating_sub(now))
+            convolve(&going, &cont, max_states.saturating_sub(now), horizon)
                 .map_err(|size| over(size, now))?,
         );
         within_budget(&going, &stopped, tree, id, max_states)?;
@@ -424,6 +488,7 @@ fn loop_series(
     tree: &Tree,
     id: NodeId,
     max_states: usize,
+    horizon: f64,
 ) -> Result<ShiftedLaw, AnalysisError> {
     let (again, end) = if until_success {
         (l.failure, l.success)
@@ -443,6 +508,14 @@ fn loop_series(
             .ceil()
             .max(1.0)
     };
+    // within a horizon: the k-th repetition starts after k times the
+    // shortest shift of a repetition, so later ones are dropped anyway
+    let shortest = again.iter().map(|c| c.shift).fold(f64::INFINITY, f64::min);
+    let terms = if horizon.is_finite() && shortest > 0.0 {
+        terms.min((horizon / shortest).floor() + 2.0)
+    } else {
+        terms
+    };
     let per_term: usize = again.iter().map(|c| c.chain.len().max(1)).sum();
     if terms > MAX_LOOP_TERMS as f64 {
         return Err(budget(tree, id, terms * per_term.max(1) as f64, max_states));
@@ -452,15 +525,18 @@ fn loop_series(
     for _ in 0..terms as usize {
         let over = |size: f64, now: usize| budget(tree, id, size + now as f64, max_states);
         let now = held(&[&going, &stopped]);
-        let s = convolve(&going, &end, max_states.saturating_sub(now))
+        let s = convolve(&going, &end, max_states.saturating_sub(now), horizon)
             .map_err(|size| over(size, now))?;
         stopped.extend(s);
         let now = held(&[&stopped]);
         going = tidy(
-            convolve(&going, &again, max_states.saturating_sub(now))
+            convolve(&going, &again, max_states.saturating_sub(now), horizon)
                 .map_err(|size| over(size, now))?,
         );
         within_budget(&going, &stopped, tree, id, max_states)?;
+        if going.is_empty() {
+            break;
+        }
     }
     // the mass still repeating after K rounds ends the loop there (as the
     // unrolled chain of a Markovian child does): P(end) stays 1
@@ -489,6 +565,7 @@ fn through_flow(
     tree: &Tree,
     id: NodeId,
     max_states: usize,
+    horizon: f64,
 ) -> Result<ShiftedLaw, AnalysisError> {
     let mut entered: Vec<Vec<Component>> = vec![Vec::new(); flow.states.len()];
     entered[0].push(atom(0.0, 1.0));
@@ -502,7 +579,7 @@ fn through_flow(
         for (side, next) in [(&l.success, s.on_success), (&l.failure, s.on_failure)] {
             let now = held(&[&here, &out.success, &out.failure])
                 + entered.iter().map(|e| held(&[e])).sum::<usize>();
-            let comps = convolve(&here, side, max_states.saturating_sub(now))
+            let comps = convolve(&here, side, max_states.saturating_sub(now), horizon)
                 .map_err(|size| budget(tree, id, size + now as f64, max_states))?;
             match next {
                 FlowNext::State(j) => entered[j].extend(comps),
