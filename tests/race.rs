@@ -399,3 +399,58 @@ fn xml_timeout_is_a_race_against_a_deadline_that_wins_ties() {
     let tie = &sim.nodes[t.find("tie").unwrap()];
     assert_within_z("tie pf", &tie.pf, 1.0);
 }
+
+/// A Sequence above a race of exponential actions, `Sequence(A,
+/// Parallel{1, 1}(B, C))`, by the composed laws (a budget of 2 states: the
+/// race's product chain does not fit, its children do), against a closed
+/// form: the race returns with the first of B and C, so its Success density
+/// is `Σ_X ps_X μ_X e^{−μ_X t} · P(the other running at t)` (`P(running) =
+/// ps e^{−μt} + pf e^{−νt}`), a sum of terms `c e^{−λt}`, likewise Failure;
+/// after A's Success (density `pa μa e^{−μa t}`) a term contributes
+/// `pa μa c ((1 − e^{−λt})/λ − (1 − e^{−μa t})/μa)/(μa − λ)` by t.
+#[test]
+fn a_sequence_above_a_race_composes_the_race_s_law() {
+    let (pa, ma, na) = (0.9, 2.0, 3.0);
+    let (pb, mb, nb) = (0.7, 0.5, 1.5);
+    let (pc, mc, nc) = (0.6, 0.8, 0.3);
+    let (qb, qc) = (1.0 - pb, 1.0 - pc);
+    let yaml = format!(
+        "tree: {{sequence: {{children: [{{action: {{name: A, ps: {pa}, mu: {ma}, nu: {na}}}}}, \
+         {{parallel: {{name: race, success_threshold: 1, failure_threshold: 1, children: [\
+         {{action: {{name: B, ps: {pb}, mu: {mb}, nu: {nb}}}}}, \
+         {{action: {{name: C, ps: {pc}, mu: {mc}, nu: {nc}}}}}]}}}}]}}}}"
+    );
+    let success = [
+        (pb * mb * pc, mb + mc),
+        (pb * mb * qc, mb + nc),
+        (pc * mc * pb, mc + mb),
+        (pc * mc * qb, mc + nb),
+    ];
+    let failure = [
+        (qb * nb * pc, nb + mc),
+        (qb * nb * qc, nb + nc),
+        (qc * nc * pb, nc + mb),
+        (qc * nc * qb, nc + nb),
+    ];
+    let after_a = |terms: &[(f64, f64)], t: f64| -> f64 {
+        terms
+            .iter()
+            .map(|&(c, l)| {
+                pa * ma * c * ((1.0 - (-l * t).exp()) / l - (1.0 - (-ma * t).exp()) / ma) / (ma - l)
+            })
+            .sum()
+    };
+    let t = tree(&yaml);
+    let times = [0.3, 1.0, 2.5, 6.0];
+    let opts = btrel::curve::CurveOptions {
+        max_states: 2,
+        ..Default::default()
+    };
+    let pts = btrel::curve::curve(&t, 0, &times, &opts).expect("curve by the composed laws");
+    for p in &pts {
+        let s = after_a(&success, p.t);
+        let f = (1.0 - pa) * (1.0 - (-na * p.t).exp()) + after_a(&failure, p.t);
+        close(&format!("S({})", p.t), p.success, s, 1e-9);
+        close(&format!("F({})", p.t), p.failure, f, 1e-9);
+    }
+}

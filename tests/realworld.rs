@@ -396,7 +396,8 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
         parsed.len() + limited.len() + nav2.len() + semantic.len() + invalid.len(),
         trees.len()
     );
-    // 99 analysed (95 with the root's curve: 85 before the re-planning
+    // 99 analysed (96 with the root's curve: 95 before a race's law composed
+    // (MoveIt Pro's space satellite tree), 85 before the re-planning
     // race's law composed with the RecoveryNodes around it and the composed
     // laws held the recoveries' fixed Wait; 98 and 94 before MoveIt Pro's MPC
     // tree — a Timeout over a Parallel with a KeepRunningUntilFailure over a
@@ -411,7 +412,7 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
     // sample_april_tag SubTree is analysed with the `{num_samples}` its caller
     // passes (EXTRA_PARAMS)
     assert!(parsed.len() >= 99, "{} analysed", parsed.len());
-    assert!(curves >= 95, "{curves} root curves");
+    assert!(curves >= 96, "{curves} root curves");
     let mpc = "moveitpro/lab_sim__mpc_pose_tracking.xml";
     assert!(parsed.iter().any(|(f, _)| f == mpc), "{mpc} analysed");
     assert!(parsed.len() + nav2.len() + limited.len() >= 101);

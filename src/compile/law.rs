@@ -697,6 +697,13 @@ impl Builder<'_> {
             // thresholds that can both be met: ties in child order
             NodeKind::Parallel { .. } => match det::atoms(self.tree, id, self.max_states)? {
                 Some(atoms) => Ok(self.atoms_law(&atoms)),
+                // the race of its children's laws (`race`): its atoms and
+                // interpolated densities
+                None if !self.mixed[id] => {
+                    let plan = super::Plan::new(self.tree, super::Method::Exact, self.max_states);
+                    let race = super::race::race_of(&plan, id)?;
+                    self.race_law(id, &race)
+                }
                 // the shifted mixture holds such a race within a budget:
                 // where it is over the budget, the budget is what stops it
                 None => match super::shifted::shifted_law(self.tree, id, self.max_states) {
@@ -792,6 +799,29 @@ impl Builder<'_> {
         let failure = self.measure(atoms, failure.density, failure.breaks, failure.dropped);
         Ok(Law {
             parts: [success, failure],
+        })
+    }
+
+    /// The law of a race (a Parallel whose thresholds can both be met,
+    /// `race`): its atoms, and its Success and Failure densities — the count
+    /// programme over the children's laws — interpolated on panels that
+    /// start at its instants and shifts.
+    fn race_law(&self, id: NodeId, race: &super::race::Race) -> Result<Law, AnalysisError> {
+        let mut d = self.interpolate(id, 2, race.cuts(), |points| {
+            Ok(race
+                .densities(points)?
+                .iter()
+                .flat_map(|r| [r[0], r[1]])
+                .collect())
+        })?;
+        let failure = d.pop().expect("two densities");
+        let success = d.pop().expect("two densities");
+        let side = |o: usize| race.atoms().iter().map(|a| (a.0, [a.1, a.2][o])).collect();
+        Ok(Law {
+            parts: [
+                self.measure(side(SUCCESS), Some(success), race.cuts().to_vec(), 0.0),
+                self.measure(side(FAILURE), Some(failure), race.cuts().to_vec(), 0.0),
+            ],
         })
     }
 

@@ -346,6 +346,16 @@ impl Race {
         Ok(race)
     }
 
+    /// `(τ, atom_S, atom_F)`: its returns at instants, by time.
+    pub(crate) fn atoms(&self) -> &[(f64, f64, f64)] {
+        &self.atoms
+    }
+
+    /// The instants where its densities may jump or kink.
+    pub(crate) fn cuts(&self) -> &[f64] {
+        &self.cuts
+    }
+
     /// Per child, its rows at `times`.
     fn child_rows(&self, times: &[f64], left: bool) -> Result<Vec<Vec<Row>>, AnalysisError> {
         self.children
@@ -355,7 +365,7 @@ impl Race {
     }
 
     /// `[s, f, running]` at `times` (not at instants of atoms).
-    fn densities(&self, times: &[f64]) -> Result<Vec<[f64; 3]>, AnalysisError> {
+    pub(crate) fn densities(&self, times: &[f64]) -> Result<Vec<[f64; 3]>, AnalysisError> {
         let columns = self.child_rows(times, false)?;
         let mut row = vec![[0.0; 4]; self.children.len()];
         Ok((0..times.len())
@@ -720,7 +730,7 @@ fn sure_return(tree: &crate::tree::Tree, m: usize, f: usize, children: &[NodeId]
 }
 
 /// The race node `id` (a Parallel whose thresholds can both be met).
-fn race_of(plan: &Plan, id: NodeId) -> Result<Race, AnalysisError> {
+pub(crate) fn race_of(plan: &Plan, id: NodeId) -> Result<Race, AnalysisError> {
     let (m, f, kids) = parallel_racers(plan, id, f64::INFINITY)?;
     Race::new(plan.tree().node(id).name.clone(), m, f, kids)
 }
