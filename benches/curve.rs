@@ -3,7 +3,8 @@
 //! 1,000 points of one attempt of Nav2's default tree (re-planning at 1 Hz
 //! raced by the follower: the renewal levels) over 300 s, and of that
 //! attempt inside Nav2's RecoveryNode with an exponential recovery (the
-//! race's law composed by the flow around it); 1,000 points of a random
+//! race's law composed by the flow around it), and of the whole published
+//! tree (its fixed 5 s Wait an atom; needs ../shared/realworld); 1,000 points of a random
 //! 300-leaf tree with mixed timing (composed laws with atoms).
 //!
 //! Run: `cargo bench --bench curve` (one: `cargo bench --bench curve -- nav2`)
@@ -85,6 +86,24 @@ fn curves(c: &mut Criterion) {
     group.bench_function("nav2_default_recovering_1000_points", |b| {
         b.iter(|| curve(&recovering, 0, &times, &CurveOptions::default()).expect("curve"))
     });
+
+    // the whole tree as published (its fixed 5 s Wait an atom in the
+    // composed laws), with trees/nav2-default.params.yaml; skipped without
+    // the corpus
+    let published = Path::new("../shared/realworld/nav2");
+    if published.is_dir() {
+        let whole = btrel::tree::xml::parse_xml_files(
+            &published.join("navigate_to_pose_w_replanning_and_recovery.xml"),
+            Path::new("trees/nav2-default.params.yaml"),
+            &[published.join("nav2_tree_nodes.xml")],
+        )
+        .expect("tree");
+        group.bench_function("nav2_default_published_1000_points", |b| {
+            b.iter(|| curve(&whole, 0, &times, &CurveOptions::default()).expect("curve"))
+        });
+    } else {
+        eprintln!("nav2_default_published_1000_points skipped: ../shared/realworld is absent");
+    }
     group.finish();
 }
 

@@ -1045,6 +1045,7 @@ fn ci_sampler(
             src.name, src.name
         )));
     }
+    let values_per_draw = values_per_draw + sampler.kept_per_draw();
     if ci.draws.saturating_mul(values_per_draw) > btrel::uncertainty::MAX_VALUES {
         return Err(Failure::analysis(format!(
             "--ci: {} draws of {values_per_draw} figures exceed the limit of {} values; lower \

@@ -13,6 +13,11 @@
 //! * a rate (`mu`, `nu`) with n events over an exposure T ~ Gamma(shape n,
 //!   rate T), T = n / rate: for exponential times 2·rate·T ~ χ²(2n) exactly,
 //!   so its percentile interval is the exact pivotal one.
+//! * the rate of an Erlang-k time (`fit --timing auto`; a shifted
+//!   exponential is k = 1) fitted to n durations without halts ~ Gamma(k·n,
+//!   k·n / rate): `rate·Σt` is a sum of k·n unit exponential stages, the
+//!   same pivot. Its shift, a hyperexponential law and any phase-type law of
+//!   a leaf with halts are held ([`Sampler::held`]).
 //!
 //! These are drawn independently, which is right to first order when no
 //! episode was halted: a leaf's log-likelihood then separates into a `p`
@@ -69,8 +74,8 @@ pub const MAX_VALUES: usize = 25_000_000;
 
 /// One line of the method, for output headers.
 pub const METHOD: &str =
-    "parametric bootstrap: ps ~ Beta(s+1/2, f+1/2), rates ~ Gamma(events, exposure); \
-leaves with halts: (logit ps, ln mu, ln nu) jointly normal with the fit's covariance; \
+    "parametric bootstrap: ps ~ Beta(s+1/2, f+1/2), rates ~ Gamma(events, exposure) \
+(Erlang-k: Gamma(k events, exposure)); leaves with halts: (logit ps, ln mu, ln nu) jointly normal with the fit's covariance; \
 figures recomputed per draw, percentile intervals";
 
 /// The `fit:` statistics of one params entry, as `btrel fit` writes them
@@ -271,6 +276,9 @@ pub struct Sampler {
     /// Leaves with halts whose `fit:` has no `cov:` (a params file from an
     /// older `btrel fit`): their ps, mu and nu are drawn independently.
     pub independent: Vec<String>,
+    /// Erlang-type times drawn per draw: each draw keeps one interned law
+    /// for each ([`Sampler::kept_per_draw`]).
+    erlang_draws: usize,
 }
 
 /// Beta(s + ½, f + ½) for ps = p, from the counts (or, with halts, from
@@ -313,9 +321,42 @@ fn rate_of(d: Option<Duration>) -> Option<f64> {
     }
 }
 
+/// `(k, rate)` of an Erlang-k time with or without a shift (a shifted
+/// exponential is k = 1): one rate, drawn as `k·n` exponential stages.
+fn erlang_of(d: Option<Duration>) -> Option<(u32, f64)> {
+    match d? {
+        Duration::PhaseType { stages, .. } => stages.as_erlang(),
+        _ => None,
+    }
+}
+
+/// Gamma(k·n, rate / (k·n)) for the rate of an Erlang-k time fitted to `n`
+/// completed durations without halts: `rate · Σt ~ Gamma(k·n, 1)` exactly
+/// (a sum of `k·n` unit exponential stages), so its percentile interval is
+/// the exact pivotal one, as for an exponential rate (`k = 1`); the shift
+/// of a shifted law is held (its error is of order `1/(n·rate)`, beside
+/// the rate's `1/√n`).
+fn erlang_law(k: u32, rate: f64, events: Option<u64>) -> Option<Gamma<f64>> {
+    let n = events.filter(|&n| n > 0)? as f64 * f64::from(k);
+    if !(rate > 0.0 && rate.is_finite()) {
+        return None;
+    }
+    Gamma::new(n, rate / n).ok()
+}
+
 fn set_rate(d: &mut Option<Duration>, r: f64) {
-    if let Some(Duration::Exponential { rate } | Duration::TruncatedExponential { rate, .. }) = d {
-        *rate = r;
+    match d {
+        Some(Duration::Exponential { rate } | Duration::TruncatedExponential { rate, .. }) => {
+            *rate = r;
+        }
+        Some(Duration::PhaseType { shift, stages }) => {
+            if let Some(k) = stages.as_erlang().map(|(k, _)| k) {
+                if let Ok(erlang) = crate::tree::stages::Stages::erlang(k, r) {
+                    *d = Some(Duration::phase_type(*shift, erlang));
+                }
+            }
+        }
+        _ => {}
     }
 }
 
@@ -331,6 +372,7 @@ impl Sampler {
         let mut groups: Vec<Group> = Vec::new();
         let mut by_key: BTreeMap<&str, usize> = BTreeMap::new();
         let (mut fixed, mut held, mut independent) = (Vec::new(), Vec::new(), Vec::new());
+        let mut erlang_draws = 0;
         for (id, node) in tree.nodes.iter().enumerate() {
             if !node.kind.children().is_empty() {
                 continue;
@@ -418,9 +460,27 @@ impl Sampler {
                     {
                         held.push(format!("{}: fixed times held", node.name));
                     }
-                    for d in [a.success, a.failure].into_iter().flatten() {
-                        if matches!(d, Duration::PhaseType { .. }) {
-                            held.push(format!("{}: {} time held", node.name, d.family()));
+                    // Erlang-k and shifted exponential rates, fitted without
+                    // halts: Gamma(k·n, …); other phase-type laws are held
+                    let unhalted = st.halted == Some(0);
+                    for (d, events, law) in [
+                        (a.success, st.successes, &mut g.mu),
+                        (a.failure, st.failures, &mut g.nu),
+                    ] {
+                        let Some(d @ Duration::PhaseType { .. }) = d else {
+                            continue;
+                        };
+                        *law = erlang_of(Some(d))
+                            .filter(|_| unhalted)
+                            .and_then(|(k, r)| erlang_law(k, r, events));
+                        erlang_draws += usize::from(law.is_some());
+                        if law.is_none() {
+                            let why = if unhalted || erlang_of(Some(d)).is_none() {
+                                ""
+                            } else {
+                                " (its episodes were halted)"
+                            };
+                            held.push(format!("{}: {} time held{why}", node.name, d.family()));
                         }
                     }
                 }
@@ -435,7 +495,15 @@ impl Sampler {
             fixed,
             held,
             independent,
+            erlang_draws,
         }
+    }
+
+    /// Memory that each draw keeps for the rest of the process, in 8-byte
+    /// values (to count with the figures against [`MAX_VALUES`]): a drawn
+    /// Erlang-type time is an interned law of its own.
+    pub fn kept_per_draw(&self) -> usize {
+        self.erlang_draws * std::mem::size_of::<crate::tree::stages::Stages>().div_ceil(8)
     }
 
     /// Number of parameters that vary.

@@ -794,3 +794,100 @@ fn a_bad_covariance_is_a_located_error() {
         <TreeNodesModel><Action ID="A"/></TreeNodesModel></root>"#;
     assert!(btrel::tree::xml::parse_xml_str_keyed(tree, "t.xml", &text, "p.yaml").is_ok());
 }
+
+/// Coverage with `--timing auto`: A's Success times are Erlang-3 (rate 6,
+/// mean 0.5 s), its Failure times exponential (rate 20), B's exponential
+/// and fast (rates 10), no halts; each log is fitted by `--timing auto`
+/// and the 90% intervals of the Fallback's ps and MTTS are checked against
+/// the closed forms (MTTS = (p_A·3/λ + q_A·p_B·(1/ν_A + 1/μ_B)) / ps,
+/// which A's Erlang rate dominates). The Erlang rate is drawn from
+/// Gamma(k·n, k·n/λ̂) (`rate·Σt` is a sum of k·n unit stages); held fixed,
+/// as before, MTTS is covered far too rarely, which this test catches.
+/// MTTF (exponential times only) is printed, not asserted: where `auto`
+/// picks another family for an exponential truth (a shifted or
+/// hyperexponential law in a few logs), that law's shift or mixture is
+/// held, and its coverage is a few points low (README).
+#[test]
+fn auto_fitted_erlang_times_are_drawn_and_cover_the_truth() {
+    let (p_a, lam, nu_a) = (0.9, 6.0, 20.0);
+    let b = (0.7, 10.0, 10.0);
+    let ps = p_a + (1.0 - p_a) * b.0;
+    let mtts = (p_a * 3.0 / lam + (1.0 - p_a) * b.0 * (1.0 / nu_a + 1.0 / b.1)) / ps;
+    let mttf = 1.0 / nu_a + 1.0 / b.2;
+    let truth = [ps, mtts, mttf];
+    let (reps, level) = (300, 0.9);
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(2027);
+    let mut covered = [0usize; 3];
+    let (mut erlang, mut other) = (0, 0);
+    for rep in 0..reps {
+        let ea: Vec<Episode> = (0..100)
+            .map(|_| {
+                let ok = rng.random::<f64>() < p_a;
+                let duration = if ok {
+                    (0..3)
+                        .map(|_| Exp::new(lam).unwrap().sample(&mut rng))
+                        .sum()
+                } else {
+                    Exp::new(nu_a).unwrap().sample(&mut rng)
+                };
+                Episode {
+                    duration,
+                    end: if ok { End::Success } else { End::Failure },
+                    instant: false,
+                }
+            })
+            .collect();
+        let eb = episodes(&mut rng, 100, b, 0.0);
+        let fit = |key: &str, e: &[Episode]| {
+            btrel::fit::fit_leaf_with(
+                key,
+                Declared::Action,
+                Counts::from_episodes(e),
+                btrel::fit::TimingMode::Auto,
+            )
+            .unwrap()
+        };
+        let (la, lb) = (params_line(&fit("A", &ea)), params_line(&fit("B", &eb)));
+        erlang += usize::from(la.contains("success_time: {erlang: {k: "));
+        let params = format!("{la}\n{lb}\n");
+        let keyed =
+            btrel::tree::xml::parse_xml_str_keyed(FALLBACK, "t.xml", &params, "p.yaml").unwrap();
+        let stats = read_fit_stats(&params, "p.yaml").unwrap();
+        let sampler = Sampler::new(&keyed.tree, &keyed.keys, &stats);
+        // an Erlang's rate is drawn; other phase-type laws are held
+        assert!(
+            !la.contains("erlang") || !sampler.held.iter().any(|h| h.contains("Erlang")),
+            "{:?}\n{la}",
+            sampler.held
+        );
+        other += usize::from(!sampler.held.is_empty());
+        let ci = sampler
+            .intervals(level, 400, rep as u64, |t| {
+                btrel::analyze(t, &Default::default()).map(|an| {
+                    let f = an.nodes[0];
+                    vec![Some(f.ps), f.mtts, f.mttf]
+                })
+            })
+            .unwrap();
+        for k in 0..3 {
+            let (lo, hi) = ci[k].unwrap();
+            covered[k] += usize::from(lo <= truth[k] && truth[k] <= hi);
+        }
+    }
+    assert!(
+        erlang > reps * 3 / 4,
+        "auto picked an Erlang for A's Success in {erlang} of {reps} logs"
+    );
+    eprintln!(
+        "auto fits: coverage of nominal {level} over {reps} logs (ps, MTTS, MTTF): {covered:?}; \
+         an Erlang picked {erlang} times, a law held in {other} logs"
+    );
+    let sd = (level * (1.0 - level) / reps as f64).sqrt();
+    for (k, what) in ["ps", "MTTS"].iter().enumerate() {
+        let c = covered[k] as f64 / reps as f64;
+        assert!(
+            ((c - level) / sd).abs() < 3.5,
+            "{what}: coverage {c} of nominal {level} over {reps} logs"
+        );
+    }
+}

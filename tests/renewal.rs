@@ -577,16 +577,6 @@ fn corpus_speed_controller_trees_match_the_closed_form_and_simulation() {
     }
 }
 
-/// The corpus (../shared/realworld, or BTREL_REALWORLD).
-fn corpus() -> Option<std::path::PathBuf> {
-    let root = std::env::var_os("BTREL_REALWORLD")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| {
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/realworld")
-        });
-    root.join("INDEX.md").exists().then_some(root)
-}
-
 /// One attempt of Nav2's default tree: its PipelineSequence as published
 /// (re-planning at 1 Hz with a costmap-clearing retry, raced by the
 /// follower with its own), and the corpus' params for its leaves, with the

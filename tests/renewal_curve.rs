@@ -153,6 +153,58 @@ fn an_exponential_replan_matches_the_closed_form() {
     }
 }
 
+/// The exponential re-plan above after a fast prefix A (Success w.p. 0.9
+/// after Exp(10), else Failure after Exp(10)): the race starts when A
+/// succeeds, so `S(t) = 0.9 ∫ 10 e^{−10a} S_race(t − a) da`, likewise
+/// Failure plus A's own. The prefix's phases die out after a few levels,
+/// the rate of the levels drops from A's to the race's, and the later
+/// levels step their top alone over the level below it (`Prepared::run`).
+#[test]
+fn a_fast_prefix_then_an_exponential_replan_matches_the_closed_form() {
+    let (p, a, b, d): (f64, f64, f64, f64) = (0.9, 2.0, 0.5, 1.0);
+    let rest = (0.8, 0.5, 0.25);
+    let yaml = race_yaml(
+        d,
+        &format!("{{action: {{name: plan, ps: {p}, mu: {a}, nu: {b}}}}}"),
+        "{action: {name: follow, ps: 0.8, mu: 0.5, nu: 0.25}}",
+    )
+    .replacen(
+        "tree: {parallel:",
+        "tree: {sequence: {name: seq, children: [{action: {name: A, ps: 0.9, mu: 10.0, nu: 10.0}}, {parallel:",
+        1,
+    ) + "]}}";
+    let t = tree(&yaml);
+    let fails_by = |x: f64| -> f64 {
+        let mut total = 0.0;
+        let mut n = 0;
+        while (n as f64 + 1.0) * d < x {
+            let y = x - (n as f64 + 1.0) * d;
+            let h = poisson_upper(n, a * y)
+                - (-b * y).exp() * (a / (a - b)).powi(n as i32) * poisson_upper(n, (a - b) * y);
+            total += p.powi(n as i32) * (1.0 - p) * h;
+            n += 1;
+        }
+        total
+    };
+    let survive = |x: f64| 1.0 - fails_by(x);
+    let times = [3.0, 8.0, 12.0];
+    let pts = curve(&t, 0, &times, &CurveOptions::default()).expect("curve");
+    for (pt, &tt) in pts.iter().zip(&times) {
+        // A's density beyond 4 s is below 1e-16
+        let upto = tt.min(4.0);
+        let race = |x: f64| against_one_action(&survive, rest, d, x);
+        let success = 0.9 * integrate(&|s| 10.0 * (-10.0 * s).exp() * race(tt - s).0, 0.0, upto, d);
+        let failure = 0.1 * (1.0 - (-10.0 * tt).exp())
+            + 0.9 * integrate(&|s| 10.0 * (-10.0 * s).exp() * race(tt - s).1, 0.0, upto, d);
+        assert_curve(
+            &format!("t = {tt}"),
+            (pt.success, pt.failure),
+            (success, failure),
+            1e-10,
+        );
+    }
+}
+
 #[test]
 fn a_prefix_starts_the_race_at_a_random_time() {
     // Sequence(A, race): the race starts when A succeeds (Exp(3), w.p.

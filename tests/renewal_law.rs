@@ -193,3 +193,32 @@ fn nav2_default_pipeline_in_its_recovery_node_tends_to_the_report() {
     assert!((late.success - f.ps).abs() < 1e-9, "{late:?} vs {f:?}");
     assert!((late.failure - f.pf).abs() < 1e-9, "{late:?} vs {f:?}");
 }
+
+/// Nav2's default tree as published (its fixed 5 s `Wait` an atom of the
+/// composed laws) with `trees/nav2-default.params.yaml`, the README's
+/// *Nav2's default tree*: the curve tends to `report`'s figures and agrees
+/// with simulation of the published tick semantics (|z| < 5) at the times
+/// the README quotes.
+#[test]
+fn nav2_default_tree_as_published_has_its_curve() {
+    let Some(root) = corpus() else {
+        println!("note: the corpus is absent; skipping");
+        return;
+    };
+    let dir = root.join("nav2");
+    let t = btrel::tree::xml::parse_xml_files(
+        &dir.join("navigate_to_pose_w_replanning_and_recovery.xml"),
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("trees/nav2-default.params.yaml"),
+        &[dir.join("nav2_tree_nodes.xml")],
+    )
+    .expect("the tree parses");
+    let f = root_figures(&t);
+    let late = curve(&t, 0, &[3000.0], &CurveOptions::default()).expect("curve")[0];
+    assert!(late.running < 1e-10, "{late:?}");
+    assert!((late.success - f.ps).abs() < 1e-9, "{late:?} vs {f:?}");
+    assert!((late.failure - f.pf).abs() < 1e-9, "{late:?} vs {f:?}");
+    let times = [10.0, 30.0, 60.0, 100.0, 300.0];
+    let pts = curve(&t, 0, &times, &CurveOptions::default()).expect("curve");
+    let sim = simulate_root(&t, 100_000, &times);
+    assert_root_and_curve_within_z("Nav2 default tree", f, &pts, &sim);
+}

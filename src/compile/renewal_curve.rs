@@ -58,9 +58,22 @@
 //! error is at most that plus the Poisson windows' 1e-17 (1e-20 per point),
 //! so at most `K·2e-16` after `K` levels, whatever the number of re-runs;
 //! prefix phases whose mass fell below 1e-30 are dropped (they only set
-//! the uniformization rate). Cost: `K·N·(M + 2)·nnz` for `K = t/d` levels,
-//! `N ≈ (Λ + c)d` steps; refused beyond 4e9 operations or when the numbers
-//! kept exceed the state budget (8 a state).
+//! the uniformization rate).
+//!
+//! **One slot a level.** The stacked system is block bidiagonal: a slot's
+//! steps depend on the slots below it only, never on the level above. So
+//! the steps of level `k − 1`'s slot in level `k`'s stack are the steps
+//! level `k − 1` took as its own top, when both step at the same rate
+//! `Λ` — and level `k − 1`'s top summed up every level below it, not only
+//! `M` of them. Each level therefore keeps, per step, what the level above
+//! reads of it (the flux leaving its top into waits, `nr` numbers, and its
+//! waits' part, `nr + 2`), and the next level at the same rate steps its
+//! top alone over them; the stack is stepped only where the rate changes
+//! (the first levels, while the prefix's phases die out), so the
+//! truncation above applies there only. Cost: `K·N·nnz` for `K = t/d`
+//! levels, `N ≈ (Λ + c)d` steps (plus `N·(M + 1)·nnz` per level where the
+//! rate changes); refused beyond 4e9 operations or when the numbers kept
+//! exceed the state budget (8 a state).
 
 use super::curve::{self as curve_query, CurveOptions, CurvePoint};
 use super::renewal;
@@ -533,7 +546,6 @@ pub(super) struct Prepared {
     /// keeps.
     levels: usize,
     depth: usize,
-    per_step: f64,
     name: String,
 }
 
@@ -622,15 +634,17 @@ pub(super) fn prepare(
     // the race's own states (the work is counted as it is done too)
     let lambda_race = lv.q[lv.np..].iter().copied().fold(0.0, f64::max);
     let c_race = lv.flux[lv.np..].iter().copied().fold(0.0, f64::max);
-    let per_step = stack as f64 * lv.nnz() as f64;
+    // the first levels step the stack; once the rate settles, a level
+    // steps its top alone over the previous level's (`Prepared::run`)
     let early_levels = levels.min(2) as f64;
-    let work = per_step
-        * (early_levels * steps as f64
+    let work = lv.nnz() as f64
+        * (early_levels * stack as f64 * steps as f64
             + (levels as f64 - early_levels) * steps_of(&lv, lambda_race, c_race) as f64);
-    // the levels' states, the stack's, and the steps' four functionals
-    // of every level (kept for the law)
-    let cells =
-        (levels as f64 + 4.0 * stack as f64) * lv.dim as f64 + 4.0 * levels as f64 * steps as f64;
+    // the levels' states, the stack's, the steps' four functionals of
+    // every level (kept for the law), and two levels' tops
+    let cells = (levels as f64 + 4.0 * stack as f64) * lv.dim as f64
+        + 4.0 * levels as f64 * steps as f64
+        + 2.0 * (2 * lv.nr + 2) as f64 * steps as f64;
     if cells / CELLS_PER_STATE > max_states as f64 {
         return Err(too_large(cells / CELLS_PER_STATE));
     }
@@ -646,7 +660,6 @@ pub(super) fn prepare(
         lv,
         levels,
         depth,
-        per_step,
         name,
     }))
 }
@@ -689,7 +702,7 @@ impl Prepared {
         let lv = &self.lv;
         let (levels, depth) = (self.levels, self.depth);
         let stack = depth + 1;
-        let (dim, nr, acc) = (lv.dim, lv.nr, lv.acc);
+        let (dim, nr, acc, w) = (lv.dim, lv.nr, lv.acc, lv.w);
         let mut done = 0.0f64;
         let mut starts: Vec<Vec<f64>> = Vec::with_capacity(levels);
         let mut before = lv.base;
@@ -697,6 +710,9 @@ impl Prepared {
         let mut u = vec![0.0f64; stack * dim];
         let mut next = vec![0.0f64; stack * dim];
         let mut end = vec![0.0f64; dim];
+        // the previous level's top, step by step (module docs: one slot)
+        let mut prev: Option<Top> = None;
+        let mut below = vec![0.0f64; dim];
         for level in 0..levels {
             // drop prefix mass that no longer matters
             for x in start[..lv.np].iter_mut() {
@@ -704,19 +720,13 @@ impl Prepared {
                     *x = 0.0;
                 }
             }
-            let atoms: f64 = start[lv.w..lv.w + nr].iter().sum();
+            let atoms: f64 = start[w..w + nr].iter().sum();
             starts.push(start.clone());
-            // the stack: levels level − depth ..= level
-            u.iter_mut().for_each(|x| *x = 0.0);
             let lowest = level.saturating_sub(depth);
-            for (l, x) in starts.iter().enumerate().skip(lowest) {
-                let at = (stack - 1 - (level - l)) * dim;
-                u[at..at + dim].copy_from_slice(x);
-            }
             let first_slot = stack - 1 - (level - lowest);
             // the rate: the prefix's phases before its first live one are dead
             let live_p = (0..lv.np)
-                .find(|&s| (first_slot..stack).any(|l| u[l * dim + s] != 0.0))
+                .find(|&s| starts[lowest..].iter().any(|x| x[s] != 0.0))
                 .unwrap_or(lv.np);
             let lambda = lv.q[live_p..]
                 .iter()
@@ -725,7 +735,17 @@ impl Prepared {
                 .max(1e-300);
             let c = lv.flux[live_p..].iter().copied().fold(0.0, f64::max);
             let n_steps = steps_of(lv, lambda, c);
-            done += n_steps as f64 * self.per_step;
+            // the previous level's top at the same rate: this level's
+            // levels below it are summed up in its steps
+            let from = prev
+                .take()
+                .filter(|p| p.lambda == lambda && p.phi.len() == n_steps * nr);
+            let slots = if from.is_some() {
+                1
+            } else {
+                stack - first_slot
+            };
+            done += n_steps as f64 * slots as f64 * lv.nnz() as f64;
             if done > 2.0 * MAX_WORK {
                 // the prefix lived longer than the estimate assumed
                 return Err(AnalysisError::Stiff {
@@ -734,29 +754,58 @@ impl Prepared {
                     limit: MAX_WORK,
                 });
             }
+            let mut top = Top {
+                lambda,
+                phi: Vec::with_capacity(n_steps * nr),
+                waits: Vec::with_capacity(n_steps * (nr + 2)),
+            };
             let mut rows: Vec<[f64; 4]> = Vec::with_capacity(n_steps);
-            let top = (stack - 1) * dim;
-            let below = top - dim;
             // the state at the level's end, summed as the steps go
             let closing = poisson_window(lambda * lv.d, LEVEL_EPS);
             end.iter_mut().for_each(|x| *x = 0.0);
+            // the slots stepped here: the stack (levels level − depth ..=
+            // level), or the top alone over the previous level's steps
+            let (lo, len) = match from {
+                Some(_) => (stack - 1, stack * dim),
+                None => (first_slot, stack * dim),
+            };
+            u[..len].iter_mut().for_each(|x| *x = 0.0);
+            if from.is_some() {
+                u[lo * dim..].copy_from_slice(&start);
+            } else {
+                for (l, x) in starts.iter().enumerate().skip(lowest) {
+                    let at = (stack - 1 - (level - l)) * dim;
+                    u[at..at + dim].copy_from_slice(x);
+                }
+            }
+            let top_at = (stack - 1) * dim;
             for step in 0..n_steps {
-                rows.push(lv.outcomes(&u[below..top], &u[top..top + dim]));
+                let below_w = match &from {
+                    Some(p) => &p.waits[step * (nr + 2)..(step + 1) * (nr + 2)],
+                    None => &u[top_at - dim + w..top_at - dim + w + nr + 2],
+                };
+                below[w..w + nr + 2].copy_from_slice(below_w);
+                rows.push(lv.outcomes(&below, &u[top_at..top_at + dim]));
+                top.waits
+                    .extend_from_slice(&u[top_at + w..top_at + w + nr + 2]);
                 if let Some(&wgt) = step
                     .checked_sub(closing.left)
                     .and_then(|k| closing.weights.get(k))
                 {
-                    for (a, &b) in end.iter_mut().zip(&u[top..top + dim]) {
+                    for (a, &b) in end.iter_mut().zip(&u[top_at..top_at + dim]) {
                         *a += wgt * b;
                     }
                 }
-                if step + 1 == n_steps {
-                    break;
-                }
-                next.iter_mut().for_each(|x| *x = 0.0);
+                next[lo * dim..].iter_mut().for_each(|x| *x = 0.0);
                 // flux re-entering at once from the level below
-                let mut again = vec![0.0f64; nr];
-                for l in first_slot..stack {
+                let mut again = match &from {
+                    Some(p) => lv.leave(
+                        &p.phi[step * nr..(step + 1) * nr],
+                        &mut next[top_at..top_at + dim],
+                    ),
+                    None => vec![0.0f64; nr],
+                };
+                for l in lo..stack {
                     let base = l * dim;
                     let mut phi = std::mem::take(&mut again);
                     for s in 0..dim {
@@ -776,11 +825,12 @@ impl Prepared {
                     if l + 1 < stack {
                         again = lv.leave(&phi, &mut next[base + dim..base + 2 * dim]);
                     } else {
-                        again = vec![0.0f64; nr];
+                        top.phi.extend_from_slice(&phi);
                     }
                 }
                 std::mem::swap(&mut u, &mut next);
             }
+            prev = Some(top);
             visit(
                 level,
                 Level {
@@ -799,6 +849,15 @@ impl Prepared {
         }
         Ok(())
     }
+}
+
+/// A level's top slot, step by step, for the level above: the flux
+/// leaving it into waits (`nr` a step) and its waits' part (`W`, `nr + 2`
+/// a step), what the next level reads of the level below it.
+struct Top {
+    lambda: f64,
+    phi: Vec<f64>,
+    waits: Vec<f64>,
 }
 
 /// `π(t)` at `times` of node `id` when it is a renewal race, or a Sequence

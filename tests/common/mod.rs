@@ -8,6 +8,17 @@ use btrel::sim::{simulate, Estimate, SimOptions, SimResult};
 use btrel::tree::{parse_str, Tree};
 use btrel::{analyze, Figures, Options};
 
+/// The published corpus (`../shared/realworld`, or `BTREL_REALWORLD`),
+/// when it is there.
+pub fn corpus() -> Option<std::path::PathBuf> {
+    let root = std::env::var_os("BTREL_REALWORLD")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| {
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/realworld")
+        });
+    root.join("INDEX.md").exists().then_some(root)
+}
+
 /// Largest accepted |z| of a Monte Carlo figure against its exact value.
 pub const Z: f64 = 5.0;
 
