@@ -153,6 +153,85 @@ fn an_exponential_replan_matches_the_closed_form() {
     }
 }
 
+/// The exponential re-plan above against a rest with a **fixed wait**
+/// (Nav2's goal-patience trees: `Sequence(wait τ, follow)`), which has no
+/// phase chain: the race of the process's law of first failure, from its
+/// levels, against the rest's law (`race::renewal_race`; the loop's series
+/// would need 306 re-runs). With `G(t) = P(L > t)` as above and the rest
+/// returning at τ + X: `P(S) = s ∫ μe^{−μx} G(τ + x) dx`, `E[T·1{S}] = s ∫
+/// (τ + x) μe^{−μx} G(τ + x) dx`, `E[T] = ∫ G(t) P(rest running at t) dt`;
+/// the curve `S(t)` is the first integral up to `t − τ`. `report` within
+/// 1e-9, `curve` within 1e-10.
+#[test]
+fn a_rest_with_a_fixed_wait_races_the_process_s_law() {
+    let (p, a, b, d, tau): (f64, f64, f64, f64, f64) = (0.9, 2.0, 0.5, 1.0, 2.5);
+    let (s, mu, nu) = (0.8, 0.5, 0.25);
+    let t = tree(&race_yaml(
+        d,
+        &format!("{{action: {{name: plan, ps: {p}, mu: {a}, nu: {b}}}}}"),
+        &format!(
+            "{{sequence: {{name: rest, children: [{{action: {{name: patience, ps: 1.0, tau_s: {tau}}}}}, \
+             {{action: {{name: follow, ps: {s}, mu: {mu}, nu: {nu}}}}}]}}}}"
+        ),
+    ));
+    let fails_by = |x: f64| -> f64 {
+        let mut total = 0.0;
+        let mut n = 0;
+        while (n as f64 + 1.0) * d < x {
+            let y = x - (n as f64 + 1.0) * d;
+            let h = poisson_upper(n, a * y)
+                - (-b * y).exp() * (a / (a - b)).powi(n as i32) * poisson_upper(n, (a - b) * y);
+            total += p.powi(n as i32) * (1.0 - p) * h;
+            n += 1;
+        }
+        total
+    };
+    let survive = |x: f64| 1.0 - fails_by(x);
+    // the rest's density is below 1e-17 beyond x = 80
+    let far = 80.0;
+    let ps = s * integrate(&|x| mu * (-mu * x).exp() * survive(tau + x), 0.0, far, d);
+    let ts = s * integrate(
+        &|x| (tau + x) * mu * (-mu * x).exp() * survive(tau + x),
+        0.0,
+        far,
+        d,
+    );
+    let running = |t: f64| {
+        if t < tau {
+            1.0
+        } else {
+            s * (-mu * (t - tau)).exp() + (1.0 - s) * (-nu * (t - tau)).exp()
+        }
+    };
+    let mean = integrate(&|t| survive(t) * running(t), 0.0, tau + 2.0 * far, d / 2.0);
+    let (pf, tf) = (1.0 - ps, mean - ts);
+    let f = root_figures(&t);
+    let close = |what: &str, got: f64, want: f64| {
+        assert!(
+            (got - want).abs() <= 1e-9 * want.abs().max(1.0),
+            "{what}: report {got} vs closed form {want} (diff {:.2e})",
+            got - want
+        );
+    };
+    close("ps", f.ps, ps);
+    close("pf", f.pf, pf);
+    close("MTTS", f.mtts.expect("succeeds"), ts / ps);
+    close("MTTF", f.mttf.expect("fails"), tf / pf);
+    let times = [1.0, 2.5, 3.7, 8.0, 20.0];
+    let pts = curve(&t, 0, &times, &CurveOptions::default()).expect("curve");
+    for (pt, &tt) in pts.iter().zip(&times) {
+        let upto = (tt - tau).max(0.0);
+        let success = s * integrate(&|x| mu * (-mu * x).exp() * survive(tau + x), 0.0, upto, d);
+        let failure = 1.0 - success - survive(tt) * running(tt);
+        assert_curve(
+            &format!("t = {tt}"),
+            (pt.success, pt.failure),
+            (success, failure),
+            1e-10,
+        );
+    }
+}
+
 /// The exponential re-plan above after a fast prefix A (Success w.p. 0.9
 /// after Exp(10), else Failure after Exp(10)): the race starts when A
 /// succeeds, so `S(t) = 0.9 ∫ 10 e^{−10a} S_race(t − a) da`, likewise

@@ -685,6 +685,14 @@ impl Builder<'_> {
                 r => return r,
             }
         }
+        // a renewal race whose R has no phase chain: the process's law from
+        // its levels raced with R's (`race::renewal_race`)
+        if super::renewal::parts(self.tree, id).is_some() {
+            let plan = super::Plan::new(self.tree, super::Method::Exact, self.max_states);
+            if let Some(race) = super::race::renewal_race(&plan, id, Some(self.end), 0.0)? {
+                return self.race_law(id, &race);
+            }
+        }
         match &node.kind {
             NodeKind::Action(_) => self.leaf_law(id),
             NodeKind::Parallel {

@@ -42,6 +42,7 @@
 use super::curve::CurvePoint;
 use super::law::sample_weighted;
 use super::renewal::Renewal;
+use super::renewal_curve;
 use super::shifted::{self, ShiftedLaw};
 use super::{atoms, counts, AnalysisError, Figures, Plan, Representation};
 use crate::solve::chain::PhaseChain;
@@ -79,6 +80,39 @@ pub(crate) enum Racer {
     },
     /// A Parallel whose thresholds can both be met.
     Race(Box<Race>),
+    /// The first failure of a re-run process (a renewal loop) from its
+    /// levels on `[0, horizon]` ([`renewal_curve::prepare_process`]).
+    Renewal(Box<RenewalLoop>),
+}
+
+/// A re-run process's law of first failure on `[0, horizon]`, level by
+/// level; beyond the horizon its Failure stays at its value there (its
+/// race's horizon is chosen where that no longer matters, see
+/// [`renewal_race`]).
+pub(crate) struct RenewalLoop {
+    levels: Vec<renewal_curve::Level>,
+    /// The period `d` and the start of level 0 `t₀`.
+    d: f64,
+    t0: f64,
+    horizon: f64,
+}
+
+impl RenewalLoop {
+    /// `[S, F, s, f]` at `t`: never Success; Failure by `t` and its
+    /// density (continuous: no atoms).
+    fn row(&self, t: f64) -> Row {
+        if t < self.t0 || self.levels.is_empty() {
+            return [0.0; 4];
+        }
+        if t > self.horizon {
+            let [_, f, _, _] = self.row(self.horizon);
+            return [0.0, f, 0.0, 0.0];
+        }
+        let k = (((t - self.t0) / self.d).floor().max(0.0) as usize).min(self.levels.len() - 1);
+        let l = &self.levels[k];
+        let [_, f, _, fd] = l.at((t - l.start).clamp(0.0, self.d));
+        [0.0, f, 0.0, fd]
+    }
 }
 
 /// A race node: its children and its atoms.
@@ -192,6 +226,7 @@ impl Racer {
             ),
             Racer::Counted { children, .. } => children.iter().for_each(|c| c.instants(out)),
             Racer::Race(r) => out.extend(r.atoms.iter().map(|a| a.0)),
+            Racer::Renewal(_) => {}
         }
     }
 
@@ -202,6 +237,20 @@ impl Racer {
             Racer::Shifted(l) => out.extend(l.shifts()),
             Racer::Counted { children, .. } => children.iter().for_each(|c| c.cuts(out)),
             Racer::Race(r) => out.extend(&r.cuts),
+            // the densities may jump or kink where waits end, the level
+            // starts: in the first levels (each smooths by one order) and
+            // where waits start with an atom (`renewal_law`'s pieces)
+            Racer::Renewal(l) => out.extend(
+                l.levels
+                    .iter()
+                    .enumerate()
+                    .filter(|&(k, v)| {
+                        k < super::renewal_law::SMOOTHING_LEVELS
+                            || v.atoms > super::renewal_law::ATOM_FLOOR
+                    })
+                    .map(|(_, v)| v.start)
+                    .filter(|&t| t <= l.horizon),
+            ),
         }
     }
 
@@ -220,6 +269,7 @@ impl Racer {
                 children.iter().map(Racer::fastest).fold(0.0, f64::max)
             }
             Racer::Race(r) => r.children.iter().map(Racer::fastest).fold(0.0, f64::max),
+            Racer::Renewal(l) => l.levels.iter().map(|v| v.rate()).fold(0.0, f64::max),
         }
     }
 
@@ -296,6 +346,7 @@ impl Racer {
                     .collect())
             }
             Racer::Race(r) => r.rows(times, left),
+            Racer::Renewal(l) => Ok(times.iter().map(|&t| l.row(t)).collect()),
         }
     }
 }
@@ -729,6 +780,89 @@ fn sure_return(tree: &crate::tree::Tree, m: usize, f: usize, children: &[NodeId]
         .fold(f64::INFINITY, f64::min)
 }
 
+/// Running probability of `R` (computed as `1 − S − F`, so above its
+/// rounding) at half the horizon of a re-run process's law
+/// ([`renewal_race`]).
+const REST_TAIL: f64 = 1e-13;
+
+/// `Parallel{1, 1}(process, R)` (either order) with a re-run process whose
+/// `C′` has a phase chain and an `R` that has none (a fixed wait inside
+/// it, a race of its own): the race of the process's law of first failure
+/// from its levels ([`renewal_curve::prepare_process`], no series over the
+/// re-runs) against R's law. Exact on `[0, horizon]`; `None` for the
+/// horizon takes R's tail: twice the first doubling of `scale` where R is
+/// still running with probability below [`REST_TAIL`] — beyond it the
+/// process's Failure is held at its value, which changes the node's
+/// probabilities by less than R's running probability at the horizon
+/// (below 1e-13 at half of it; R's phase-type tail decays exponentially)
+/// and its mean times by less than the integral of it beyond. `Ok(None)` when
+/// `id` is no such race, R may never return, or the re-run can fail at
+/// its start (atoms at every wait's end).
+pub(crate) fn renewal_race(
+    plan: &Plan,
+    id: NodeId,
+    horizon: Option<f64>,
+    scale: f64,
+) -> Result<Option<Race>, AnalysisError> {
+    let tree = plan.tree();
+    let Some(parts) = super::renewal::parts(tree, id) else {
+        return Ok(None);
+    };
+    let super::renewal::Rest::Node(r) = parts.rest else {
+        return Ok(None);
+    };
+    let NodeKind::Parallel { children, .. } = &tree.node(id).kind else {
+        return Ok(None);
+    };
+    let name = tree.node(id).name.clone();
+    let rest = Racer::build_within(plan, r, horizon.unwrap_or(f64::INFINITY))?;
+    let horizon = match horizon {
+        Some(h) => h,
+        None => {
+            let mut t = scale.max(parts.wait).max(1.0);
+            let mut tail = None;
+            for _ in 0..64 {
+                let [s, f, _, _] = rest.rows(&name, &[t], false)?[0];
+                if 1.0 - s - f <= REST_TAIL {
+                    tail = Some(2.0 * t);
+                    break;
+                }
+                t *= 2.0;
+            }
+            match tail {
+                Some(h) => h,
+                None => return Ok(None),
+            }
+        }
+    };
+    let Some(prepared) =
+        renewal_curve::prepare_process(tree, parts.process, horizon, plan.max_states())?
+    else {
+        return Ok(None);
+    };
+    if prepared.instant_failure() > 0.0 {
+        return Ok(None);
+    }
+    let (d, t0) = prepared.period();
+    let mut levels = Vec::new();
+    prepared.run(|_, level| {
+        levels.push(level);
+        Ok(())
+    })?;
+    let process = Racer::Renewal(Box::new(RenewalLoop {
+        levels,
+        d,
+        t0,
+        horizon,
+    }));
+    let kids = if children.first() == Some(&parts.process) {
+        vec![process, rest]
+    } else {
+        vec![rest, process]
+    };
+    Race::new(name, 1, 1, kids).map(Some)
+}
+
 /// The race node `id` (a Parallel whose thresholds can both be met).
 pub(crate) fn race_of(plan: &Plan, id: NodeId) -> Result<Race, AnalysisError> {
     let (m, f, kids) = parallel_racers(plan, id, f64::INFINITY)?;
@@ -744,10 +878,35 @@ pub(crate) fn figures(
 ) -> Result<Figures, AnalysisError> {
     let (tree, max_states) = (plan.tree(), plan.max_states());
     // a race against a renewal process of re-runs: exact without a series
+    let scale = child_figures
+        .iter()
+        .map(Figures::mean_time)
+        .fold(0.0, f64::max);
+    let limits = |race: Race| -> Result<Figures, AnalysisError> {
+        let [ps, pf, ts, tf] = race.limits(scale)?;
+        Ok(Figures {
+            ps,
+            pf,
+            mtts: (ps > 0.0).then(|| ts / ps),
+            mttf: (pf > 0.0).then(|| tf / pf),
+        })
+    };
     match super::renewal::figures(tree, id, max_states)? {
         Renewal::Figures(f) => return Ok(f),
-        Renewal::TooLarge { error, terms } if terms > MAX_RERUN_TERMS as f64 => return Err(error),
-        Renewal::TooLarge { .. } | Renewal::NotApplicable => {}
+        // R without a phase chain: the process's law from its levels
+        Renewal::TooLarge { error, terms } => match renewal_race(plan, id, None, scale) {
+            Ok(Some(race)) => return limits(race),
+            // a side over the budget: the product chain's refusal says more
+            Err(AnalysisError::StateBudget { .. }) => return Err(error),
+            Err(e) => return Err(e),
+            Ok(None) if terms > MAX_RERUN_TERMS as f64 => return Err(error),
+            Ok(None) => {}
+        },
+        Renewal::NotApplicable => {
+            if let Some(race) = renewal_race(plan, id, None, scale)? {
+                return limits(race);
+            }
+        }
     }
     // a deadline over such a race (its law by levels, cut at the deadline)
     if let Some([ps, pf, ts, tf]) = super::law::deadline_figures(tree, id, max_states)? {
@@ -758,18 +917,7 @@ pub(crate) fn figures(
             mttf: (pf > 0.0).then(|| tf / pf),
         });
     }
-    let race = race_of(plan, id)?;
-    let scale = child_figures
-        .iter()
-        .map(Figures::mean_time)
-        .fold(0.0, f64::max);
-    let [ps, pf, ts, tf] = race.limits(scale)?;
-    Ok(Figures {
-        ps,
-        pf,
-        mtts: (ps > 0.0).then(|| ts / ps),
-        mttf: (pf > 0.0).then(|| tf / pf),
-    })
+    limits(race_of(plan, id)?)
 }
 
 /// `π(t)` of race `id` at `times` (module docs).
@@ -779,15 +927,24 @@ pub(crate) fn curve(
     times: &[f64],
 ) -> Result<Vec<CurvePoint>, AnalysisError> {
     let (tree, max_states) = (plan.tree(), plan.max_states());
-    // the law of a renewal race is its loop's series (its figures are not)
+    // the law of a renewal race is its loop's series (its figures are
+    // not), or the process's law from its levels where R has no chain
+    let end = times.iter().copied().fold(0.0, f64::max);
+    let mut race = None;
     if let Some((process, terms)) = super::renewal::series(tree, id, max_states) {
         if terms > MAX_RERUN_TERMS as f64 {
-            return Err(AnalysisError::Unbounded {
-                node: tree.node(process).name.clone(),
-            });
+            race = renewal_race(plan, id, Some(end), 0.0)?;
+            if race.is_none() {
+                return Err(AnalysisError::Unbounded {
+                    node: tree.node(process).name.clone(),
+                });
+            }
         }
     }
-    let race = race_of(plan, id)?;
+    let race = match race {
+        Some(r) => r,
+        None => race_of(plan, id)?,
+    };
     let rows = race.rows(times, false)?;
     Ok(times
         .iter()

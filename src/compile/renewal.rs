@@ -165,7 +165,7 @@ fn renewal_loop(tree: &Tree, p: NodeId) -> Option<(f64, NodeId)> {
 type Process = (f64, NodeId, Option<(f64, NodeId)>);
 
 /// The re-run process `p` (see [`Parts`]).
-fn process(tree: &Tree, p: NodeId) -> Option<Process> {
+pub(super) fn process(tree: &Tree, p: NodeId) -> Option<Process> {
     if let Some((d, c)) = renewal_loop(tree, p) {
         return Some((d, c, None));
     }

@@ -567,6 +567,11 @@ impl Level {
     /// `[S, F, s, f]` at time `θ` within the level: the outcomes by `t =
     /// start + θ` and their densities at `t`, one weighted sum of the
     /// steps' functionals each.
+    /// The level's uniformization rate `Λ`.
+    pub(super) fn rate(&self) -> f64 {
+        self.lambda
+    }
+
     pub(super) fn at(&self, theta: f64) -> [f64; 4] {
         let win = poisson_window(self.lambda * theta, POINT_EPS);
         let mut o = [self.before[0], self.before[1], 0.0, 0.0];
@@ -595,7 +600,65 @@ pub(super) fn prepare(
     let Some(ch) = chains(tree, id, max_states)? else {
         return Ok(None);
     };
-    let name = tree.node(id).name.clone();
+    prepare_chains(ch, tree.node(id).name.clone(), t_max, max_states)
+}
+
+/// The re-run process `process` alone (`until_failure(Sequence(wait d,
+/// C′))`, or with a first cycle of its own) prepared for its levels up to
+/// `t_max`: the race against an `R` that never returns (one phase without
+/// exits), so a level's `F` and `f` are the process's Failure by `t` and
+/// its density — the law of its first failure, for a race with an `R` that
+/// has no phase chain (`race::renewal_race`). `None` when it is no such
+/// process, `C′` has no phase chain, or it never fails.
+pub(super) fn prepare_process(
+    tree: &Tree,
+    process: NodeId,
+    t_max: f64,
+    max_states: usize,
+) -> Result<Option<Prepared>, AnalysisError> {
+    let Some((wait, rerun, first)) = renewal::process(tree, process) else {
+        return Ok(None);
+    };
+    let chain = |n: NodeId| match phase::chain_of(tree, n, max_states) {
+        Ok(c) => Ok(Some(c)),
+        Err(AnalysisError::NotMarkovian { .. }) => Ok(None),
+        Err(e) => Err(e),
+    };
+    let Some(rerun) = chain(rerun)? else {
+        return Ok(None);
+    };
+    let first = match first {
+        None => None,
+        Some((d0, c0)) => match chain(c0)? {
+            Some(c0) => Some((d0, c0)),
+            None => return Ok(None),
+        },
+    };
+    let never = PhaseChain {
+        initial: vec![(0, 1.0)],
+        initial_success: 0.0,
+        initial_failure: 0.0,
+        transitions: vec![Vec::new()],
+        exit_success: vec![0.0],
+        exit_failure: vec![0.0],
+    };
+    let ch = Chains {
+        prefix: None,
+        rest: never,
+        rerun,
+        wait,
+        first,
+    };
+    prepare_chains(ch, tree.node(process).name.clone(), t_max, max_states)
+}
+
+/// [`prepare`] from the node's chains.
+fn prepare_chains(
+    ch: Chains,
+    name: String,
+    t_max: f64,
+    max_states: usize,
+) -> Result<Option<Prepared>, AnalysisError> {
     if ch.first.is_some() && ch.prefix.is_some() {
         // a first wait of its own after a random start: not on the grid
         return Ok(None);

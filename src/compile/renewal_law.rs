@@ -60,10 +60,10 @@ use crate::tree::{NodeId, NodeKind, Tree};
 /// boundaries (each level smooths the delay equation's solution by one
 /// order; a panel's polynomial has degree 16), unless waits start there
 /// with an atom.
-const SMOOTHING_LEVELS: usize = 24;
+pub(super) const SMOOTHING_LEVELS: usize = 24;
 /// Atom entering waits at a level's start below which the density's jump
 /// there is left to the panels' halving.
-const ATOM_FLOOR: f64 = 1e-15;
+pub(super) const ATOM_FLOOR: f64 = 1e-15;
 
 /// A race's law on `[0, T]`: its Success and Failure atoms at 0, and its
 /// Success and Failure sub-densities.

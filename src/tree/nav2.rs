@@ -489,7 +489,9 @@ impl Lowering<'_> {
                     })
                 }
             };
-            let renewal = wait.is_some() && renewal_applies(tree, rerun, &children[k + 1..]);
+            let later = &children[k + 1..];
+            let renewal = wait.is_some()
+                && (renewal_applies(tree, rerun, later) || levels_apply(tree, rerun, later));
             // its curve too when the wait is periodic (no first wait of its
             // own) and the earlier children are Markovian
             // (`crate::compile::renewal_curve`)
@@ -686,21 +688,47 @@ fn long_series(tree: &Tree, rerun: NodeId, waits: bool) -> Option<f64> {
 /// neither holds a pipeline child that re-runs (nor does the rest itself,
 /// before its last child).
 fn renewal_applies(tree: &Tree, rerun: NodeId, rest: &[NodeId]) -> bool {
-    let inert = |kids: &[NodeId]| kids.iter().all(|&c| retick(tree, c) == Retick::Inert);
-    let plain = |id: NodeId| {
-        tree.subtree(id).all(|n| match &tree.nodes[n].kind {
-            // exponential or zero times: a phase chain
-            NodeKind::Action(a) => [a.success, a.failure].iter().flatten().all(|d| {
-                matches!(d, Duration::Exponential { .. })
-                    || matches!(d, Duration::Fixed { time } if *time == 0.0)
-            }),
-            NodeKind::Pipeline { children } => children.split_last().is_none_or(|(_, e)| inert(e)),
-            _ => true,
-        })
-    };
-    plain(rerun)
-        && rest.iter().all(|&c| plain(c))
-        && rest.split_last().is_none_or(|(_, e)| inert(e))
+    let plain = |id: NodeId| markovian(tree, id) && no_rerun(tree, id);
+    plain(rerun) && rest.iter().all(|&c| plain(c)) && inert(tree, rest)
+}
+
+/// Whether that race, where the rest is not Markovian (a fixed wait in
+/// it), has the exact solution of `crate::compile::race::renewal_race`:
+/// the re-run's law of first failure from the renewal levels (the re-run
+/// Markovian), raced with the rest's own law (no pipeline child that
+/// re-runs in either).
+fn levels_apply(tree: &Tree, rerun: NodeId, rest: &[NodeId]) -> bool {
+    markovian(tree, rerun)
+        && no_rerun(tree, rerun)
+        && rest.iter().all(|&c| no_rerun(tree, c))
+        && inert(tree, rest)
+}
+
+/// Whether every child but the last of a pipeline changes nothing when
+/// ticked again.
+fn inert(tree: &Tree, kids: &[NodeId]) -> bool {
+    kids.split_last()
+        .is_none_or(|(_, e)| e.iter().all(|&c| retick(tree, c) == Retick::Inert))
+}
+
+/// Whether the leaves below `id` are Markovian (exponential or zero times:
+/// a phase chain).
+fn markovian(tree: &Tree, id: NodeId) -> bool {
+    tree.subtree(id).all(|n| match &tree.nodes[n].kind {
+        NodeKind::Action(a) => [a.success, a.failure].iter().flatten().all(|d| {
+            matches!(d, Duration::Exponential { .. })
+                || matches!(d, Duration::Fixed { time } if *time == 0.0)
+        }),
+        _ => true,
+    })
+}
+
+/// Whether no pipeline below `id` has a child that re-runs.
+fn no_rerun(tree: &Tree, id: NodeId) -> bool {
+    tree.subtree(id).all(|n| match &tree.nodes[n].kind {
+        NodeKind::Pipeline { children } => inert(tree, children),
+        _ => true,
+    })
 }
 
 /// The subtree rooted at `id` as a tree of its own.
