@@ -312,12 +312,12 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
     for (f, e) in &no_pipeline_curve {
         println!("  no pipeline curve: {f}: {e}");
     }
-    // the re-planning pipelines have their curve (the renewal levels): all
-    // but SpeedController's (a first wait of its own after a random start,
-    // off the period's grid) and follow_point's (a follower looped by
-    // KeepRunningUntilFailure: hundreds of phases, over the work limit)
+    // the re-planning pipelines have their curve: the renewal levels, or
+    // the race's law composed with the earlier children's (the 2
+    // SpeedController pipelines: a first wait of their own, off the
+    // period's grid after the earlier children; 20 of 22 before)
     assert!(
-        pipeline_curves >= 12,
+        pipeline_curves >= 22,
         "{pipeline_curves} of {pipelines} trees with a PipelineSequence have its curve"
     );
     for (f, e) in &limited {
@@ -396,7 +396,9 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
         parsed.len() + limited.len() + nav2.len() + semantic.len() + invalid.len(),
         trees.len()
     );
-    // 100 analysed (97 with the root's curve; 99 and 96 before the
+    // 100 analysed (99 with the root's curve; 97 before the SpeedController
+    // pipelines' race law composed with their earlier children, 99 and 96
+    // before the
     // re-planning race against a rest with a fixed Wait took the process's
     // law from its levels: Humble's goal-patience tree; 96 before a race's
     // law composed
@@ -414,7 +416,7 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
     // sample_april_tag SubTree is analysed with the `{num_samples}` its caller
     // passes (EXTRA_PARAMS)
     assert!(parsed.len() >= 100, "{} analysed", parsed.len());
-    assert!(curves >= 97, "{curves} root curves");
+    assert!(curves >= 99, "{curves} root curves");
     for f in [
         "moveitpro/lab_sim__mpc_pose_tracking.xml",
         "nav2_humble/navigate_to_pose_w_replanning_goal_patience_and_recovery.xml",

@@ -232,6 +232,62 @@ fn a_rest_with_a_fixed_wait_races_the_process_s_law() {
     }
 }
 
+/// A SpeedController's pipeline: the re-plan race with a first wait of
+/// its own (`d₀` = 1.8 s, then every 1 s) after a prefix A (Success w.p.
+/// 0.9 after Exp(3), else Failure after Exp(1)) — off the period's grid, so
+/// the levels cannot carry the prefix: the race's law in its own time
+/// (`renewal_law`, the levels from `d₀`) convolved with A's by the
+/// composed laws. By hand: the process fails after n successful runs at
+/// `L = d₀ + nd + E_n(a) + Exp(b)` w.p. `pⁿ(1 − p)` (as above with `d₀`
+/// for the first wait), the race's `S_race(t) = s ∫_0^t μe^{−μx} P(L > x)
+/// dx`, and the pipeline's `S(t) = 0.9 ∫ 3e^{−3u} S_race(t − u) du`;
+/// likewise Failure. Within 1e-10 (it agrees to 1e-12).
+#[test]
+fn a_first_wait_off_the_grid_after_a_prefix_matches_the_closed_form() {
+    let (p, a, b, d, d0): (f64, f64, f64, f64, f64) = (0.9, 2.0, 0.5, 1.0, 1.8);
+    let rest = (0.8, 0.5, 0.25);
+    let plan = |name: &str| format!("{{action: {{name: {name}, ps: {p}, mu: {a}, nu: {b}}}}}");
+    let (first, later) = (plan("first plan"), plan("plan"));
+    let race = format!(
+        "{{parallel: {{name: race, success_threshold: 1, failure_threshold: 1, children: [\
+         {{sequence: {{name: replan, children: [{{action: {{name: first wait, ps: 1.0, tau_s: {d0}}}}}, \
+         {first}, {{until_failure: {{name: loop, child: {{sequence: {{children: [\
+         {{action: {{name: wait, ps: 1.0, tau_s: {d}}}}}, {later}]}}}}}}}}]}}}}, \
+         {{action: {{name: follow, ps: 0.8, mu: 0.5, nu: 0.25}}}}]}}}}"
+    );
+    let t = tree(&format!(
+        "tree: {{sequence: {{name: pipeline, children: [{{action: {{name: A, ps: 0.9, mu: 3.0, nu: 1.0}}}}, {race}]}}}}"
+    ));
+    let fails_by = |x: f64| -> f64 {
+        let mut total = 0.0;
+        let mut n = 0;
+        while d0 + n as f64 * d < x {
+            let y = x - d0 - n as f64 * d;
+            let h = poisson_upper(n, a * y)
+                - (-b * y).exp() * (a / (a - b)).powi(n as i32) * poisson_upper(n, (a - b) * y);
+            total += p.powi(n as i32) * (1.0 - p) * h;
+            n += 1;
+        }
+        total
+    };
+    let survive = |x: f64| 1.0 - fails_by(x);
+    let times = [1.0, 2.5, 4.0, 9.0];
+    let pts = curve(&t, 0, &times, &CurveOptions::default()).expect("curve");
+    for (pt, &tt) in pts.iter().zip(&times) {
+        // the race's kinks sit at d₀ + kd (after A): cut at 0.1 s steps
+        let race = |x: f64| against_one_action(&survive, rest, 0.1, x);
+        let success = 0.9 * integrate(&|u| 3.0 * (-3.0 * u).exp() * race(tt - u).0, 0.0, tt, 0.1);
+        let failure = 0.1 * (1.0 - (-tt).exp())
+            + 0.9 * integrate(&|u| 3.0 * (-3.0 * u).exp() * race(tt - u).1, 0.0, tt, 0.1);
+        assert_curve(
+            &format!("t = {tt}"),
+            (pt.success, pt.failure),
+            (success, failure),
+            1e-10,
+        );
+    }
+}
+
 /// The exponential re-plan above after a fast prefix A (Success w.p. 0.9
 /// after Exp(10), else Failure after Exp(10)): the race starts when A
 /// succeeds, so `S(t) = 0.9 ∫ 10 e^{−10a} S_race(t − a) da`, likewise

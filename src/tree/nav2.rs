@@ -492,12 +492,11 @@ impl Lowering<'_> {
             let later = &children[k + 1..];
             let renewal = wait.is_some()
                 && (renewal_applies(tree, rerun, later) || levels_apply(tree, rerun, later));
-            // its curve too when the wait is periodic (no first wait of its
-            // own) and the earlier children are Markovian
-            // (`crate::compile::renewal_curve`)
-            let curve = renewal
-                && wait.is_some_and(|(first, period)| first == period)
-                && renewal_applies(tree, rerun, &children[..=k]);
+            // its curve too: by the levels when the wait is periodic (no
+            // first wait of its own) and the earlier children are Markovian
+            // (`crate::compile::renewal_curve`), else the race's law (its
+            // own time starts with the first wait) composed with theirs
+            let curve = renewal;
             if let Some(terms) = long_series(tree, rerun, wait.is_some())
                 .filter(|_| !(renewal && (self.figures || curve)))
             {
