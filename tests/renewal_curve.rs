@@ -288,6 +288,58 @@ fn a_first_wait_off_the_grid_after_a_prefix_matches_the_closed_form() {
     }
 }
 
+/// A loop without a bound alone (`until_failure(Sequence(wait 0.05 s,
+/// plan))`, the re-plan failing 3% of the time: about 300 runs by 15 s)
+/// under a Fallback whose second child B then runs (Success w.p. 0.8
+/// after Exp(2), else Failure after Exp(1)), with a budget of 1,000 states
+/// that the loop's shifted mixture exceeds: the composed laws' loop by
+/// doubling. By hand: the loop fails at `L = (n + 1)d + E_n(a) + Exp(b)`
+/// w.p. `pⁿ(1 − p)` (as above), so `S(t) = 0.8 ∫_0^t P(L ≤ u)' (1 −
+/// e^{−2(t−u)}) du = 0.8 ∫_0^t P(L ≤ u) 2e^{−2(t−u)} du`, and B fails
+/// likewise. Within 1e-10.
+#[test]
+fn a_loop_without_a_bound_composes_by_doubling() {
+    let (p, a, b, d): (f64, f64, f64, f64) = (0.97, 20.0, 5.0, 0.05);
+    let t = tree(&format!(
+        "tree: {{fallback: {{name: top, children: [\
+         {{until_failure: {{name: replan, child: {{sequence: {{children: [\
+         {{action: {{name: wait, ps: 1.0, tau_s: {d}}}}}, \
+         {{action: {{name: plan, ps: {p}, mu: {a}, nu: {b}}}}}]}}}}}}}}, \
+         {{action: {{name: B, ps: 0.8, mu: 2.0, nu: 1.0}}}}]}}}}"
+    ));
+    let fails_by = |x: f64| -> f64 {
+        let mut total = 0.0;
+        let mut n = 0;
+        while (n as f64 + 1.0) * d < x {
+            let y = x - (n as f64 + 1.0) * d;
+            let h = poisson_upper(n, a * y)
+                - (-b * y).exp() * (a / (a - b)).powi(n as i32) * poisson_upper(n, (a - b) * y);
+            total += p.powi(n as i32) * (1.0 - p) * h;
+            n += 1;
+        }
+        total
+    };
+    let times = [0.5, 1.5, 3.2, 7.0, 15.0];
+    // a budget the loop's shifted mixture (about 300 terms, Erlang-k each)
+    // exceeds: the composed laws answer
+    let small = CurveOptions {
+        max_states: 1000,
+        ..CurveOptions::default()
+    };
+    let pts = curve(&t, 0, &times, &small).expect("curve");
+    for (pt, &tt) in pts.iter().zip(&times) {
+        // B starts when the loop fails: by parts, S(t) = 0.8 ∫ F_L(u) 2e^{−2(t−u)} du
+        let success = 0.8 * integrate(&|u| fails_by(u) * 2.0 * (-2.0 * (tt - u)).exp(), 0.0, tt, d);
+        let failure = 0.2 * integrate(&|u| fails_by(u) * (-(tt - u)).exp(), 0.0, tt, d);
+        assert_curve(
+            &format!("t = {tt}"),
+            (pt.success, pt.failure),
+            (success, failure),
+            1e-10,
+        );
+    }
+}
+
 /// The exponential re-plan above after a fast prefix A (Success w.p. 0.9
 /// after Exp(10), else Failure after Exp(10)): the race starts when A
 /// succeeds, so `S(t) = 0.9 ∫ 10 e^{−10a} S_race(t − a) da`, likewise

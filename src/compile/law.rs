@@ -746,11 +746,8 @@ impl Builder<'_> {
                     }
                     Decorator::Retry { attempts } => self.repeated(id, &law, attempts, false),
                     Decorator::Repeat { times } => self.repeated(id, &law, times, true),
-                    Decorator::UntilFailure | Decorator::UntilSuccess => {
-                        Err(AnalysisError::Unbounded {
-                            node: self.name(id),
-                        })
-                    }
+                    Decorator::UntilFailure => self.unbounded(id, &law, true),
+                    Decorator::UntilSuccess => self.unbounded(id, &law, false),
                     Decorator::Rate { .. } | Decorator::SingleTrigger => {
                         unreachable!("as_primitive maps Nav2 decorators to repeat 1")
                     }
@@ -1089,6 +1086,36 @@ impl Builder<'_> {
         }
         let stopped = self.convolve(id, &q, &law.measure(stop))?;
         Ok(self.law_from(go, p, stopped))
+    }
+
+    /// A loop without a bound (`until_failure`: `sequence`, on the
+    /// child's Success; `until_success` on its Failure) on `[0, T]`: it
+    /// returns with the child's other outcome after `n ≥ 0` runs that went
+    /// on, `Σ_n G^{*n} ⊛ stop` (`G` the law of a run that goes on), built by
+    /// doubling — `P_m = G^{*m}`, `Q_m = Σ_{n<m} G^{*n}`, `Q_{2m} = Q_m + P_m
+    /// ⊛ Q_m`, `P_{2m} = P_m ⊛ P_m` — and stopped once `m·|P_m|` is
+    /// negligible (`|·|` the mass within `[0, T]`: `G^{*(jm + r)}` has at
+    /// most `|P_m|^j` there, so the runs left out weigh at most about
+    /// `m·|P_m|`). Within `[0, T]` it never returns otherwise (the runs
+    /// still going after `T`); a child that goes on at once for sure (an
+    /// atom of mass 1 at 0: it would loop within one instant) is refused.
+    fn unbounded(&self, id: NodeId, law: &Law, sequence: bool) -> Result<Law, AnalysisError> {
+        let (go, stop) = outcomes(sequence);
+        let step = law.measure(go);
+        let (mut p, mut q, mut m) = (step, Measure::unit(), 1.0f64);
+        for _ in 0..64 {
+            if p.mass() * m < NEGLIGIBLE {
+                let stopped = self.convolve(id, &q, &law.measure(stop))?;
+                return Ok(self.law_from(go, Measure::zero(), stopped));
+            }
+            let pq = self.convolve(id, &p, &q)?;
+            q = self.add(id, &q, &pq)?;
+            p = self.convolve(id, &p, &p)?;
+            m *= 2.0;
+        }
+        Err(AnalysisError::Unbounded {
+            node: self.name(id),
+        })
     }
 
     fn law_from(&self, go: usize, going: Measure, stopped: Measure) -> Law {

@@ -188,13 +188,14 @@ pub enum AnalysisError {
         /// `Success` or `Failure`.
         until: &'static str,
     },
-    /// A subtree holding a loop without a bound (`until_failure`,
-    /// `until_success`) where the analysis needs its time distribution: the
-    /// loop's chain is cyclic, and only the loop itself is solved that way.
+    /// A loop without a bound (`until_failure`, `until_success`) whose time
+    /// distribution the analysis needs but cannot build: its child goes on
+    /// at once for sure (it would repeat within one instant), or a re-run
+    /// process's series is too long where no other method applies.
     #[error(
-        "node '{node}' repeats its child without a bound; the exact distribution of a subtree \
-         around such a loop is not supported yet (its figures are, and the loop's own curve \
-         when its child has exponential times)"
+        "node '{node}' repeats its child without a bound, and its distribution over time is not \
+         available here (its child goes on at once for sure, or its series of repetitions is too \
+         long for the subtree around it); its figures are exact"
     )]
     Unbounded {
         /// The loop node.
