@@ -61,6 +61,36 @@ fn episodes(
         .collect()
 }
 
+/// Whether the `level` intervals (400 draws, seeded by `seed`) of the
+/// root's ps, MTTS and MTTF cover `truth`.
+fn root_covers(sampler: &Sampler, level: f64, seed: u64, truth: [f64; 3]) -> [bool; 3] {
+    let ci = sampler
+        .intervals(level, 400, seed, |t| {
+            btrel::analyze(t, &Default::default()).map(|an| {
+                let f = an.nodes[0];
+                vec![Some(f.ps), f.mtts, f.mttf]
+            })
+        })
+        .unwrap();
+    std::array::from_fn(|k| {
+        let (lo, hi) = ci[k].unwrap();
+        lo <= truth[k] && truth[k] <= hi
+    })
+}
+
+/// Each named figure's coverage over `reps` logs is within 3.5 binomial
+/// standard errors of nominal `level`.
+fn assert_nominal(names: &[&str], covered: &[usize], level: f64, reps: usize) {
+    let sd = (level * (1.0 - level) / reps as f64).sqrt();
+    for (what, &n) in names.iter().zip(covered) {
+        let c = n as f64 / reps as f64;
+        assert!(
+            ((c - level) / sd).abs() < 3.5,
+            "{what}: coverage {c} of nominal {level} over {reps} logs"
+        );
+    }
+}
+
 /// Coverage: logs simulated from known parameters, fitted, intervals of the
 /// root's ps, MTTS and MTTF; the closed forms of a two-action Fallback
 /// (eqs. 9.74–9.75) are the truth. Each level's coverage must be within
@@ -90,17 +120,11 @@ fn intervals_cover_the_truth_at_their_level() {
         let stats = read_fit_stats(&params, "p.yaml").unwrap();
         let sampler = Sampler::new(&keyed.tree, &keyed.keys, &stats);
         assert_eq!(sampler.varied(), 6);
-        let ci = sampler
-            .intervals(level, 400, rep as u64, |t| {
-                btrel::analyze(t, &Default::default()).map(|an| {
-                    let f = an.nodes[0];
-                    vec![Some(f.ps), f.mtts, f.mttf]
-                })
-            })
-            .unwrap();
-        for k in 0..3 {
-            let (lo, hi) = ci[k].unwrap();
-            covered[k] += usize::from(lo <= truth[k] && truth[k] <= hi);
+        for (c, hit) in covered
+            .iter_mut()
+            .zip(root_covers(&sampler, level, rep as u64, truth))
+        {
+            *c += usize::from(hit);
         }
     }
     assert!(
@@ -108,14 +132,7 @@ fn intervals_cover_the_truth_at_their_level() {
         "the halts path was exercised ({halted} halts)"
     );
     eprintln!("coverage of nominal {level} over {reps} logs (ps, MTTS, MTTF): {covered:?}");
-    let sd = (level * (1.0 - level) / reps as f64).sqrt();
-    for (k, what) in ["ps", "MTTS", "MTTF"].iter().enumerate() {
-        let c = covered[k] as f64 / reps as f64;
-        assert!(
-            ((c - level) / sd).abs() < 3.5,
-            "{what}: coverage {c} of nominal {level} over {reps} logs"
-        );
-    }
+    assert_nominal(&["ps", "MTTS", "MTTF"], &covered, level, reps);
 }
 
 /// The quantile `q` of a density on a grid (trapezoids), and the density there.
@@ -861,17 +878,11 @@ fn auto_fitted_erlang_times_are_drawn_and_cover_the_truth() {
             sampler.held
         );
         other += usize::from(!sampler.held.is_empty());
-        let ci = sampler
-            .intervals(level, 400, rep as u64, |t| {
-                btrel::analyze(t, &Default::default()).map(|an| {
-                    let f = an.nodes[0];
-                    vec![Some(f.ps), f.mtts, f.mttf]
-                })
-            })
-            .unwrap();
-        for k in 0..3 {
-            let (lo, hi) = ci[k].unwrap();
-            covered[k] += usize::from(lo <= truth[k] && truth[k] <= hi);
+        for (c, hit) in covered
+            .iter_mut()
+            .zip(root_covers(&sampler, level, rep as u64, truth))
+        {
+            *c += usize::from(hit);
         }
     }
     assert!(
@@ -882,12 +893,5 @@ fn auto_fitted_erlang_times_are_drawn_and_cover_the_truth() {
         "auto fits: coverage of nominal {level} over {reps} logs (ps, MTTS, MTTF): {covered:?}; \
          an Erlang picked {erlang} times, a law held in {other} logs"
     );
-    let sd = (level * (1.0 - level) / reps as f64).sqrt();
-    for (k, what) in ["ps", "MTTS"].iter().enumerate() {
-        let c = covered[k] as f64 / reps as f64;
-        assert!(
-            ((c - level) / sd).abs() < 3.5,
-            "{what}: coverage {c} of nominal {level} over {reps} logs"
-        );
-    }
+    assert_nominal(&["ps", "MTTS"], &covered, level, reps);
 }

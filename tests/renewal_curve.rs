@@ -37,6 +37,25 @@ fn poisson_upper(n: usize, lambda: f64) -> f64 {
     sum
 }
 
+/// `P(L ≤ x)` for the re-run process whose first wait is `d0` and later
+/// ones `d`, each re-plan succeeding w.p. `p` after Exp(a), else failing
+/// after Exp(b) (a > b): it fails after n successful runs at `L = d0 + nd +
+/// E_n(a) + Exp(b)` w.p. `pⁿ(1 − p)` (`E_n` an Erlang), and `P(E_n(a) +
+/// Exp(b) ≤ y) = P(E_n(a) ≤ y) − e^{−by} (a/(a − b))ⁿ P(E_n(a − b) ≤ y)`,
+/// `P(E_n(r) ≤ y) = P(Poisson(ry) ≥ n)`.
+fn replan_fails_by(x: f64, (p, a, b): (f64, f64, f64), d0: f64, d: f64) -> f64 {
+    let mut total = 0.0;
+    let mut n = 0;
+    while d0 + n as f64 * d < x {
+        let y = x - d0 - n as f64 * d;
+        let h = poisson_upper(n, a * y)
+            - (-b * y).exp() * (a / (a - b)).powi(n as i32) * poisson_upper(n, (a - b) * y);
+        total += p.powi(n as i32) * (1.0 - p) * h;
+        n += 1;
+    }
+    total
+}
+
 /// `∫_a^b f` by 30-point Gauss–Legendre on panels of width ≤ 0.25 cut at
 /// the multiples of `cut` (where the integrand kinks).
 fn integrate(f: &dyn Fn(f64) -> f64, a: f64, b: f64, cut: f64) -> f64 {
@@ -82,6 +101,19 @@ fn against_one_action(
     (success, 1.0 - success - running)
 }
 
+/// Each point of `pts` (at `times`) against `want(t)` = (S, F) by hand.
+fn assert_points(
+    pts: &[btrel::curve::CurvePoint],
+    times: &[f64],
+    tol: f64,
+    want: impl Fn(f64) -> (f64, f64),
+) {
+    for (pt, &tt) in pts.iter().zip(times) {
+        let what = format!("t = {tt}");
+        assert_curve(&what, (pt.success, pt.failure), want(tt), tol);
+    }
+}
+
 fn assert_curve(what: &str, got: (f64, f64), want: (f64, f64), tol: f64) {
     assert!(
         (got.0 - want.0).abs() <= tol && (got.1 - want.1).abs() <= tol,
@@ -107,10 +139,9 @@ fn a_bernoulli_replan_every_period_matches_the_closed_form() {
     let survive = |x: f64| p.powi((x / d + 1e-12).floor() as i32);
     let times = [0.0, 0.2, 0.5, 1.3, 7.0, 30.25, 100.0, 400.0];
     let pts = curve(&t, 0, &times, &CurveOptions::default()).expect("curve");
-    for (pt, &tt) in pts.iter().zip(&times) {
-        let want = against_one_action(&survive, rest, d, tt);
-        assert_curve(&format!("t = {tt}"), (pt.success, pt.failure), want, 1e-10);
-    }
+    assert_points(&pts, &times, 1e-10, |tt| {
+        against_one_action(&survive, rest, d, tt)
+    });
     // the limit is report's figures
     let f = root_figures(&t);
     let late = curve(&t, 0, &[2000.0], &CurveOptions::default()).unwrap()[0];
@@ -132,25 +163,13 @@ fn an_exponential_replan_matches_the_closed_form() {
         &format!("{{action: {{name: plan, ps: {p}, mu: {a}, nu: {b}}}}}"),
         "{action: {name: follow, ps: 0.8, mu: 0.5, nu: 0.25}}",
     ));
-    let fails_by = |x: f64| -> f64 {
-        let mut total = 0.0;
-        let mut n = 0;
-        while (n as f64 + 1.0) * d < x {
-            let y = x - (n as f64 + 1.0) * d;
-            let h = poisson_upper(n, a * y)
-                - (-b * y).exp() * (a / (a - b)).powi(n as i32) * poisson_upper(n, (a - b) * y);
-            total += p.powi(n as i32) * (1.0 - p) * h;
-            n += 1;
-        }
-        total
-    };
+    let fails_by = |x: f64| replan_fails_by(x, (p, a, b), d, d);
     let survive = |x: f64| 1.0 - fails_by(x);
     let times = [0.3, 1.0, 1.7, 2.5, 4.0, 9.9, 20.0];
     let pts = curve(&t, 0, &times, &CurveOptions::default()).expect("curve");
-    for (pt, &tt) in pts.iter().zip(&times) {
-        let want = against_one_action(&survive, rest, d, tt);
-        assert_curve(&format!("t = {tt}"), (pt.success, pt.failure), want, 1e-10);
-    }
+    assert_points(&pts, &times, 1e-10, |tt| {
+        against_one_action(&survive, rest, d, tt)
+    });
 }
 
 /// The exponential re-plan above against a rest with a **fixed wait**
@@ -174,18 +193,7 @@ fn a_rest_with_a_fixed_wait_races_the_process_s_law() {
              {{action: {{name: follow, ps: {s}, mu: {mu}, nu: {nu}}}}}]}}}}"
         ),
     ));
-    let fails_by = |x: f64| -> f64 {
-        let mut total = 0.0;
-        let mut n = 0;
-        while (n as f64 + 1.0) * d < x {
-            let y = x - (n as f64 + 1.0) * d;
-            let h = poisson_upper(n, a * y)
-                - (-b * y).exp() * (a / (a - b)).powi(n as i32) * poisson_upper(n, (a - b) * y);
-            total += p.powi(n as i32) * (1.0 - p) * h;
-            n += 1;
-        }
-        total
-    };
+    let fails_by = |x: f64| replan_fails_by(x, (p, a, b), d, d);
     let survive = |x: f64| 1.0 - fails_by(x);
     // the rest's density is below 1e-17 beyond x = 80
     let far = 80.0;
@@ -219,17 +227,12 @@ fn a_rest_with_a_fixed_wait_races_the_process_s_law() {
     close("MTTF", f.mttf.expect("fails"), tf / pf);
     let times = [1.0, 2.5, 3.7, 8.0, 20.0];
     let pts = curve(&t, 0, &times, &CurveOptions::default()).expect("curve");
-    for (pt, &tt) in pts.iter().zip(&times) {
+    assert_points(&pts, &times, 1e-10, |tt| {
         let upto = (tt - tau).max(0.0);
         let success = s * integrate(&|x| mu * (-mu * x).exp() * survive(tau + x), 0.0, upto, d);
         let failure = 1.0 - success - survive(tt) * running(tt);
-        assert_curve(
-            &format!("t = {tt}"),
-            (pt.success, pt.failure),
-            (success, failure),
-            1e-10,
-        );
-    }
+        (success, failure)
+    });
 }
 
 /// A SpeedController's pipeline: the re-plan race with a first wait of
@@ -258,34 +261,18 @@ fn a_first_wait_off_the_grid_after_a_prefix_matches_the_closed_form() {
     let t = tree(&format!(
         "tree: {{sequence: {{name: pipeline, children: [{{action: {{name: A, ps: 0.9, mu: 3.0, nu: 1.0}}}}, {race}]}}}}"
     ));
-    let fails_by = |x: f64| -> f64 {
-        let mut total = 0.0;
-        let mut n = 0;
-        while d0 + n as f64 * d < x {
-            let y = x - d0 - n as f64 * d;
-            let h = poisson_upper(n, a * y)
-                - (-b * y).exp() * (a / (a - b)).powi(n as i32) * poisson_upper(n, (a - b) * y);
-            total += p.powi(n as i32) * (1.0 - p) * h;
-            n += 1;
-        }
-        total
-    };
+    let fails_by = |x: f64| replan_fails_by(x, (p, a, b), d0, d);
     let survive = |x: f64| 1.0 - fails_by(x);
     let times = [1.0, 2.5, 4.0, 9.0];
     let pts = curve(&t, 0, &times, &CurveOptions::default()).expect("curve");
-    for (pt, &tt) in pts.iter().zip(&times) {
+    assert_points(&pts, &times, 1e-10, |tt| {
         // the race's kinks sit at d₀ + kd (after A): cut at 0.1 s steps
         let race = |x: f64| against_one_action(&survive, rest, 0.1, x);
         let success = 0.9 * integrate(&|u| 3.0 * (-3.0 * u).exp() * race(tt - u).0, 0.0, tt, 0.1);
         let failure = 0.1 * (1.0 - (-tt).exp())
             + 0.9 * integrate(&|u| 3.0 * (-3.0 * u).exp() * race(tt - u).1, 0.0, tt, 0.1);
-        assert_curve(
-            &format!("t = {tt}"),
-            (pt.success, pt.failure),
-            (success, failure),
-            1e-10,
-        );
-    }
+        (success, failure)
+    });
 }
 
 /// A loop without a bound alone (`until_failure(Sequence(wait 0.05 s,
@@ -307,18 +294,7 @@ fn a_loop_without_a_bound_composes_by_doubling() {
          {{action: {{name: plan, ps: {p}, mu: {a}, nu: {b}}}}}]}}}}}}}}, \
          {{action: {{name: B, ps: 0.8, mu: 2.0, nu: 1.0}}}}]}}}}"
     ));
-    let fails_by = |x: f64| -> f64 {
-        let mut total = 0.0;
-        let mut n = 0;
-        while (n as f64 + 1.0) * d < x {
-            let y = x - (n as f64 + 1.0) * d;
-            let h = poisson_upper(n, a * y)
-                - (-b * y).exp() * (a / (a - b)).powi(n as i32) * poisson_upper(n, (a - b) * y);
-            total += p.powi(n as i32) * (1.0 - p) * h;
-            n += 1;
-        }
-        total
-    };
+    let fails_by = |x: f64| replan_fails_by(x, (p, a, b), d, d);
     let times = [0.5, 1.5, 3.2, 7.0, 15.0];
     // a budget the loop's shifted mixture (about 300 terms, Erlang-k each)
     // exceeds: the composed laws answer
@@ -327,17 +303,12 @@ fn a_loop_without_a_bound_composes_by_doubling() {
         ..CurveOptions::default()
     };
     let pts = curve(&t, 0, &times, &small).expect("curve");
-    for (pt, &tt) in pts.iter().zip(&times) {
+    assert_points(&pts, &times, 1e-10, |tt| {
         // B starts when the loop fails: by parts, S(t) = 0.8 ∫ F_L(u) 2e^{−2(t−u)} du
         let success = 0.8 * integrate(&|u| fails_by(u) * 2.0 * (-2.0 * (tt - u)).exp(), 0.0, tt, d);
         let failure = 0.2 * integrate(&|u| fails_by(u) * (-(tt - u)).exp(), 0.0, tt, d);
-        assert_curve(
-            &format!("t = {tt}"),
-            (pt.success, pt.failure),
-            (success, failure),
-            1e-10,
-        );
-    }
+        (success, failure)
+    });
 }
 
 /// The exponential re-plan above after a fast prefix A (Success w.p. 0.9
@@ -361,35 +332,19 @@ fn a_fast_prefix_then_an_exponential_replan_matches_the_closed_form() {
         1,
     ) + "]}}";
     let t = tree(&yaml);
-    let fails_by = |x: f64| -> f64 {
-        let mut total = 0.0;
-        let mut n = 0;
-        while (n as f64 + 1.0) * d < x {
-            let y = x - (n as f64 + 1.0) * d;
-            let h = poisson_upper(n, a * y)
-                - (-b * y).exp() * (a / (a - b)).powi(n as i32) * poisson_upper(n, (a - b) * y);
-            total += p.powi(n as i32) * (1.0 - p) * h;
-            n += 1;
-        }
-        total
-    };
+    let fails_by = |x: f64| replan_fails_by(x, (p, a, b), d, d);
     let survive = |x: f64| 1.0 - fails_by(x);
     let times = [3.0, 8.0, 12.0];
     let pts = curve(&t, 0, &times, &CurveOptions::default()).expect("curve");
-    for (pt, &tt) in pts.iter().zip(&times) {
+    assert_points(&pts, &times, 1e-10, |tt| {
         // A's density beyond 4 s is below 1e-16
         let upto = tt.min(4.0);
         let race = |x: f64| against_one_action(&survive, rest, d, x);
         let success = 0.9 * integrate(&|s| 10.0 * (-10.0 * s).exp() * race(tt - s).0, 0.0, upto, d);
         let failure = 0.1 * (1.0 - (-10.0 * tt).exp())
             + 0.9 * integrate(&|s| 10.0 * (-10.0 * s).exp() * race(tt - s).1, 0.0, upto, d);
-        assert_curve(
-            &format!("t = {tt}"),
-            (pt.success, pt.failure),
-            (success, failure),
-            1e-10,
-        );
-    }
+        (success, failure)
+    });
 }
 
 #[test]
