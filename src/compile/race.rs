@@ -821,8 +821,13 @@ pub(crate) fn renewal_race(
         None => {
             let mut t = scale.max(parts.wait).max(1.0);
             let mut tail = None;
-            for _ in 0..64 {
-                let [s, f, _, _] = rest.rows(&name, &[t], false)?[0];
+            // an R that may never return keeps a running probability: stop
+            // after 2^30 times the scale (or where R's own sampling gives up)
+            for _ in 0..30 {
+                let Ok(rows) = rest.rows(&name, &[t], false) else {
+                    return Ok(None);
+                };
+                let [s, f, _, _] = rows[0];
                 if 1.0 - s - f <= REST_TAIL {
                     tail = Some(2.0 * t);
                     break;
