@@ -38,7 +38,7 @@
 mod chain;
 mod exact;
 
-use crate::compile::{analyze, primitive_view_for_figures, Analysis, AnalysisError, Options, Plan};
+use crate::compile::{analyze, primitive_view, Analysis, AnalysisError, Options, Plan};
 use crate::curve::{curve, CurveOptions};
 use crate::tree::{Duration, NodeId, NodeKind, Tree};
 
@@ -341,7 +341,7 @@ fn sensitivity_with(
     let value = objective_value(tree, objective, options)?;
     // the plan and analysis the exact derivatives start from: not for a
     // tree with Nav2 nodes (its leaves stand for several)
-    let primitive = exact && primitive_view_for_figures(tree)?.is_none();
+    let primitive = exact && primitive_view(tree)?.is_none();
     let plan = primitive.then(|| Plan::new(tree, options.method, options.max_states));
     let grids = exact::Grids::default();
     let analysis = if primitive && !matches!(objective, Objective::SuccessBy(_)) {

@@ -259,12 +259,6 @@ pub fn primitive_view(tree: &Tree) -> Result<Option<View>, AnalysisError> {
     located(tree, crate::tree::nav2::primitive_view(tree))
 }
 
-/// [`primitive_view`] for the figures alone
-/// ([`crate::tree::nav2::primitive_view_for_figures`]).
-pub fn primitive_view_for_figures(tree: &Tree) -> Result<Option<View>, AnalysisError> {
-    located(tree, crate::tree::nav2::primitive_view_for_figures(tree))
-}
-
 fn located(
     tree: &Tree,
     view: Result<Option<View>, crate::tree::nav2::NotPrimitive>,
@@ -298,7 +292,7 @@ impl Analysis {
 /// Analyses every node of the tree, bottom-up, each from its planned
 /// representation ([`plan`]).
 pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError> {
-    let view = primitive_view_for_figures(tree)?;
+    let view = primitive_view(tree)?;
     let (tree, image) = match &view {
         Some(v) => (&v.tree, Some(&v.image)),
         None => (tree, None),

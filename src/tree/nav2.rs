@@ -215,20 +215,6 @@ pub struct View {
 ///
 /// Anything else is refused, naming the node.
 pub fn primitive_view(tree: &Tree) -> Result<Option<View>, NotPrimitive> {
-    lower(tree, false)
-}
-
-/// [`primitive_view`] for the figures alone (ps, pf, MTTS, MTTF): a
-/// RateController's re-run process with a long series is lowered too where
-/// the race has the exact renewal solution (`crate::compile::renewal`: the
-/// re-run and the rest of the pipeline are Markovian), which needs no
-/// series; the refusal stays where it does not (and for everything else,
-/// e.g. the curve, which needs the series).
-pub fn primitive_view_for_figures(tree: &Tree) -> Result<Option<View>, NotPrimitive> {
-    lower(tree, true)
-}
-
-fn lower(tree: &Tree, figures: bool) -> Result<Option<View>, NotPrimitive> {
     let nav2 = |k: &NodeKind| {
         matches!(
             k,
@@ -250,7 +236,6 @@ fn lower(tree: &Tree, figures: bool) -> Result<Option<View>, NotPrimitive> {
         out: Vec::with_capacity(tree.nodes.len()),
         image: vec![usize::MAX; tree.nodes.len()],
         copied: vec![false; tree.nodes.len()],
-        figures,
         roots,
     };
     lower.node(Tree::ROOT, None, 0, None)?;
@@ -272,8 +257,6 @@ struct Lowering<'a> {
     out: Vec<super::Node>,
     image: Vec<NodeId>,
     copied: Vec<bool>,
-    /// Lowering for the figures alone ([`primitive_view_for_figures`]).
-    figures: bool,
     /// The nodes that become one flow over a RoundRobin's index
     /// ([`index_roots`]), each with the RoundRobin slot.
     roots: HashMap<NodeId, usize>,
@@ -489,23 +472,12 @@ impl Lowering<'_> {
                     })
                 }
             };
-            let later = &children[k + 1..];
-            let renewal = wait.is_some()
-                && (renewal_applies(tree, rerun, later) || levels_apply(tree, rerun, later));
-            // its curve too: by the levels when the wait is periodic (no
-            // first wait of its own) and the earlier children are Markovian
-            // (`crate::compile::renewal_curve`), else the race's law (its
-            // own time starts with the first wait) composed with theirs
-            let curve = renewal;
-            if let Some(terms) = long_series(tree, rerun, wait.is_some())
-                .filter(|_| !(renewal && (self.figures || curve)))
-            {
-                let exact = if renewal {
-                    " (the figures — ps, pf, MTTS, MTTF — are exact without it; the \
-                     distribution over time is not)"
-                } else {
-                    ""
-                };
+            // exact without a series (figures and curve: by the levels when
+            // the wait is periodic and the earlier children are Markovian,
+            // `crate::compile::renewal_curve`, else the race's law — its own
+            // time starts with the first wait — composed with theirs)
+            let renewal = wait.is_some() && renewal_applies(tree, rerun, &children[k + 1..]);
+            if let Some(terms) = long_series(tree, rerun, wait.is_some()).filter(|_| !renewal) {
                 return Err(NotPrimitive {
                     node: pipe,
                     reason: format!(
@@ -513,7 +485,7 @@ impl Lowering<'_> {
                          the pipeline when a re-run fails; the exact lowering races that loop \
                          with the rest, and its law here is a series of about {terms:.0} \
                          re-runs, more than the {MAX_RERUN_TERMS} the analysis computes in \
-                         about a second{exact}"
+                         about a second"
                     ),
                 });
             }
@@ -681,22 +653,14 @@ fn long_series(tree: &Tree, rerun: NodeId, waits: bool) -> Option<f64> {
 }
 
 /// Whether the race of a RateController's re-run process against the rest
-/// of the pipeline (`rest`: the later children) has the exact renewal
-/// solution of `crate::compile::renewal`: the re-run and the rest lower to
-/// Markovian subtrees (phase chains): their leaves are Markovian, and
-/// neither holds a pipeline child that re-runs (nor does the rest itself,
-/// before its last child).
+/// of the pipeline (`rest`: the later children) is exact without a series:
+/// the re-run lowers to a Markovian subtree (a phase chain) and neither it
+/// nor the rest holds a pipeline child that re-runs (nor does the rest
+/// itself, before its last child). A Markovian rest has the renewal method
+/// (`crate::compile::renewal`); any other the race of the re-run's law of
+/// first failure, from the renewal levels, with the rest's own law
+/// (`crate::compile::race::renewal_race`).
 fn renewal_applies(tree: &Tree, rerun: NodeId, rest: &[NodeId]) -> bool {
-    let plain = |id: NodeId| markovian(tree, id) && no_rerun(tree, id);
-    plain(rerun) && rest.iter().all(|&c| plain(c)) && inert(tree, rest)
-}
-
-/// Whether that race, where the rest is not Markovian (a fixed wait in
-/// it), has the exact solution of `crate::compile::race::renewal_race`:
-/// the re-run's law of first failure from the renewal levels (the re-run
-/// Markovian), raced with the rest's own law (no pipeline child that
-/// re-runs in either).
-fn levels_apply(tree: &Tree, rerun: NodeId, rest: &[NodeId]) -> bool {
     markovian(tree, rerun)
         && no_rerun(tree, rerun)
         && rest.iter().all(|&c| no_rerun(tree, c))
