@@ -378,12 +378,7 @@ pub fn figures(atoms: &[Atom]) -> Figures {
             }
         }
     }
-    Figures {
-        ps,
-        pf,
-        mtts: (ps > 0.0).then(|| ts / ps),
-        mttf: (pf > 0.0).then(|| tf / pf),
-    }
+    Figures::from_moments([ps, pf, ts, tf])
 }
 
 /// P(returned Success by t) and P(returned Failure by t): right-continuous

@@ -117,6 +117,18 @@ impl Figures {
         self.ps * self.mtts.unwrap_or(0.0) + self.pf * self.mttf.unwrap_or(0.0)
     }
 
+    /// From `[P(S), P(F), E[T·1{S}], E[T·1{F}]]`: the mean times are the
+    /// moments over the probabilities (undefined for an outcome that never
+    /// happens).
+    pub(crate) fn from_moments([ps, pf, ts, tf]: [f64; 4]) -> Figures {
+        Figures {
+            ps,
+            pf,
+            mtts: (ps > 0.0).then(|| ts / ps),
+            mttf: (pf > 0.0).then(|| tf / pf),
+        }
+    }
+
     fn from_absorption(a: &Absorption) -> Figures {
         Figures {
             ps: a.success,
@@ -434,12 +446,7 @@ pub(crate) fn parallel_by_counts(
             children.len() + 1 - m,
         );
         let [ts, tf] = curve::parallel_times_by_quadrature(plan, id, m, child_figs)?;
-        return Ok(Some(Figures {
-            ps,
-            pf,
-            mtts: (ps > 0.0).then(|| ts / ps),
-            mttf: (pf > 0.0).then(|| tf / pf),
-        }));
+        return Ok(Some(Figures::from_moments([ps, pf, ts, tf])));
     }
     let laws: Vec<counts::ChildLaw> = chains.into_iter().map(counts::ChildLaw::new).collect();
     let (s, f) = counts::parallel_means(&laws, m).map_err(|what| AnalysisError::Numerical {
@@ -476,12 +483,7 @@ fn means_from_laws(
     let (ps, pf) = counts::status_by_counts(&outcomes, m, child_figs.len() + 1 - m);
     let means: Vec<f64> = child_figs.iter().map(Figures::mean_time).collect();
     let [ts, tf] = law::counted_parallel_times(tree, id, m, &means, options.max_states, memo)?;
-    Ok(Figures {
-        ps,
-        pf,
-        mtts: (ps > 0.0).then(|| ts / ps),
-        mttf: (pf > 0.0).then(|| tf / pf),
-    })
+    Ok(Figures::from_moments([ps, pf, ts, tf]))
 }
 
 /// Figures of a loop without a bound, from its child's: `until_failure`

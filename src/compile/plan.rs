@@ -401,12 +401,7 @@ impl<'t> Plan<'t> {
         let outcomes: Vec<(f64, f64)> = child_figs.iter().map(|f| (f.ps, f.pf)).collect();
         let (ps, pf) = counts::status_by_counts(&outcomes, m, n + 1 - m);
         let [ts, tf] = curve_query::parallel_times_by_quadrature(self, id, m, child_figs)?;
-        Ok(Figures {
-            ps,
-            pf,
-            mtts: (ps > 0.0).then(|| ts / ps),
-            mttf: (pf > 0.0).then(|| tf / pf),
-        })
+        Ok(Figures::from_moments([ps, pf, ts, tf]))
     }
 
     /// `π(t)` of node `id` at `times` (finite, ≥ 0, any order), in the

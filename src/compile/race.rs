@@ -887,15 +887,7 @@ pub(crate) fn figures(
         .iter()
         .map(Figures::mean_time)
         .fold(0.0, f64::max);
-    let limits = |race: Race| -> Result<Figures, AnalysisError> {
-        let [ps, pf, ts, tf] = race.limits(scale)?;
-        Ok(Figures {
-            ps,
-            pf,
-            mtts: (ps > 0.0).then(|| ts / ps),
-            mttf: (pf > 0.0).then(|| tf / pf),
-        })
-    };
+    let limits = |race: Race| race.limits(scale).map(Figures::from_moments);
     match super::renewal::figures(tree, id, max_states)? {
         Renewal::Figures(f) => return Ok(f),
         // R without a phase chain: the process's law from its levels
@@ -914,13 +906,8 @@ pub(crate) fn figures(
         }
     }
     // a deadline over such a race (its law by levels, cut at the deadline)
-    if let Some([ps, pf, ts, tf]) = super::law::deadline_figures(tree, id, max_states)? {
-        return Ok(Figures {
-            ps,
-            pf,
-            mtts: (ps > 0.0).then(|| ts / ps),
-            mttf: (pf > 0.0).then(|| tf / pf),
-        });
+    if let Some(moments) = super::law::deadline_figures(tree, id, max_states)? {
+        return Ok(Figures::from_moments(moments));
     }
     limits(race_of(plan, id)?)
 }

@@ -741,12 +741,7 @@ fn finish(ps: f64, pf: f64, ts: f64, tf: f64) -> Option<Figures> {
     if all.iter().any(|x| !x.is_finite() || *x < 0.0) {
         return None;
     }
-    Some(Figures {
-        ps,
-        pf,
-        mtts: (ps > 0.0).then(|| ts / ps),
-        mttf: (pf > 0.0).then(|| tf / pf),
-    })
+    Some(Figures::from_moments([ps, pf, ts, tf]))
 }
 
 #[cfg(test)]
