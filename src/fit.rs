@@ -37,6 +37,7 @@
 use crate::logs::{Declared, End, Episode};
 
 pub mod covariance;
+pub mod information;
 pub mod timing;
 
 pub use covariance::Covariance;
@@ -352,6 +353,8 @@ pub enum Timing {
         failure: Option<timing::SideFit>,
         em_iterations: usize,
         log_likelihood: f64,
+        /// The covariance of the free parameters ([`information`]).
+        cov: Option<information::ThetaCovariance>,
     },
 }
 
@@ -564,24 +567,13 @@ fn fit_families(counts: &Counts, warnings: &mut Vec<String>) -> Option<(Estimate
             }
         }
     }
-    let mut ll = 0.0;
-    if ns > 0.0 {
-        ll += ns * p.ln();
-    }
-    if nf > 0.0 {
-        ll += nf * (1.0 - p).ln();
-    }
-    for (f, ev) in [
-        (&fs, &counts.success_durations),
-        (&ff, &counts.failure_durations),
-    ] {
-        if let Some(f) = f {
-            ll += ev.iter().map(|&t| f.log_pdf(t)).sum::<f64>();
-        }
-    }
-    for &c in &counts.censored {
-        ll += log_mix(p, log_sf(&fs, c), log_sf(&ff, c));
-    }
+    let laws = information::Laws {
+        ps: p,
+        success: fs,
+        failure: ff,
+    };
+    let ll = laws.log_likelihood(counts);
+    let cov = information::covariance(counts, &laws);
     let with = |fit: Option<timing::SideFit>, f: Option<timing::Family>| {
         fit.map(|mut s| {
             if let Some(f) = f {
@@ -590,8 +582,15 @@ fn fit_families(counts: &Counts, warnings: &mut Vec<String>) -> Option<(Estimate
             s
         })
     };
+    // with halts: ps's standard error from the joint information (delta
+    // method from logit ps), else the binomial one of the completed episodes
     let completed = ns + nf;
-    let se = (p * (1.0 - p) / completed).sqrt();
+    let se = cov
+        .as_ref()
+        .filter(|c| c.params.first() == Some(&information::Param::LogitPs))
+        .map_or((p * (1.0 - p) / completed).sqrt(), |c| {
+            p * (1.0 - p) * c.matrix[0][0].sqrt()
+        });
     let ps = if counts.censored.is_empty() || p == 0.0 || p == 1.0 {
         count_ps(counts)
     } else {
@@ -608,6 +607,7 @@ fn fit_families(counts: &Counts, warnings: &mut Vec<String>) -> Option<(Estimate
             failure: with(failure, ff),
             em_iterations: iterations,
             log_likelihood: ll,
+            cov,
         },
     ))
 }
@@ -761,6 +761,7 @@ pub fn params_line(f: &LeafFit) -> String {
             success,
             failure,
             log_likelihood,
+            cov,
             ..
         } => {
             families_fields(&mut s, &mut stats, success, failure);
@@ -768,6 +769,22 @@ pub fn params_line(f: &LeafFit) -> String {
                 ", timing: auto, log_likelihood: {}",
                 num(*log_likelihood)
             ));
+            if let Some(c) = cov {
+                let names: Vec<String> = c.params.iter().map(|p| p.name()).collect();
+                let rows: Vec<String> = c
+                    .matrix
+                    .iter()
+                    .map(|r| {
+                        let v: Vec<String> = r.iter().map(|&x| num(x)).collect();
+                        format!("[{}]", v.join(", "))
+                    })
+                    .collect();
+                stats.push_str(&format!(
+                    ", cov_theta: {{params: [{}], matrix: [{}]}}",
+                    names.join(", "),
+                    rows.join(", ")
+                ));
+            }
         }
         Timing::Exponential { mu, nu, .. } => {
             if let Some(m) = mu {
@@ -974,10 +991,11 @@ pub fn render(f: &Fitted, by: By) -> String {
         .any(|l| matches!(l.timing, Timing::Families { .. }));
     if auto {
         s.push_str(
-            "# timing: per outcome deterministic, exponential, shifted exponential or Erlang-k\n\
-             # by BIC, maximum likelihood with halted episodes censored;\n\
+            "# timing: per outcome deterministic, exponential, shifted exponential, Erlang-k or\n\
+             # hyperexponential-2 by BIC, maximum likelihood with halted episodes censored;\n\
              # `fit:` holds counts, the families compared, standard errors and 95% intervals\n\
-             # (ignored by the analysis)\n",
+             # (ignored by the analysis), and `cov_theta:` the covariance of the free\n\
+             # parameters on the logit/ln scale (inverse observed information), which `--ci` draws\n",
         );
     } else {
         s.push_str(

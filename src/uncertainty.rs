@@ -16,8 +16,18 @@
 //! * the rate of an Erlang-k time (`fit --timing auto`; a shifted
 //!   exponential is k = 1) fitted to n durations without halts ~ Gamma(k·n,
 //!   k·n / rate): `rate·Σt` is a sum of k·n unit exponential stages, the
-//!   same pivot. Its shift, a hyperexponential law and any phase-type law of
-//!   a leaf with halts are held ([`Sampler::held`]).
+//!   same pivot.
+//! * the shift δ̂ of a shifted exponential (`fit --timing auto`: the
+//!   shortest of n completed durations): δ = δ̂ − E, E ~ Exp(n·rate) — the
+//!   exact pivot of a minimum (`δ̂ − δ` is the shortest of n Exp(rate)
+//!   draws), with the drawn rate, clipped at 0.
+//! * every other parameter of an auto fit — a hyperexponential's (p, rate1,
+//!   rate2), and with halts every parameter of the leaf, ps included — from
+//!   the normal law on the logit/ln scale with the fit's `cov_theta:`
+//!   ([`crate::fit::information`]: the inverse observed information), by
+//!   its Cholesky factor. Without halts the information is block-diagonal
+//!   (ps, each outcome's law), so the hyperexponential's block is drawn
+//!   alone beside the exact laws above.
 //!
 //! These are drawn independently, which is right to first order when no
 //! episode was halted: a leaf's log-likelihood then separates into a `p`
@@ -47,8 +57,10 @@
 //! the interval of each figure is the percentile interval of its draws.
 //! Fixed times (`tau_s`, `tau_f`) and leaves without `fit:` statistics stay
 //! fixed, and so does the ps of an action whose other outcome never happened
-//! (it has no time for it); [`Sampler::fixed`] and [`Sampler::held`] list
-//! them.
+//! (it has no time for it); so do the laws of an auto fit without
+//! `cov_theta:` (a params file from an older `btrel fit`) other than the
+//! Erlang-type rates fitted without halts. [`Sampler::fixed`] and
+//! [`Sampler::held`] list them.
 //!
 //! Draw `i` uses its own random stream (seeded from the seed and `i`), so
 //! the intervals do not depend on the number of threads.
@@ -56,13 +68,15 @@
 use std::collections::BTreeMap;
 
 use rand::SeedableRng;
-use rand_distr::{Beta, Distribution, Gamma, StandardNormal};
+use rand_distr::{Beta, Distribution, Exp, Gamma, StandardNormal};
 use rand_xoshiro::Xoshiro256PlusPlus;
 use rayon::prelude::*;
 use serde::Deserialize;
 use serde_saphyr::Spanned;
 
-use crate::fit::covariance::{cholesky, scale, Covariance, Matrix, NotPsd};
+use crate::fit::covariance::{cholesky, cholesky_n, scale, Covariance, Matrix, NotPsd};
+use crate::fit::information::{Laws, Outcome, Param};
+use crate::fit::timing::Family;
 use crate::tree::{Duration, NodeId, NodeKind, Tree};
 
 /// Draws when none are asked for.
@@ -75,7 +89,8 @@ pub const MAX_VALUES: usize = 25_000_000;
 /// One line of the method, for output headers.
 pub const METHOD: &str =
     "parametric bootstrap: ps ~ Beta(s+1/2, f+1/2), rates ~ Gamma(events, exposure) \
-(Erlang-k: Gamma(k events, exposure)); leaves with halts: (logit ps, ln mu, ln nu) jointly normal with the fit's covariance; \
+(Erlang-k: Gamma(k events, exposure)); shifts ~ shortest duration - Exp(n rate); leaves with halts: (logit ps, ln mu, ln nu) jointly normal with the fit's covariance \
+(auto fits: logit/ln parameters jointly normal with cov_theta, also for hyperexponential laws); \
 figures recomputed per draw, percentile intervals";
 
 /// The `fit:` statistics of one params entry, as `btrel fit` writes them
@@ -98,6 +113,80 @@ pub struct FitStats {
     /// with halts ([`crate::fit::covariance`]).
     #[serde(default)]
     pub cov: Option<CovEntry>,
+    /// `auto` for a `fit --timing auto` entry.
+    #[serde(default)]
+    pub timing: Option<String>,
+    /// The covariance of an auto fit's free parameters
+    /// ([`crate::fit::information`]).
+    #[serde(default)]
+    pub cov_theta: Option<ThetaEntry>,
+}
+
+/// A `cov_theta: {params, matrix}` mapping and where it was written.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ThetaEntry {
+    pub params: Vec<String>,
+    pub matrix: Vec<Vec<f64>>,
+    pub line: usize,
+    pub column: usize,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawTheta {
+    params: Vec<String>,
+    matrix: Vec<Vec<f64>>,
+}
+
+impl<'de> Deserialize<'de> for ThetaEntry {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let s = Spanned::<RawTheta>::deserialize(d)?;
+        Ok(ThetaEntry {
+            params: s.value.params,
+            matrix: s.value.matrix,
+            line: s.referenced.line() as usize,
+            column: s.referenced.column() as usize,
+        })
+    }
+}
+
+impl ThetaEntry {
+    /// The parameters and the matrix, checked: known names, each once, a
+    /// square matrix of their number, a covariance (positive
+    /// semidefinite).
+    pub fn parsed(&self, key: &str) -> Result<(Vec<Param>, Vec<Vec<f64>>), String> {
+        let mut params = Vec::new();
+        for name in &self.params {
+            let p = Param::parse(name).ok_or_else(|| {
+                format!(
+                    "`{key}`: `cov_theta` names an unknown parameter `{name}` (known: logit_ps, \
+                     ln_<outcome>_rate, logit_<outcome>_p, ln_<outcome>_rate1, ln_<outcome>_rate2 \
+                     with <outcome> success or failure)"
+                )
+            })?;
+            if params.contains(&p) {
+                return Err(format!("`{key}`: `cov_theta` names `{name}` twice"));
+            }
+            params.push(p);
+        }
+        let n = params.len();
+        if self.matrix.len() != n || self.matrix.iter().any(|r| r.len() != n) {
+            return Err(format!(
+                "`{key}`: `cov_theta`'s matrix is not {n}×{n} (one row and one column per \
+                 name in `params`)"
+            ));
+        }
+        match cholesky_n(&self.matrix) {
+            Ok(_) => Ok((params, self.matrix.clone())),
+            Err(NotPsd::NotFinite) => Err(format!(
+                "`{key}`: `cov_theta`'s matrix has a value that is not finite"
+            )),
+            Err(NotPsd::Block(_)) => Err(format!(
+                "`{key}`: `cov_theta`'s matrix is not a covariance matrix (not positive \
+                 semidefinite)"
+            )),
+        }
+    }
 }
 
 /// A `cov: {ps_mu, ps_nu, mu_nu}` mapping and where it was written
@@ -213,6 +302,10 @@ pub fn read_fit_stats(text: &str, file: &str) -> Result<BTreeMap<String, FitStat
     for (k, st) in &stats {
         st.check(k)
             .map_err(|(c, msg)| format!("{file}:{}:{}: {msg}", c.line, c.column))?;
+        if let Some(t) = &st.cov_theta {
+            t.parsed(k)
+                .map_err(|msg| format!("{file}:{}:{}: {msg}", t.line, t.column))?;
+        }
     }
     Ok(stats)
 }
@@ -227,6 +320,195 @@ struct Group {
     /// (ps, mu, nu) drawn together, for a leaf with halts (module docs);
     /// then `ps`, `mu` and `nu` are None.
     joint: Option<Joint>,
+    /// An auto-fitted action with `cov_theta`: its laws and how they are
+    /// drawn (then `mu`, `nu` and `joint` are None).
+    auto: Option<Auto>,
+}
+
+/// An auto-fitted action's laws and how each of their parameters is drawn
+/// (module docs).
+#[derive(Clone, Debug)]
+struct Auto {
+    laws: Laws,
+    /// Parameters drawn from the normal law, its mean and the Cholesky
+    /// factor of its covariance.
+    normal: Vec<Param>,
+    mean: Vec<f64>,
+    factor: Vec<Vec<f64>>,
+    /// Exact laws of the rates (no halts), per outcome.
+    rates: [Option<Gamma<f64>>; 2],
+    /// Completed durations of a shifted outcome: its shift is drawn from
+    /// the pivot `δ̂ − δ ~ Exp(n·rate)`.
+    shift_events: [Option<f64>; 2],
+}
+
+const OUTCOMES: [Outcome; 2] = [Outcome::Success, Outcome::Failure];
+
+impl Auto {
+    /// Whether `a` is an auto fit with a usable `cov_theta` (else the
+    /// other rules apply), and then its draws; what stays fixed is pushed
+    /// to `held`.
+    fn new(
+        name: &str,
+        a: &crate::tree::Action,
+        st: &FitStats,
+        held: &mut Vec<String>,
+    ) -> Option<(Option<Beta<f64>>, Auto)> {
+        if st.timing.as_deref() != Some("auto") {
+            return None;
+        }
+        let (params, matrix) = st.cov_theta.as_ref()?.parsed(name).ok()?;
+        let family = |d: Option<Duration>| match d {
+            None => Some(None),
+            Some(d) => Family::from_duration(&d).map(Some),
+        };
+        let laws = Laws {
+            ps: a.ps,
+            success: family(a.success)?,
+            failure: family(a.failure)?,
+        };
+        if params.iter().any(|&p| laws.get(p).is_none()) {
+            return None;
+        }
+        let halted = st.halted.unwrap_or(0) > 0;
+        let normal: Vec<Param> = params
+            .iter()
+            .copied()
+            .filter(|p| halted || p.is_hyperexponential())
+            .collect();
+        let idx: Vec<usize> = normal
+            .iter()
+            .map(|p| params.iter().position(|q| q == p).unwrap_or(0))
+            .collect();
+        let block: Vec<Vec<f64>> = idx
+            .iter()
+            .map(|&i| idx.iter().map(|&j| matrix[i][j]).collect())
+            .collect();
+        let factor = cholesky_n(&block).ok()?;
+        let mean = normal.iter().filter_map(|&p| laws.get(p)).collect();
+        let both = laws.success.is_some() && laws.failure.is_some();
+        let mut ps = None;
+        if !both {
+            let what = if laws.success.is_none() {
+                "success"
+            } else {
+                "failure"
+            };
+            held.push(format!(
+                "{name}: ps held at {} (no {what} was observed, so it has no time)",
+                a.ps
+            ));
+        } else if !halted {
+            ps = ps_law(a.ps, st);
+        } else if !params.contains(&Param::LogitPs) {
+            held.push(format!("{name}: ps held at {} (on its boundary)", a.ps));
+        }
+        let mut rates = [None, None];
+        let mut shift_events = [None, None];
+        for (k, o) in OUTCOMES.into_iter().enumerate() {
+            let events = match o {
+                Outcome::Success => st.successes,
+                Outcome::Failure => st.failures,
+            };
+            let f = laws.side(o);
+            if let Some(Family::Deterministic { .. }) = f {
+                held.push(format!(
+                    "{name}: fixed times held (its durations did not vary)"
+                ));
+            }
+            if let Some(Family::ShiftedExponential { .. }) = f {
+                shift_events[k] = events.filter(|&n| n > 0).map(|n| n as f64);
+                if shift_events[k].is_none() {
+                    held.push(format!("{name}: {} shift held (no count)", o.name()));
+                }
+            }
+            if halted {
+                continue;
+            }
+            let law = match f {
+                Some(Family::Exponential { rate }) => Some(rate_law(rate, None, events)),
+                Some(Family::ShiftedExponential { rate, .. }) => Some(erlang_law(1, rate, events)),
+                Some(Family::Erlang { k, rate }) => Some(erlang_law(k, rate, events)),
+                _ => None,
+            };
+            if let Some(law) = law {
+                rates[k] = law;
+                if rates[k].is_none() {
+                    held.push(format!("{name}: {} rate held (no count)", o.name()));
+                }
+            }
+        }
+        Some((
+            ps,
+            Auto {
+                laws,
+                normal,
+                mean,
+                factor,
+                rates,
+                shift_events,
+            },
+        ))
+    }
+
+    /// The number of phase-type laws each draw makes.
+    fn laws_drawn(&self) -> usize {
+        OUTCOMES
+            .into_iter()
+            .filter(|&o| {
+                matches!(
+                    self.laws.side(o),
+                    Some(
+                        Family::ShiftedExponential { .. }
+                            | Family::Erlang { .. }
+                            | Family::Hyperexponential { .. }
+                    )
+                )
+            })
+            .count()
+    }
+
+    /// The number of parameters that vary.
+    fn varied(&self) -> usize {
+        self.normal.len()
+            + self.rates.iter().flatten().count()
+            + self.shift_events.iter().flatten().count()
+    }
+
+    /// One draw of the laws (`ps`: a drawn ps, if any).
+    fn sample(&self, ps: Option<f64>, rng: &mut Xoshiro256PlusPlus) -> Laws {
+        let mut laws = self.laws;
+        if let Some(p) = ps {
+            laws.ps = p;
+        }
+        for (o, law) in OUTCOMES.into_iter().zip(&self.rates) {
+            if let Some(d) = law {
+                let r: f64 = d.sample(rng);
+                if r > 0.0 && r.is_finite() {
+                    laws.set(Param::LnRate(o), r.ln());
+                }
+            }
+        }
+        if !self.normal.is_empty() {
+            let z: Vec<f64> = (0..self.normal.len())
+                .map(|_| StandardNormal.sample(rng))
+                .collect();
+            for (i, &p) in self.normal.iter().enumerate() {
+                let x = self.mean[i] + (0..=i).map(|k| self.factor[i][k] * z[k]).sum::<f64>();
+                laws.set(p, x);
+            }
+        }
+        for (o, n) in OUTCOMES.into_iter().zip(self.shift_events) {
+            let (Some(n), Some(Family::ShiftedExponential { shift, rate })) = (n, laws.side_mut(o))
+            else {
+                continue;
+            };
+            if let Ok(e) = Exp::new(n * *rate) {
+                *shift = (*shift - e.sample(rng)).max(0.0);
+            }
+        }
+        laws
+    }
 }
 
 /// A normal law of (logit ps, ln mu, ln nu): its mean and the Cholesky
@@ -276,9 +558,9 @@ pub struct Sampler {
     /// Leaves with halts whose `fit:` has no `cov:` (a params file from an
     /// older `btrel fit`): their ps, mu and nu are drawn independently.
     pub independent: Vec<String>,
-    /// Erlang-type times drawn per draw: each draw keeps one interned law
+    /// Phase-type times drawn per draw: each draw keeps one interned law
     /// for each ([`Sampler::kept_per_draw`]).
-    erlang_draws: usize,
+    law_draws: usize,
 }
 
 /// Beta(s + ½, f + ½) for ps = p, from the counts (or, with halts, from
@@ -372,7 +654,7 @@ impl Sampler {
         let mut groups: Vec<Group> = Vec::new();
         let mut by_key: BTreeMap<&str, usize> = BTreeMap::new();
         let (mut fixed, mut held, mut independent) = (Vec::new(), Vec::new(), Vec::new());
-        let mut erlang_draws = 0;
+        let mut law_draws = 0;
         for (id, node) in tree.nodes.iter().enumerate() {
             if !node.kind.children().is_empty() {
                 continue;
@@ -392,10 +674,19 @@ impl Sampler {
                 mu: None,
                 nu: None,
                 joint: None,
+                auto: None,
             };
             match &node.kind {
                 NodeKind::Condition { ps } => g.ps = ps_law(*ps, st),
                 NodeKind::Action(a) => {
+                    if let Some((ps, auto)) = Auto::new(&node.name, a, st, &mut held) {
+                        law_draws += auto.laws_drawn();
+                        g.ps = ps;
+                        g.auto = Some(auto);
+                        by_key.insert(key.as_str(), groups.len());
+                        groups.push(g);
+                        continue;
+                    }
                     let missing = match (a.success, a.failure) {
                         (Some(_), Some(_)) => None,
                         (None, _) => Some("success"),
@@ -473,7 +764,7 @@ impl Sampler {
                         *law = erlang_of(Some(d))
                             .filter(|_| unhalted)
                             .and_then(|(k, r)| erlang_law(k, r, events));
-                        erlang_draws += usize::from(law.is_some());
+                        law_draws += usize::from(law.is_some());
                         if law.is_none() {
                             let why = if unhalted || erlang_of(Some(d)).is_none() {
                                 ""
@@ -495,15 +786,20 @@ impl Sampler {
             fixed,
             held,
             independent,
-            erlang_draws,
+            law_draws,
         }
     }
 
     /// Memory that each draw keeps for the rest of the process, in 8-byte
     /// values (to count with the figures against [`MAX_VALUES`]): a drawn
-    /// Erlang-type time is an interned law of its own.
+    /// phase-type time is an interned law of its own (a hyperexponential's
+    /// with its matrix: counted as 16 more values).
     pub fn kept_per_draw(&self) -> usize {
-        self.erlang_draws * std::mem::size_of::<crate::tree::stages::Stages>().div_ceil(8)
+        let per_law = (std::mem::size_of::<crate::tree::stages::Stages>()
+            + std::mem::size_of::<crate::tree::stages::General>())
+        .div_ceil(8)
+            + 16;
+        self.law_draws * per_law
     }
 
     /// Number of parameters that vary.
@@ -515,6 +811,7 @@ impl Sampler {
                     + usize::from(g.mu.is_some())
                     + usize::from(g.nu.is_some())
                     + 3 * usize::from(g.joint.is_some())
+                    + g.auto.as_ref().map_or(0, Auto::varied)
             })
             .sum()
     }
@@ -531,6 +828,18 @@ impl Sampler {
                     f64::MIN_POSITIVE
                 }
             };
+            if let Some(au) = &g.auto {
+                let laws = au.sample(ps, rng);
+                for &id in &g.nodes {
+                    if let NodeKind::Action(a) = &mut tree.nodes[id].kind {
+                        a.ps = laws.ps;
+                        a.pf = 1.0 - laws.ps;
+                        a.success = laws.success.map(|f| f.duration());
+                        a.failure = laws.failure.map(|f| f.duration());
+                    }
+                }
+                continue;
+            }
             let (ps, mu, nu) = match g.joint {
                 Some(j) => {
                     let (p, m, n) = j.sample(rng);

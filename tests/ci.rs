@@ -895,3 +895,260 @@ fn auto_fitted_erlang_times_are_drawn_and_cover_the_truth() {
     );
     assert_nominal(&["ps", "MTTS"], &covered, level, reps);
 }
+
+/// `n` episodes of an action whose outcome is drawn with `p`, then its
+/// duration by `success` or `failure`, halted at an Exp(`halt`) time when
+/// that comes first (no halts when `halt` is 0).
+fn drawn_episodes(
+    rng: &mut Xoshiro256PlusPlus,
+    n: usize,
+    p: f64,
+    success: impl Fn(&mut Xoshiro256PlusPlus) -> f64,
+    failure: impl Fn(&mut Xoshiro256PlusPlus) -> f64,
+    halt: f64,
+) -> Vec<Episode> {
+    (0..n)
+        .map(|_| {
+            let ok = rng.random::<f64>() < p;
+            let d = if ok { success(rng) } else { failure(rng) };
+            let c = if halt > 0.0 {
+                Exp::new(halt).unwrap().sample(rng)
+            } else {
+                f64::INFINITY
+            };
+            let (duration, end) = match (d < c, ok) {
+                (false, _) => (c, End::Halted),
+                (true, true) => (d, End::Success),
+                (true, false) => (d, End::Failure),
+            };
+            Episode {
+                duration,
+                end,
+                instant: false,
+            }
+        })
+        .collect()
+}
+
+fn exp(rng: &mut Xoshiro256PlusPlus, rate: f64) -> f64 {
+    Exp::new(rate).unwrap().sample(rng)
+}
+
+/// Coverage of `--timing auto` fits whose laws have no exact pivot: A's
+/// Success time bimodal (hyperexponential: 0.5·Exp(10) + 0.5·Exp(0.5)),
+/// its Failure time shifted (0.3 s + Exp(5)); `halt` > 0 halts A's
+/// episodes. Returns the coverage of (ps, MTTS, MTTF, A's Failure shift),
+/// the logs where each family was picked, and the held parameters' count.
+fn auto_coverage(seed: u64, reps: usize, halt: f64) -> ([usize; 4], [usize; 2], usize) {
+    let (p_a, b) = (0.8, (0.6, 2.0, 1.0));
+    let mean_s = 0.5 / 10.0 + 1.0; // 0.5/10 + 0.5/0.5
+    let mean_f = 0.3 + 1.0 / 5.0;
+    let ps = p_a + (1.0 - p_a) * b.0;
+    let mtts = (p_a * mean_s + (1.0 - p_a) * b.0 * (mean_f + 1.0 / b.1)) / ps;
+    let mttf = mean_f + 1.0 / b.2;
+    let truth = [ps, mtts, mttf, 0.3];
+    let level = 0.9;
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
+    let mut covered = [0usize; 4];
+    let mut picked = [0usize; 2];
+    let mut held = 0;
+    for rep in 0..reps {
+        let ea = drawn_episodes(
+            &mut rng,
+            300,
+            p_a,
+            |r| {
+                if r.random::<f64>() < 0.5 {
+                    exp(r, 10.0)
+                } else {
+                    exp(r, 0.5)
+                }
+            },
+            |r| 0.3 + exp(r, 5.0),
+            halt,
+        );
+        let eb = episodes(&mut rng, 100, b, 0.0);
+        let fit = |key: &str, e: &[Episode]| {
+            btrel::fit::fit_leaf_with(
+                key,
+                Declared::Action,
+                Counts::from_episodes(e),
+                btrel::fit::TimingMode::Auto,
+            )
+            .unwrap()
+        };
+        let (la, lb) = (params_line(&fit("A", &ea)), params_line(&fit("B", &eb)));
+        assert!(la.contains("cov_theta: {params: ["), "{la}");
+        picked[0] += usize::from(la.contains("success_family: \"hyperexponential-2\""));
+        picked[1] += usize::from(la.contains("failure_family: \"shifted exponential\""));
+        let params = format!("{la}\n{lb}\n");
+        let keyed =
+            btrel::tree::xml::parse_xml_str_keyed(FALLBACK, "t.xml", &params, "p.yaml").unwrap();
+        let stats = read_fit_stats(&params, "p.yaml").unwrap();
+        let sampler = Sampler::new(&keyed.tree, &keyed.keys, &stats);
+        held += sampler.held.len();
+        let a = keyed.tree.nodes.iter().position(|n| n.name == "a").unwrap();
+        let ci = sampler
+            .intervals(level, 400, rep as u64, |t| {
+                btrel::analyze(t, &Default::default()).map(|an| {
+                    let f = an.nodes[0];
+                    let btrel::tree::NodeKind::Action(x) = &t.nodes[a].kind else {
+                        unreachable!()
+                    };
+                    vec![Some(f.ps), f.mtts, f.mttf, x.failure.map(|d| d.shift())]
+                })
+            })
+            .unwrap();
+        for k in 0..4 {
+            let (lo, hi) = ci[k].unwrap();
+            covered[k] += usize::from(lo <= truth[k] && truth[k] <= hi);
+        }
+    }
+    (covered, picked, held)
+}
+
+/// Hyperexponential and shifted times fitted without halts: the
+/// hyperexponential's (p, rate1, rate2) drawn from the fit's `cov_theta`,
+/// the shift from its pivot; every interval at its nominal coverage, and
+/// nothing held.
+#[test]
+fn auto_fitted_hyperexponential_and_shifted_times_cover_the_truth() {
+    let reps = 300;
+    let (covered, picked, held) = auto_coverage(31, reps, 0.0);
+    eprintln!(
+        "coverage of nominal 0.9 over {reps} logs (ps, MTTS, MTTF): {covered:?}; \
+         hyperexponential picked {}, shifted {}",
+        picked[0], picked[1]
+    );
+    assert!(
+        picked[0] > reps * 3 / 4 && picked[1] > reps * 3 / 4,
+        "{picked:?}"
+    );
+    assert_eq!(held, 0);
+    assert_nominal(&["ps", "MTTS", "MTTF", "shift"], &covered, 0.9, reps);
+}
+
+/// The same laws with a third of A's episodes halted: (logit ps and every
+/// rate and branch probability) drawn jointly from `cov_theta`, the shift
+/// from its pivot.
+#[test]
+fn auto_fitted_times_with_halts_cover_the_truth() {
+    let reps = 300;
+    let (covered, picked, held) = auto_coverage(32, reps, 0.4);
+    eprintln!(
+        "with halts: coverage of nominal 0.9 over {reps} logs (ps, MTTS, MTTF): {covered:?}; \
+         hyperexponential picked {}, shifted {}",
+        picked[0], picked[1]
+    );
+    assert!(picked[0] > reps / 2 && picked[1] > reps / 2, "{picked:?}");
+    assert_eq!(held, 0);
+    assert_nominal(&["ps", "MTTS", "MTTF", "shift"], &covered, 0.9, reps);
+}
+
+/// A `cov_theta:` that is not a covariance of its named parameters is an
+/// error at its line and column: an unknown or repeated name, a matrix of
+/// the wrong shape, a matrix that is not positive semidefinite.
+#[test]
+fn a_bad_cov_theta_is_a_located_error() {
+    let entry = |theta: &str| {
+        format!(
+            "# fitted\nA: {{ps: 0.7, mu: 0.5, nu: 1.0, fit: {{timing: auto, halted: 5, \
+             cov_theta: {theta}}}}}\n"
+        )
+    };
+    let col = |text: &str| text.lines().nth(1).unwrap().find("cov_theta: {").unwrap() + 12;
+    for (theta, says) in [
+        (
+            "{params: [logit_ps, ln_sucess_rate], matrix: [[1.0, 0.0], [0.0, 1.0]]}",
+            "unknown parameter `ln_sucess_rate`",
+        ),
+        (
+            "{params: [logit_ps, logit_ps], matrix: [[1.0, 0.0], [0.0, 1.0]]}",
+            "names `logit_ps` twice",
+        ),
+        (
+            "{params: [logit_ps, ln_success_rate], matrix: [[1.0, 0.0]]}",
+            "is not 2×2",
+        ),
+        // correlation 2: not a covariance
+        (
+            "{params: [logit_ps, ln_success_rate], matrix: [[1.0, 2.0], [2.0, 1.0]]}",
+            "not positive semidefinite",
+        ),
+    ] {
+        let text = entry(theta);
+        let e = read_fit_stats(&text, "p.yaml").unwrap_err();
+        assert!(
+            e.starts_with(&format!("p.yaml:2:{}: `A`: ", col(&text))),
+            "{theta}: {e}"
+        );
+        assert!(e.contains(says), "{theta}: {e}");
+    }
+    let text = entry("{params: [logit_ps], matrix: 3}");
+    let e = read_fit_stats(&text, "p.yaml").unwrap_err();
+    assert!(e.contains("cannot read the `fit:` statistics"), "{e}");
+}
+
+/// Through the binary: a CSV log of a bimodal, halted leaf, `fit --timing
+/// auto` writes `cov_theta`, and `report --ci` draws every parameter (no
+/// note of a held one), its MTTS interval covering the sample's mean time.
+#[test]
+fn cli_auto_fit_then_ci_holds_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(77);
+    let eps = drawn_episodes(
+        &mut rng,
+        600,
+        0.8,
+        |r| {
+            if r.random::<f64>() < 0.5 {
+                exp(r, 10.0)
+            } else {
+                exp(r, 0.5)
+            }
+        },
+        |r| 0.3 + exp(r, 5.0),
+        0.2,
+    );
+    let mut csv = String::from("run,node,start,end,status\n");
+    for (i, e) in eps.iter().enumerate() {
+        let status = match e.end {
+            End::Success => "success",
+            End::Failure => "failure",
+            End::Halted => "halted",
+        };
+        csv.push_str(&format!("{i},A,0,{},{status}\n", e.duration));
+    }
+    let log = dir.path().join("run.csv");
+    std::fs::write(&log, csv).unwrap();
+    let params = dir.path().join("params.yaml");
+    bin()
+        .args(["fit", "--timing", "auto", "-o"])
+        .arg(&params)
+        .arg(&log)
+        .assert()
+        .success();
+    let text = std::fs::read_to_string(&params).unwrap();
+    assert!(text.contains("cov_theta: {params: [logit_ps, logit_success_p, ln_success_rate1, ln_success_rate2, ln_failure_rate]"), "{text}");
+    assert!(text.contains("`cov_theta:` the covariance"), "{text}");
+    let tree = dir.path().join("t.xml");
+    std::fs::write(
+        &tree,
+        r#"<root BTCPP_format="4"><BehaviorTree ID="T"><A name="a"/></BehaviorTree>
+        <TreeNodesModel><Action ID="A"/></TreeNodesModel></root>"#,
+    )
+    .unwrap();
+    let out = bin()
+        .args(["report", "--ci", "--format", "json", "--params"])
+        .arg(&params)
+        .arg(&tree)
+        .assert()
+        .success();
+    let stdout = String::from_utf8_lossy(&out.get_output().stdout).to_string();
+    let v: Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(v["ci"]["held"], serde_json::json!([]), "{stdout}");
+    let (lo, hi) = json_ci(&v, "a", "mtts");
+    // the true mean Success time 0.5/10 + 0.5/0.5 = 1.05 s
+    assert!(lo < 1.05 && 1.05 < hi, "({lo}, {hi})");
+    assert!(hi - lo > 0.05, "({lo}, {hi}): the rates vary");
+}

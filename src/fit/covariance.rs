@@ -56,7 +56,7 @@ pub enum NotPsd {
     /// An entry is not finite.
     NotFinite,
     /// The matrix is not positive semidefinite: its leading `k`×`k` block
-    /// (k = 1..=3) has a negative determinant or an inconsistent zero
+    /// (k = 1..=n) has a negative determinant or an inconsistent zero
     /// pivot.
     Block(usize),
 }
@@ -66,18 +66,27 @@ pub enum NotPsd {
 /// entry) is a zero column when the rest of its column is zero too, so a
 /// singular covariance (a parameter determined by the others) still draws.
 pub fn cholesky(m: &Matrix) -> Result<Matrix, NotPsd> {
-    if m.iter().flatten().any(|x| !x.is_finite()) {
+    let rows: Vec<Vec<f64>> = m.iter().map(|r| r.to_vec()).collect();
+    let l = cholesky_n(&rows)?;
+    Ok(std::array::from_fn(|i| std::array::from_fn(|j| l[i][j])))
+}
+
+/// [`cholesky`] of a square matrix of any size (rows of equal length; a
+/// row of another length is [`NotPsd::NotFinite`]).
+pub fn cholesky_n(m: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, NotPsd> {
+    let n = m.len();
+    if m.iter().any(|r| r.len() != n) || m.iter().flatten().any(|x| !x.is_finite()) {
         return Err(NotPsd::NotFinite);
     }
-    let mut l = [[0.0f64; 3]; 3];
-    for j in 0..3 {
+    let mut l = vec![vec![0.0f64; n]; n];
+    for j in 0..n {
         let d = m[j][j] - (0..j).map(|k| l[j][k] * l[j][k]).sum::<f64>();
         let tol = PSD_TOLERANCE * m[j][j].abs();
         if d < -tol {
             return Err(NotPsd::Block(j + 1));
         }
         if d <= tol {
-            for i in j + 1..3 {
+            for i in j + 1..n {
                 let r = m[i][j] - (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
                 if r.abs() > PSD_TOLERANCE.sqrt() * (m[i][i].abs() * m[j][j].abs()).sqrt() {
                     return Err(NotPsd::Block(j + 1));
@@ -86,12 +95,39 @@ pub fn cholesky(m: &Matrix) -> Result<Matrix, NotPsd> {
             continue;
         }
         l[j][j] = d.sqrt();
-        for i in j + 1..3 {
+        for i in j + 1..n {
             let r = m[i][j] - (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
             l[i][j] = r / l[j][j];
         }
     }
     Ok(l)
+}
+
+/// The inverse of a symmetric positive definite matrix (by its Cholesky
+/// factor); None when it is not positive definite.
+pub fn inverse_pd(m: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
+    let n = m.len();
+    let l = cholesky_n(m).ok()?;
+    if (0..n).any(|j| l[j][j].partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)) {
+        return None;
+    }
+    // solve L Lᵀ x = e_c column by column
+    let mut inv = vec![vec![0.0; n]; n];
+    #[allow(clippy::needless_range_loop)] // triangular solves: indices read clearest
+    for c in 0..n {
+        let mut y = vec![0.0; n];
+        for i in 0..n {
+            let e = if i == c { 1.0 } else { 0.0 };
+            y[i] = (e - (0..i).map(|k| l[i][k] * y[k]).sum::<f64>()) / l[i][i];
+        }
+        for i in (0..n).rev() {
+            y[i] = (y[i] - (i + 1..n).map(|k| l[k][i] * y[k]).sum::<f64>()) / l[i][i];
+        }
+        for i in 0..n {
+            inv[i][c] = y[i];
+        }
+    }
+    inv.iter().flatten().all(|x| x.is_finite()).then_some(inv)
 }
 
 /// Whether `m` is positive definite (every pivot of its Cholesky factor
@@ -133,6 +169,19 @@ mod tests {
             }
         }
         assert!(positive_definite(&m));
+    }
+
+    #[test]
+    fn inverse_of_a_known_matrix() {
+        // [[4, 2], [2, 3]]⁻¹ = [[3, −2], [−2, 4]] / 8 by hand
+        let inv = inverse_pd(&[vec![4.0, 2.0], vec![2.0, 3.0]]).unwrap();
+        let want = [[0.375, -0.25], [-0.25, 0.5]];
+        for i in 0..2 {
+            for j in 0..2 {
+                assert!((inv[i][j] - want[i][j]).abs() < 1e-15, "{inv:?}");
+            }
+        }
+        assert!(inverse_pd(&[vec![1.0, 1.0], vec![1.0, 1.0]]).is_none());
     }
 
     #[test]

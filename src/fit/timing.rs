@@ -80,6 +80,34 @@ pub enum Family {
 }
 
 impl Family {
+    /// The family a leaf's duration is written as, when it is one of the
+    /// families fitted here ([`Family::duration`] back; a lone Erlang stage
+    /// is the exponential).
+    pub fn from_duration(d: &Duration) -> Option<Family> {
+        match *d {
+            Duration::Exponential { rate } => Some(Family::Exponential { rate }),
+            Duration::Fixed { time } => Some(Family::Deterministic { time }),
+            Duration::TruncatedExponential { .. } => None,
+            Duration::PhaseType { shift, stages } => {
+                if let Some((k, rate)) = stages.as_erlang() {
+                    return match (k, shift > 0.0) {
+                        (1, true) => Some(Family::ShiftedExponential { shift, rate }),
+                        (1, false) => Some(Family::Exponential { rate }),
+                        (_, false) => Some(Family::Erlang { k, rate }),
+                        (_, true) => None,
+                    };
+                }
+                let g = stages.as_general().filter(|g| g.is_hyperexponential())?;
+                if g.len() != 2 || shift != 0.0 {
+                    return None;
+                }
+                let (a, b) = ((g.alpha()[0], -g.t(0, 0)), (g.alpha()[1], -g.t(1, 1)));
+                let ((p, rate1), (_, rate2)) = if a.1 >= b.1 { (a, b) } else { (b, a) };
+                Some(Family::Hyperexponential { p, rate1, rate2 })
+            }
+        }
+    }
+
     /// Free parameters (for BIC).
     pub fn parameters(&self) -> usize {
         match self {
