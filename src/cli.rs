@@ -116,8 +116,10 @@ Examples:
   btrel sensitivity trees/search-and-grasp.yaml --of mttf --format json
 
 For every leaf parameter (ps, mu, nu, tau_s, tau_f; the shift of a shifted `success_time` /
-`failure_time` is its tau_s / tau_f; the rates of Erlang and hypoexponential stages and the
-alpha, T and branches of phase-type and hyperexponential laws are held, not differentiated)
+`failure_time` is its tau_s / tau_f; the rate of an Erlang-k time is success_rate /
+failure_rate, a two-branch hyperexponential's are success_p, success_rate1, success_rate2 (and
+failure_...); the rates of hypoexponential stages and the alpha, T of general phase-type laws
+are held, not differentiated)
 the derivative of the root's figure and
 its elasticity d ln O / d ln θ, ranked by |elasticity|; the table ends with sentences for the
 top entries (ps changed by 0.1, other parameters by 10%, the new figure computed again).
@@ -1240,7 +1242,10 @@ fn sensitivity(args: SensitivityArgs) -> Result<(), Failure> {
                 let families: Vec<&str> = [a.success, a.failure]
                     .into_iter()
                     .flatten()
-                    .filter(|d| matches!(d, btrel::tree::Duration::PhaseType { .. }))
+                    .filter(|d| {
+                        matches!(d, btrel::tree::Duration::PhaseType { .. })
+                            && btrel::sensitivity::StageLaw::of(d).is_none()
+                    })
                     .map(|d| d.family())
                     .collect();
                 (!families.is_empty()).then(|| format!("{} ({})", n.name, families.join(", ")))
@@ -1250,8 +1255,9 @@ fn sensitivity(args: SensitivityArgs) -> Result<(), Failure> {
         .collect();
     if !held.is_empty() {
         eprintln!(
-            "note: the stage rates, branches and phase-type parameters (alpha, T) of {} are held, \
-             not differentiated (a shift is listed as the outcome's tau)",
+            "note: the stage rates and phase-type parameters (alpha, T) of {} are held, not \
+             differentiated (a shift is listed as the outcome's tau; an Erlang's rate and a \
+             two-branch hyperexponential's p, rate1, rate2 have rows)",
             held.join("; ")
         );
     }

@@ -2,7 +2,8 @@
 //! (`btrel sensitivity`).
 //!
 //! For every leaf parameter θ (a condition's `ps`; an action's `ps`, `mu`,
-//! `nu`, `tau_s`, `tau_f`) the derivative ∂O/∂θ of the root's objective O
+//! `nu`, `tau_s`, `tau_f`, and the stage parameters of an Erlang or
+//! two-branch hyperexponential time, [`Param::StageRate`] ...) the derivative ∂O/∂θ of the root's objective O
 //! (ps, MTTS, MTTF, mean time E\[T\] = ps·MTTS + pf·MTTF, or P(Success by a
 //! deadline)) and its elasticity ∂ln O/∂ln θ = θ/O · ∂O/∂θ (the % change of
 //! O per % change of θ). Changing an action's `ps` changes `pf = 1 − ps` with
@@ -21,7 +22,9 @@
 //! which method gave it ([`Scheme`]). The rest (races and counted Parallels
 //! over deterministic, hybrid or shifted leaves, strategy `book`'s
 //! Parallels, trees with Nav2 nodes, P(Success by a deadline) of a tree
-//! that is not one phase chain) is differenced:
+//! that is not one phase chain) is differenced, and so is a stage
+//! parameter wherever a node needs its leaf's phase chain (its moments are
+//! exact):
 //!
 //! # Richardson-extrapolated differences through the engine
 //!
@@ -88,6 +91,15 @@ pub enum Param {
     Nu,
     TauS,
     TauF,
+    /// The stage rate of an Erlang-k (or shifted exponential) time of the
+    /// Success (`true`) or Failure outcome: `success_rate`, `failure_rate`.
+    StageRate(bool),
+    /// A two-branch hyperexponential time's first branch probability
+    /// (`success_p`, `failure_p`), and its branches' rates (`success_rate1`,
+    /// `success_rate2`, ...), in the order the law was written.
+    Branch(bool),
+    Rate1(bool),
+    Rate2(bool),
 }
 
 impl Param {
@@ -98,7 +110,95 @@ impl Param {
             Param::Nu => "nu",
             Param::TauS => "tau_s",
             Param::TauF => "tau_f",
+            Param::StageRate(true) => "success_rate",
+            Param::StageRate(false) => "failure_rate",
+            Param::Branch(true) => "success_p",
+            Param::Branch(false) => "failure_p",
+            Param::Rate1(true) => "success_rate1",
+            Param::Rate1(false) => "failure_rate1",
+            Param::Rate2(true) => "success_rate2",
+            Param::Rate2(false) => "failure_rate2",
         }
+    }
+
+    /// Whether it is a parameter of a phase-type law's stages (Erlang,
+    /// hyperexponential).
+    pub fn of_stages(&self) -> bool {
+        matches!(
+            self,
+            Param::StageRate(_) | Param::Branch(_) | Param::Rate1(_) | Param::Rate2(_)
+        )
+    }
+}
+
+/// The stage parameters of a phase-type law: `(k, rate)` of an Erlang-k
+/// (shifted or not), or the two `(p, rate)` branches of a hyperexponential.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum StageLaw {
+    Erlang(u32, f64),
+    Hyper([(f64, f64); 2]),
+}
+
+impl StageLaw {
+    /// The shift and stage law of a duration, when it is one of these.
+    pub fn of(d: &Duration) -> Option<(f64, StageLaw)> {
+        let Duration::PhaseType { shift, stages } = *d else {
+            return None;
+        };
+        if let Some((k, r)) = stages.as_erlang() {
+            return Some((shift, StageLaw::Erlang(k, r)));
+        }
+        let g = stages.as_general().filter(|g| g.is_hyperexponential())?;
+        (g.len() == 2).then(|| {
+            (
+                shift,
+                StageLaw::Hyper([(g.alpha()[0], -g.t(0, 0)), (g.alpha()[1], -g.t(1, 1))]),
+            )
+        })
+    }
+
+    /// The law's parameters for one outcome, with their values.
+    fn params(&self, success: bool) -> Vec<(Param, f64)> {
+        match *self {
+            StageLaw::Erlang(_, r) => vec![(Param::StageRate(success), r)],
+            StageLaw::Hyper([(p, r1), (_, r2)]) => vec![
+                (Param::Branch(success), p),
+                (Param::Rate1(success), r1),
+                (Param::Rate2(success), r2),
+            ],
+        }
+    }
+
+    /// The law with `param` set to `x`.
+    fn with(self, param: Param, x: f64) -> StageLaw {
+        match (self, param) {
+            (StageLaw::Erlang(k, _), Param::StageRate(_)) => StageLaw::Erlang(k, x),
+            (StageLaw::Hyper([a, b]), Param::Branch(_)) => {
+                StageLaw::Hyper([(x, a.1), (1.0 - x, b.1)])
+            }
+            (StageLaw::Hyper([a, b]), Param::Rate1(_)) => StageLaw::Hyper([(a.0, x), b]),
+            (StageLaw::Hyper([a, b]), Param::Rate2(_)) => StageLaw::Hyper([a, (b.0, x)]),
+            _ => self,
+        }
+    }
+
+    /// `d mean / d param` (the shift does not move).
+    pub(crate) fn mean_derivative(&self, param: Param) -> Option<f64> {
+        match (*self, param) {
+            (StageLaw::Erlang(k, r), Param::StageRate(_)) => Some(-f64::from(k) / (r * r)),
+            (StageLaw::Hyper([(_, r1), (_, r2)]), Param::Branch(_)) => Some(1.0 / r1 - 1.0 / r2),
+            (StageLaw::Hyper([(p, r1), _]), Param::Rate1(_)) => Some(-p / (r1 * r1)),
+            (StageLaw::Hyper([_, (q, r2)]), Param::Rate2(_)) => Some(-q / (r2 * r2)),
+            _ => None,
+        }
+    }
+
+    fn duration(&self, shift: f64) -> Option<Duration> {
+        let stages = match *self {
+            StageLaw::Erlang(k, r) => crate::tree::Stages::erlang(k, r),
+            StageLaw::Hyper(b) => crate::tree::Stages::hyperexponential(&b),
+        };
+        stages.ok().map(|s| Duration::phase_type(shift, s))
     }
 }
 
@@ -214,10 +314,18 @@ pub fn params_of(kind: &NodeKind) -> Vec<(Param, f64)> {
                     Some(Duration::Exponential { rate: r })
                     | Some(Duration::TruncatedExponential { rate: r, .. }) => v.push((rate, r)),
                     Some(Duration::Fixed { time }) => v.push((tau, time)),
-                    // a shifted law's shift is its tau; the stages' rates
-                    // (Erlang, hypoexponential) are held
-                    Some(Duration::PhaseType { shift, .. }) if shift > 0.0 => v.push((tau, shift)),
-                    Some(Duration::PhaseType { .. }) | None => {}
+                    // a shifted law's shift is its tau; the stages of an
+                    // Erlang or two-branch hyperexponential law have their
+                    // own parameters (other phase-type laws' are held)
+                    Some(d @ Duration::PhaseType { shift, .. }) => {
+                        if shift > 0.0 {
+                            v.push((tau, shift));
+                        }
+                        if let Some((_, law)) = StageLaw::of(&d) {
+                            v.extend(law.params(tau == Param::TauS));
+                        }
+                    }
+                    None => {}
                 }
             }
             v
@@ -265,6 +373,21 @@ pub fn with_param(tree: &Tree, id: NodeId, param: Param, x: f64) -> Tree {
                     *cap = x;
                 }
             }
+            Param::StageRate(success)
+            | Param::Branch(success)
+            | Param::Rate1(success)
+            | Param::Rate2(success) => {
+                let d = if success {
+                    &mut a.success
+                } else {
+                    &mut a.failure
+                };
+                if let Some((shift, law)) = d.as_ref().and_then(StageLaw::of) {
+                    if let Some(new) = law.with(param, x).duration(shift) {
+                        *d = Some(new);
+                    }
+                }
+            }
         },
         _ => {}
     }
@@ -284,7 +407,10 @@ fn in_domain(kind: &NodeKind, param: Param, x: f64) -> bool {
                 _ => ok,
             }
         }
-        Param::Mu | Param::Nu => x > 0.0 && x.is_finite(),
+        Param::Mu | Param::Nu | Param::StageRate(_) | Param::Rate1(_) | Param::Rate2(_) => {
+            x > 0.0 && x.is_finite()
+        }
+        Param::Branch(_) => x > 0.0 && x < 1.0,
         Param::TauS | Param::TauF => x >= 0.0 && x.is_finite(),
     }
 }
@@ -454,11 +580,15 @@ fn exact_derivative(
 }
 
 /// The change a sentence describes for a row: ps by ±0.1 (within [0, 1]),
-/// other parameters by +10%.
+/// a hyperexponential's branch probability by ±0.1 (within (0, 1)), other
+/// parameters by +10%.
 pub fn step_for(row: &Row) -> f64 {
     match row.param {
         Param::Ps if row.value <= 0.9 => (row.value + 0.1).min(1.0),
         Param::Ps => row.value - 0.1,
+        Param::Branch(_) if row.value < 0.9 => row.value + 0.1,
+        Param::Branch(_) if row.value > 0.1 => row.value - 0.1,
+        Param::Branch(_) => row.value / 2.0,
         _ if row.value == 0.0 => 0.1,
         _ => row.value * 1.1,
     }

@@ -590,3 +590,75 @@ fn counted_parallel_matches_differences() {
         }
     }
 }
+
+/// The stage parameters of Erlang, shifted and hyperexponential times
+/// (`fit --timing auto`'s families) have rows, against closed forms: a
+/// Fallback by its means (exact, dual numbers), a Parallel waiting for
+/// both children by `E[max(X, Y)]` and P(success by T) (differences
+/// through the engine).
+#[test]
+fn stage_parameters_of_phase_type_times() {
+    // Fallback(A, B): A Erlang-3(2) / 0.5 + Exp(4), B hyperexponential
+    // 0.3·Exp(5) + 0.7·Exp(0.5) / Exp(1)
+    let tree = common::tree(
+        "tree:
+  fallback:
+    name: root
+    children:
+      - action: {name: A, ps: 0.7, success_time: {erlang: {k: 3, rate: 2.0}}, failure_time: {shift: 0.5, rate: 4.0}}
+      - action: {name: B, ps: 0.6, success_time: {hyperexponential: [{p: 0.3, rate: 5.0}, {p: 0.7, rate: 0.5}]}, nu: 1.0}
+",
+    );
+    // MTTS = (pA·ESa + (1−pA)·pB·(EFa + ESb)) / ps, ps = pA + (1−pA)·pB
+    let (pa, pb) = (0.7, 0.6);
+    let ps = pa + (1.0 - pa) * pb;
+    let s = sensitivity(&tree, Objective::Mtts, &Options::default()).unwrap();
+    let c = (1.0 - pa) * pb / ps;
+    let want = [
+        ("A", Param::StageRate(true), pa / ps * (-3.0 / 4.0)),
+        ("A", Param::StageRate(false), c * (-1.0 / 16.0)),
+        ("A", Param::TauF, c),
+        ("B", Param::Branch(true), c * (1.0 / 5.0 - 1.0 / 0.5)),
+        ("B", Param::Rate1(true), c * (-0.3 / 25.0)),
+        ("B", Param::Rate2(true), c * (-0.7 / 0.25)),
+    ];
+    for (leaf, p, d) in want {
+        let (got, _, _, scheme) = row(&s, &tree, leaf, p);
+        close(&format!("{leaf} {}", p.name()), got, d);
+        assert_eq!(scheme, Scheme::Exact, "{leaf} {p:?}");
+    }
+    // the same by differences through the engine
+    let by_diff = sensitivity_by_differences(&tree, Objective::Mtts, &Options::default()).unwrap();
+    for (leaf, p, d) in want {
+        let (got, _, err, _) = row(&by_diff, &tree, leaf, p);
+        assert!(
+            (got - d).abs() <= 1e-6 * d.abs().max(1.0) + err,
+            "{leaf} {p:?}: {got} vs {d}"
+        );
+    }
+
+    // Parallel (both must succeed) of A Erlang-2(λ) and B Exp(μ), ps 1:
+    // MTTS = E[max] = 2/λ + 1/μ − E[min], E[min] = 1/(λ+μ) + λ/(λ+μ)²
+    let (l, m) = (1.5, 0.8);
+    let tree = common::tree(&format!(
+        "tree:
+  parallel:
+    name: root
+    success_threshold: 2
+    children:
+      - action: {{name: A, ps: 1.0, success_time: {{erlang: {{k: 2, rate: {l}}}}}}}
+      - action: {{name: B, ps: 1.0, mu: {m}}}
+"
+    ));
+    let s = sensitivity(&tree, Objective::Mtts, &Options::default()).unwrap();
+    let lm = l + m;
+    let d = -2.0 / (l * l) + 1.0 / (lm * lm) - (m - l) / (lm * lm * lm);
+    let (got, _, err, _) = row(&s, &tree, "A", Param::StageRate(true));
+    assert!((got - d).abs() <= 1e-7 + err, "{got} vs {d} (error {err})");
+    // P(S by T) = (1 − e^{−λT}(1+λT))(1 − e^{−μT}); d/dλ = λT² e^{−λT}(1 − e^{−μT})
+    let t = 2.0;
+    let s = sensitivity(&tree, Objective::SuccessBy(t), &Options::default()).unwrap();
+    let d = l * t * t * (-l * t).exp() * (1.0 - (-m * t).exp());
+    let (got, _, err, _) = row(&s, &tree, "A", Param::StageRate(true));
+    assert!((got - d).abs() <= 1e-7 + err, "{got} vs {d} (error {err})");
+}

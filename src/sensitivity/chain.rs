@@ -178,6 +178,11 @@ impl<'a, 'p> Ctx<'a, 'p> {
 
 /// The dual chain of a leaf along its own parameter (`compile::phase::chain_of`).
 fn leaf_chain(kind: &NodeKind, param: Param, max_states: usize) -> Option<DChain> {
+    // a stage law's parameters move the stages themselves: not rebuilt in
+    // dual numbers here (differences instead)
+    if param.of_stages() {
+        return None;
+    }
     match kind {
         NodeKind::Condition { ps } => Some(DChain {
             initial_success: D { v: *ps, d: 1.0 },

@@ -147,6 +147,19 @@ fn leaf_tangent(kind: &NodeKind, f: &Figures, param: Param) -> Option<Node> {
                         (d_other, d_own)
                     }
                 }
+                Param::StageRate(success)
+                | Param::Branch(success)
+                | Param::Rate1(success)
+                | Param::Rate2(success) => {
+                    let own = if success { a.success } else { a.failure };
+                    let (_, law) = super::StageLaw::of(own.as_ref()?)?;
+                    let d = law.mean_derivative(param)?;
+                    if success {
+                        (d, 0.0)
+                    } else {
+                        (0.0, d)
+                    }
+                }
             };
             n[2].d = a.ps * dms;
             n[3].d = a.pf * dmf;
