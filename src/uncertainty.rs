@@ -89,8 +89,8 @@ pub const MAX_VALUES: usize = 25_000_000;
 /// One line of the method, for output headers.
 pub const METHOD: &str =
     "parametric bootstrap: ps ~ Beta(s+1/2, f+1/2), rates ~ Gamma(events, exposure) \
-(Erlang-k: Gamma(k events, exposure)); shifts ~ shortest duration - Exp(n rate); leaves with halts: (logit ps, ln mu, ln nu) jointly normal with the fit's covariance \
-(auto fits: logit/ln parameters jointly normal with cov_theta, also for hyperexponential laws); \
+(Erlang-k: Gamma(k events, exposure)), shifts ~ shortest time - Exp(n rate); with halts, and for \
+hyperexponential laws: logit/ln parameters jointly normal with the fit's covariance; \
 figures recomputed per draw, percentile intervals";
 
 /// The `fit:` statistics of one params entry, as `btrel fit` writes them
