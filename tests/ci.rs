@@ -38,27 +38,7 @@ fn episodes(
     (p, mu, nu): (f64, f64, f64),
     halt: f64,
 ) -> Vec<Episode> {
-    (0..n)
-        .map(|_| {
-            let ok = rng.random::<f64>() < p;
-            let d = Exp::new(if ok { mu } else { nu }).unwrap().sample(rng);
-            let c = if halt > 0.0 {
-                Exp::new(halt).unwrap().sample(rng)
-            } else {
-                f64::INFINITY
-            };
-            let (duration, end) = match (d < c, ok) {
-                (false, _) => (c, End::Halted),
-                (true, true) => (d, End::Success),
-                (true, false) => (d, End::Failure),
-            };
-            Episode {
-                duration,
-                end,
-                instant: false,
-            }
-        })
-        .collect()
+    drawn_episodes(rng, n, p, |r| exp(r, mu), |r| exp(r, nu), halt)
 }
 
 /// Whether the `level` intervals (400 draws, seeded by `seed`) of the
