@@ -41,6 +41,33 @@ fn episodes(
     drawn_episodes(rng, n, p, |r| exp(r, mu), |r| exp(r, nu), halt)
 }
 
+/// A CSV log (`run,node,start,end,status`) of leaf `A`'s episodes.
+fn csv_log(eps: &[Episode]) -> String {
+    let mut csv = String::from("run,node,start,end,status\n");
+    for (i, e) in eps.iter().enumerate() {
+        let status = match e.end {
+            End::Success => "success",
+            End::Failure => "failure",
+            End::Halted => "halted",
+        };
+        csv.push_str(&format!("{i},A,0,{},{status}\n", e.duration));
+    }
+    csv
+}
+
+/// The params line of a `--timing auto` fit of an action's episodes.
+fn auto_line(key: &str, e: &[Episode]) -> String {
+    params_line(
+        &btrel::fit::fit_leaf_with(
+            key,
+            Declared::Action,
+            Counts::from_episodes(e),
+            btrel::fit::TimingMode::Auto,
+        )
+        .unwrap(),
+    )
+}
+
 /// Whether the `level` intervals (400 draws, seeded by `seed`) of the
 /// root's ps, MTTS and MTTF cover `truth`.
 fn root_covers(sampler: &Sampler, level: f64, seed: u64, truth: [f64; 3]) -> [bool; 3] {
@@ -585,15 +612,7 @@ fn joint_draws_cover_a_correlated_figure_with_heavy_halting() {
     let (mut halted, mut total) = (0, 0);
     for rep in 0..reps {
         let eps = episodes(&mut rng, n, (p, mu, nu), 1.5);
-        let mut csv = String::from("run,node,start,end,status\n");
-        for (i, e) in eps.iter().enumerate() {
-            let status = match e.end {
-                End::Success => "success",
-                End::Failure => "failure",
-                End::Halted => "halted",
-            };
-            csv.push_str(&format!("{i},A,0,{},{status}\n", e.duration));
-        }
+        let csv = csv_log(&eps);
         halted += eps.iter().filter(|e| e.end == End::Halted).count();
         total += n;
         let log = btrel::logs::read_bytes(csv.as_bytes(), "run.csv", "csv").unwrap();
@@ -658,18 +677,7 @@ fn joint_draws_cover_a_correlated_figure_with_heavy_halting() {
 fn cli_fit_then_ci_with_halts() {
     let dir = tempfile::tempdir().unwrap();
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(3);
-    let mut csv = String::from("run,node,start,end,status\n");
-    for (i, e) in episodes(&mut rng, 300, (0.7, 0.5, 1.0), 1.5)
-        .iter()
-        .enumerate()
-    {
-        let status = match e.end {
-            End::Success => "success",
-            End::Failure => "failure",
-            End::Halted => "halted",
-        };
-        csv.push_str(&format!("{i},A,0,{},{status}\n", e.duration));
-    }
+    let csv = csv_log(&episodes(&mut rng, 300, (0.7, 0.5, 1.0), 1.5));
     let log = dir.path().join("runs.csv");
     std::fs::write(&log, csv).unwrap();
     let params = dir.path().join("p.yaml");
@@ -835,16 +843,7 @@ fn auto_fitted_erlang_times_are_drawn_and_cover_the_truth() {
             })
             .collect();
         let eb = episodes(&mut rng, 100, b, 0.0);
-        let fit = |key: &str, e: &[Episode]| {
-            btrel::fit::fit_leaf_with(
-                key,
-                Declared::Action,
-                Counts::from_episodes(e),
-                btrel::fit::TimingMode::Auto,
-            )
-            .unwrap()
-        };
-        let (la, lb) = (params_line(&fit("A", &ea)), params_line(&fit("B", &eb)));
+        let (la, lb) = (auto_line("A", &ea), auto_line("B", &eb));
         erlang += usize::from(la.contains("success_time: {erlang: {k: "));
         let params = format!("{la}\n{lb}\n");
         let keyed =
@@ -914,6 +913,26 @@ fn exp(rng: &mut Xoshiro256PlusPlus, rate: f64) -> f64 {
     Exp::new(rate).unwrap().sample(rng)
 }
 
+/// `n` episodes of an action succeeding with `p` after a bimodal time
+/// (0.5·Exp(10) + 0.5·Exp(0.5)), failing after a shifted one (0.3 s +
+/// Exp(5)), halted at Exp(`halt`) times.
+fn bimodal_and_shifted(rng: &mut Xoshiro256PlusPlus, n: usize, p: f64, halt: f64) -> Vec<Episode> {
+    drawn_episodes(
+        rng,
+        n,
+        p,
+        |r| {
+            if r.random::<f64>() < 0.5 {
+                exp(r, 10.0)
+            } else {
+                exp(r, 0.5)
+            }
+        },
+        |r| 0.3 + exp(r, 5.0),
+        halt,
+    )
+}
+
 /// Coverage of `--timing auto` fits whose laws have no exact pivot: A's
 /// Success time bimodal (hyperexponential: 0.5·Exp(10) + 0.5·Exp(0.5)),
 /// its Failure time shifted (0.3 s + Exp(5)); `halt` > 0 halts A's
@@ -933,31 +952,9 @@ fn auto_coverage(seed: u64, reps: usize, halt: f64) -> ([usize; 4], [usize; 2], 
     let mut picked = [0usize; 2];
     let mut held = 0;
     for rep in 0..reps {
-        let ea = drawn_episodes(
-            &mut rng,
-            300,
-            p_a,
-            |r| {
-                if r.random::<f64>() < 0.5 {
-                    exp(r, 10.0)
-                } else {
-                    exp(r, 0.5)
-                }
-            },
-            |r| 0.3 + exp(r, 5.0),
-            halt,
-        );
+        let ea = bimodal_and_shifted(&mut rng, 300, p_a, halt);
         let eb = episodes(&mut rng, 100, b, 0.0);
-        let fit = |key: &str, e: &[Episode]| {
-            btrel::fit::fit_leaf_with(
-                key,
-                Declared::Action,
-                Counts::from_episodes(e),
-                btrel::fit::TimingMode::Auto,
-            )
-            .unwrap()
-        };
-        let (la, lb) = (params_line(&fit("A", &ea)), params_line(&fit("B", &eb)));
+        let (la, lb) = (auto_line("A", &ea), auto_line("B", &eb));
         assert!(la.contains("cov_theta: {params: ["), "{la}");
         picked[0] += usize::from(la.contains("success_family: \"hyperexponential-2\""));
         picked[1] += usize::from(la.contains("failure_family: \"shifted exponential\""));
@@ -1076,29 +1073,8 @@ fn a_bad_cov_theta_is_a_located_error() {
 fn cli_auto_fit_then_ci_holds_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(77);
-    let eps = drawn_episodes(
-        &mut rng,
-        600,
-        0.8,
-        |r| {
-            if r.random::<f64>() < 0.5 {
-                exp(r, 10.0)
-            } else {
-                exp(r, 0.5)
-            }
-        },
-        |r| 0.3 + exp(r, 5.0),
-        0.2,
-    );
-    let mut csv = String::from("run,node,start,end,status\n");
-    for (i, e) in eps.iter().enumerate() {
-        let status = match e.end {
-            End::Success => "success",
-            End::Failure => "failure",
-            End::Halted => "halted",
-        };
-        csv.push_str(&format!("{i},A,0,{},{status}\n", e.duration));
-    }
+    let eps = bimodal_and_shifted(&mut rng, 600, 0.8, 0.2);
+    let csv = csv_log(&eps);
     let log = dir.path().join("run.csv");
     std::fs::write(&log, csv).unwrap();
     let params = dir.path().join("params.yaml");
