@@ -113,9 +113,6 @@ pub struct FitStats {
     /// with halts ([`crate::fit::covariance`]).
     #[serde(default)]
     pub cov: Option<CovEntry>,
-    /// `auto` for a `fit --timing auto` entry.
-    #[serde(default)]
-    pub timing: Option<String>,
     /// The covariance of an auto fit's free parameters
     /// ([`crate::fit::information`]).
     #[serde(default)]
@@ -354,22 +351,26 @@ impl Auto {
         st: &FitStats,
         held: &mut Vec<String>,
     ) -> Option<(Option<Beta<f64>>, Auto)> {
-        if st.timing.as_deref() != Some("auto") {
-            return None;
-        }
         let (params, matrix) = st.cov_theta.as_ref()?.parsed(name).ok()?;
         let family = |d: Option<Duration>| match d {
             None => Some(None),
             Some(d) => Family::from_duration(&d).map(Some),
         };
-        let laws = Laws {
-            ps: a.ps,
-            success: family(a.success)?,
-            failure: family(a.failure)?,
-        };
-        if params.iter().any(|&p| laws.get(p).is_none()) {
+        let laws = family(a.success)
+            .zip(family(a.failure))
+            .map(|(success, failure)| Laws {
+                ps: a.ps,
+                success,
+                failure,
+            })
+            .filter(|laws| params.iter().all(|&p| laws.get(p).is_some()));
+        let Some(laws) = laws else {
+            held.push(format!(
+                "{name}: `cov_theta` names parameters its times do not have (edited since the \
+                 fit?): ignored, the times drawn as without it"
+            ));
             return None;
-        }
+        };
         let halted = st.halted.unwrap_or(0) > 0;
         let normal: Vec<Param> = params
             .iter()

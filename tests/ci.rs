@@ -1108,3 +1108,32 @@ fn cli_auto_fit_then_ci_holds_nothing() {
     assert!(lo < 1.05 && 1.05 < hi, "({lo}, {hi})");
     assert!(hi - lo > 0.05, "({lo}, {hi}): the rates vary");
 }
+
+/// A `cov_theta` whose parameters the leaf's times do not have (the time
+/// edited since the fit) is named and ignored, not silently used.
+#[test]
+fn a_cov_theta_that_does_not_fit_the_times_is_named() {
+    let params =
+        "A: {ps: 0.7, success_time: {erlang: {k: 2, rate: 3.0}}, nu: 1.0, fit: {successes: 70, \
+                  failures: 30, halted: 0, cov_theta: {params: [logit_ps, logit_success_p], \
+                  matrix: [[0.05, 0.0], [0.0, 0.1]]}}}\nB: {ps: 0.5, mu: 1.0, nu: 1.0}\n";
+    let keyed = btrel::tree::xml::parse_xml_str_keyed(FALLBACK, "t.xml", params, "p.yaml").unwrap();
+    let stats = read_fit_stats(params, "p.yaml").unwrap();
+    let sampler = Sampler::new(&keyed.tree, &keyed.keys, &stats);
+    assert!(
+        sampler
+            .held
+            .iter()
+            .any(|h| h.starts_with("a: `cov_theta` names parameters its times do not have")),
+        "{:?}",
+        sampler.held
+    );
+    // the same with a matching matrix: drawn, nothing held
+    let params = params.replace("logit_success_p", "ln_success_rate");
+    let stats = read_fit_stats(&params, "p.yaml").unwrap();
+    let keyed =
+        btrel::tree::xml::parse_xml_str_keyed(FALLBACK, "t.xml", &params, "p.yaml").unwrap();
+    let sampler = Sampler::new(&keyed.tree, &keyed.keys, &stats);
+    assert!(sampler.held.is_empty(), "{:?}", sampler.held);
+    assert_eq!(sampler.varied(), 3); // ps (Beta), the Erlang rate (Gamma), nu (Gamma)
+}
