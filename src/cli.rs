@@ -98,7 +98,8 @@ struct FitArgs {
     /// Timing families: `exponential` (the book's model; deterministic when every duration of
     /// each outcome is one time) or `auto` (per outcome deterministic, exponential, shifted
     /// exponential, Erlang-k, k ≤ 20, or hyperexponential-2 (EM), by BIC; needs 10 completed
-    /// episodes of the outcome).
+    /// episodes of the outcome; writes the covariance of each leaf's parameters, `cov_theta`,
+    /// which `--ci` draws).
     #[arg(long, value_enum, default_value = "exponential")]
     timing: FitTiming,
 }
