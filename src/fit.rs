@@ -574,6 +574,13 @@ fn fit_families(counts: &Counts, warnings: &mut Vec<String>) -> Option<(Estimate
     };
     let ll = laws.log_likelihood(counts);
     let cov = information::covariance(counts, &laws);
+    if cov.is_none() && !laws.params().is_empty() {
+        warnings.push(
+            "its likelihood has no strict maximum here (the observed information is not positive \
+             definite): no `cov_theta` written, so `--ci` holds its fitted times"
+                .to_string(),
+        );
+    }
     let with = |fit: Option<timing::SideFit>, f: Option<timing::Family>| {
         fit.map(|mut s| {
             if let Some(f) = f {

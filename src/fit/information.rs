@@ -408,4 +408,22 @@ mod tests {
             }
         }
     }
+
+    /// A parameter the data say nothing about (a rate with no event and no
+    /// exposure) has zero information: no covariance, rather than a
+    /// made-up one.
+    #[test]
+    fn no_covariance_without_information() {
+        let counts = Counts {
+            failures: 10,
+            failure_durations: vec![1.0; 10],
+            ..Default::default()
+        };
+        let laws = Laws {
+            ps: 0.5,
+            success: Some(Family::Exponential { rate: 1.0 }),
+            failure: Some(Family::Exponential { rate: 1.0 }),
+        };
+        assert_eq!(covariance(&counts, &laws), None);
+    }
 }
