@@ -148,13 +148,7 @@ impl StageLaw {
         if let Some((k, r)) = stages.as_erlang() {
             return Some((shift, StageLaw::Erlang(k, r)));
         }
-        let g = stages.as_general().filter(|g| g.is_hyperexponential())?;
-        (g.len() == 2).then(|| {
-            (
-                shift,
-                StageLaw::Hyper([(g.alpha()[0], -g.t(0, 0)), (g.alpha()[1], -g.t(1, 1))]),
-            )
-        })
+        Some((shift, StageLaw::Hyper(stages.as_two_branches()?)))
     }
 
     /// The law's parameters for one outcome, with their values.

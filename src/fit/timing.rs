@@ -97,11 +97,7 @@ impl Family {
                         (_, true) => None,
                     };
                 }
-                let g = stages.as_general().filter(|g| g.is_hyperexponential())?;
-                if g.len() != 2 || shift != 0.0 {
-                    return None;
-                }
-                let (a, b) = ((g.alpha()[0], -g.t(0, 0)), (g.alpha()[1], -g.t(1, 1)));
+                let [a, b] = stages.as_two_branches().filter(|_| shift == 0.0)?;
                 let ((p, rate1), (_, rate2)) = if a.1 >= b.1 { (a, b) } else { (b, a) };
                 Some(Family::Hyperexponential { p, rate1, rate2 })
             }

@@ -306,6 +306,13 @@ impl Stages {
         Stages::general(&alpha, &t)
     }
 
+    /// The `(p, rate)` branches of a two-branch hyperexponential law, in
+    /// the order they were written; None for any other law.
+    pub fn as_two_branches(&self) -> Option<[(f64, f64); 2]> {
+        let g = self.as_general().filter(|g| g.is_hyperexponential())?;
+        (g.len() == 2).then(|| [(g.alpha()[0], -g.t(0, 0)), (g.alpha()[1], -g.t(1, 1))])
+    }
+
     /// The general phase-type law, when this is one (not a sum of stages).
     pub fn as_general(&self) -> Option<&'static General> {
         self.general
