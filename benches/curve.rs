@@ -5,7 +5,7 @@
 //! attempt inside Nav2's RecoveryNode with an exponential recovery (the
 //! race's law composed by the flow around it), and of the whole published
 //! tree (its fixed 5 s Wait an atom; needs ../shared/realworld); 1,000 points of a random
-//! 300-leaf tree with mixed timing (composed laws with atoms).
+//! 300- and a 10k-leaf tree with mixed timing (composed laws with atoms).
 //!
 //! Run: `cargo bench --bench curve` (one: `cargo bench --bench curve -- nav2`)
 
@@ -53,16 +53,19 @@ fn curves(c: &mut Criterion) {
     });
 
     // mixed timing (a third each deterministic, hybrid, exponential): the
-    // shifted mixture exceeds the budget, the composed laws with atoms answer
-    let mixed = parse_str(
-        &random_tree_yaml(&Shape::mixed_timing(300), 1),
-        "mixed300.yaml",
-    )
-    .expect("tree");
+    // shifted mixture exceeds the budget, the composed laws with atoms
+    // answer, as flows over the leaves (convolutions with leaves' laws)
     let times = grid(100.0, 1000);
-    group.bench_function("mixed_300_leaves_1000_points", |b| {
-        b.iter(|| curve(&mixed, 0, &times, &CurveOptions::default()).expect("curve"))
-    });
+    for leaves in [300, 10_000] {
+        let mixed = parse_str(
+            &random_tree_yaml(&Shape::mixed_timing(leaves), 1),
+            "mixed.yaml",
+        )
+        .expect("tree");
+        group.bench_function(format!("mixed_{leaves}_leaves_1000_points"), |b| {
+            b.iter(|| curve(&mixed, 0, &times, &CurveOptions::default()).expect("curve"))
+        });
+    }
 
     let nav2 = btrel::tree::xml::parse_xml_files(
         Path::new("trees/nav2-default-attempt.xml"),

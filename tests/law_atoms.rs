@@ -117,3 +117,68 @@ fn sums_of_fixed_times_tie_with_their_value() {
     assert!((pts[2].success - 1.0).abs() < 1e-12, "{:?}", pts[2]);
     assert!(pts[1].failure.abs() < 1e-12, "{:?}", pts[1]);
 }
+
+/// `Fallback(Sequence(Inverter(a), b), ForceFailure(c))` with `a` fixed
+/// (Success at 1 w.p. 0.3, Failure at 0.5 w.p. 0.7), `b` and `c`
+/// exponential: the root succeeds with the Sequence, at `0.5 + Exp(3)` w.p.
+/// 0.7·0.6, and fails after the Sequence's Failure (at 1 w.p. 0.3, at `0.5 +
+/// Exp(1)` w.p. 0.7·0.4) plus all of `c` (`C(s) = 1 − ½e^{−2s} − ½e^{−4s}`):
+/// `F(t) = 0.3·C(t − 1) + 0.28·∫_0^{t−0.5} e^{−v} C(t − 0.5 − v) dv`, the
+/// integral `1 − e^{−s} − ½(e^{−s} − e^{−2s}) − ⅙(e^{−s} − e^{−4s})`. A
+/// budget of 2 makes the shifted mixture refuse, so the composed laws
+/// answer, the subtree a flow over its leaves (the inverter exchanging and
+/// the force decorator merging a subtree's exits).
+#[test]
+fn a_flow_over_leaves_through_inverter_and_force_decorators_matches_the_closed_form() {
+    let t = tree(
+        "tree: {fallback: {children: [\
+           {sequence: {children: [\
+             {inverter: {child: {action: {name: a, ps: 0.3, tau_s: 1, tau_f: 0.5}}}}, \
+             {action: {name: b, ps: 0.6, mu: 3, nu: 1}}]}}, \
+           {force_failure: {child: {action: {name: c, ps: 0.5, mu: 2, nu: 4}}}}]}}",
+    );
+    let c = |s: f64| {
+        if s < 0.0 {
+            0.0
+        } else {
+            1.0 - 0.5 * (-2.0 * s).exp() - 0.5 * (-4.0 * s).exp()
+        }
+    };
+    let tail = |s: f64| {
+        if s < 0.0 {
+            return 0.0;
+        }
+        let e = |k: f64| (-k * s).exp();
+        1.0 - e(1.0) - 0.5 * (e(1.0) - e(2.0)) - (e(1.0) - e(4.0)) / 6.0
+    };
+    let success = |t: f64| 0.42 * (1.0 - (-3.0 * (t - 0.5)).exp()).max(0.0);
+    let failure = |t: f64| 0.3 * c(t - 1.0) + 0.28 * tail(t - 0.5);
+    let times = [0.25, 0.5, 0.75, 1.0, 1.5, 3.0, 10.0];
+    let options = CurveOptions {
+        max_states: 2,
+        ..CurveOptions::default()
+    };
+    let pts = curve(&t, 0, &times, &options).expect("curve");
+    for p in &pts {
+        assert!(
+            (p.success - success(p.t)).abs() < 1e-12 && (p.failure - failure(p.t)).abs() < 1e-12,
+            "π({}) = ({}, {}) vs ({}, {})",
+            p.t,
+            p.success,
+            p.failure,
+            success(p.t),
+            failure(p.t)
+        );
+    }
+}
+
+/// A 10,000-leaf random mixed tree (seed 2: refused before, when a flow's
+/// dropped atom mass was added up without its weights) against simulation.
+#[test]
+fn a_ten_thousand_leaf_mixed_tree_matches_simulation() {
+    let t = tree(&random_tree_yaml(&Shape::mixed_timing(10_000), 2));
+    let ts = times();
+    let pts = curve(&t, 0, &ts, &CurveOptions::default()).expect("curve");
+    let sim = simulate_root(&t, 100_000, &ts);
+    assert_root_and_curve_within_z("10k mixed leaves", root_figures(&t), &pts, &sim);
+}

@@ -17,10 +17,15 @@
 //! * atoms, shifted phase-type mixtures and interpolated laws: the law of
 //!   the time at which each state is entered, carried forward
 //!   ([`super::atoms::flow_atoms`], [`super::shifted`], [`super::law`]).
+//!
+//! A subtree of Sequences, Fallbacks, inverters and force decorators is
+//! itself a flow over its leaves ([`leaf_flow`]): each leaf a state, its
+//! Success and Failure edges leading to the leaf the tick semantics run
+//! next or to the subtree's outcome.
 
 use super::Figures;
 use crate::solve::chain::{AbsorbingChain, Edge, PhaseChain, Target};
-use crate::tree::{Flow, FlowNext};
+use crate::tree::{Decorator, Flow, FlowNext, FlowState, NodeId, NodeKind, Tree};
 
 /// The DTMC over a flow's states whose transitions are the children's
 /// outcomes (probabilities `ps`, `pf`, durations MTTS, MTTF); `children`
@@ -199,6 +204,92 @@ pub fn book_chain(flow: &Flow, children: &[Figures]) -> PhaseChain {
     chain.initial_success = start.success;
     chain.initial_failure = start.failure;
     chain
+}
+
+/// The subtree of `id` as a flow over its leaves, when it holds only
+/// Sequences, Fallbacks, inverters and force decorators over conditions and
+/// actions for which `leaf` holds (`None` otherwise). The states are the
+/// leaves in tree order (a topological order: the tick semantics only ever
+/// go on to a later leaf); a Sequence sends each child's Success to the
+/// next child's first leaf, a Fallback each child's Failure; an inverter
+/// exchanges its subtree's exits, a force decorator merges them.
+pub(crate) fn leaf_flow(tree: &Tree, id: NodeId, leaf: impl Fn(NodeId) -> bool) -> Option<Flow> {
+    let mut children = Vec::new();
+    let mut states = Vec::new();
+    lay_out(tree, id, &leaf, &mut children, &mut states)?;
+    Flow::new(children, states).ok()
+}
+
+/// Appends the states of `id`'s subtree, its own exits left as
+/// `Success`/`Failure` for its parent to redirect.
+fn lay_out(
+    tree: &Tree,
+    id: NodeId,
+    leaf: &impl Fn(NodeId) -> bool,
+    children: &mut Vec<NodeId>,
+    states: &mut Vec<FlowState>,
+) -> Option<()> {
+    let start = states.len();
+    // every exit of the states laid out since `start` that is `from` goes to `to`
+    let redirect = |states: &mut Vec<FlowState>, from: FlowNext, to: FlowNext| {
+        for s in &mut states[start..] {
+            for next in [&mut s.on_success, &mut s.on_failure] {
+                if *next == from {
+                    *next = to;
+                }
+            }
+        }
+    };
+    match &tree.node(id).kind {
+        NodeKind::Condition { .. } | NodeKind::Action(_) if leaf(id) => {
+            states.push(FlowState {
+                child: children.len(),
+                on_success: FlowNext::Success,
+                on_failure: FlowNext::Failure,
+            });
+            children.push(id);
+        }
+        NodeKind::Sequence { children: kids } | NodeKind::Fallback { children: kids } => {
+            let sequence = matches!(tree.node(id).kind, NodeKind::Sequence { .. });
+            let (go, _) = if sequence {
+                (FlowNext::Success, FlowNext::Failure)
+            } else {
+                (FlowNext::Failure, FlowNext::Success)
+            };
+            let (last, earlier) = kids.split_last()?;
+            for &c in earlier {
+                let from = states.len();
+                lay_out(tree, c, leaf, children, states)?;
+                // the next child starts where this one's states end
+                let next = FlowNext::State(states.len());
+                for s in &mut states[from..] {
+                    for e in [&mut s.on_success, &mut s.on_failure] {
+                        if *e == go {
+                            *e = next;
+                        }
+                    }
+                }
+            }
+            lay_out(tree, *last, leaf, children, states)?;
+        }
+        NodeKind::Decorator { decorator, child } => {
+            lay_out(tree, *child, leaf, children, states)?;
+            // a placeholder that no exit uses: the state count is past them all
+            let hold = FlowNext::State(usize::MAX);
+            match decorator.as_primitive() {
+                Decorator::Inverter => {
+                    redirect(states, FlowNext::Success, hold);
+                    redirect(states, FlowNext::Failure, FlowNext::Success);
+                    redirect(states, hold, FlowNext::Failure);
+                }
+                Decorator::ForceSuccess => redirect(states, FlowNext::Failure, FlowNext::Success),
+                Decorator::ForceFailure => redirect(states, FlowNext::Success, FlowNext::Failure),
+                _ => return None,
+            }
+        }
+        _ => return None,
+    }
+    Some(())
 }
 
 #[cfg(test)]

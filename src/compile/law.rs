@@ -73,12 +73,14 @@ use super::mrg::Outcome;
 use crate::compile::{counts, phase, renewal_law, AnalysisError};
 use crate::solve::chain::PhaseChain;
 use crate::solve::expm;
+use crate::solve::exponential::ExponentialConvolution;
 use crate::solve::interpolant::{build_with_breaks, BuildError, Interpolant};
 use crate::solve::transient::{
     absorption_by_phase, transient_split, transient_weighted, uniformization_work, CurvePoint,
     MAX_SINGLE_PASS_STEPS,
 };
 use crate::tree::{Decorator, Duration, Flow, FlowNext, NodeId, NodeKind, Tree};
+use rayon::prelude::*;
 
 /// Dropped Poisson mass in each sampled density.
 const SAMPLE_TOLERANCE: f64 = 1e-16;
@@ -605,6 +607,7 @@ impl Builder<'_> {
             density,
             breaks,
             dropped,
+            kernel: None,
         }
     }
 
@@ -649,7 +652,14 @@ impl Builder<'_> {
                         .collect())
                 })?;
                 let rest = p * (-rate * cap).exp();
-                Ok(self.measure(vec![(cap, rest)], Some(density), vec![cap], 0.0))
+                let mut m = self.measure(vec![(cap, rest)], Some(density), vec![cap], 0.0);
+                m.kernel = Some(Kernel {
+                    weight: p,
+                    rate,
+                    shift: 0.0,
+                    cap,
+                });
+                Ok(m)
             }
             // the stages' density, shifted
             Duration::Exponential { .. } | Duration::PhaseType { .. } => {
@@ -669,7 +679,17 @@ impl Builder<'_> {
                         .map(|(&t, r)| if t >= shift { p * r[2] } else { 0.0 })
                         .collect())
                 })?;
-                Ok(self.measure(Vec::new(), Some(density), vec![shift], 0.0))
+                let mut m = self.measure(Vec::new(), Some(density), vec![shift], 0.0);
+                m.kernel = match d.stages().and_then(|s| s.as_erlang()) {
+                    Some((1, rate)) => Some(Kernel {
+                        weight: p,
+                        rate,
+                        shift,
+                        cap: f64::INFINITY,
+                    }),
+                    _ => None,
+                };
+                Ok(m)
             }
         }
     }
@@ -719,12 +739,19 @@ impl Builder<'_> {
                     _ => Err(fallback),
                 },
             },
-            // Nav2 nodes as their primitive equivalents (`primitive_view`)
+            // Nav2 nodes as their primitive equivalents (`primitive_view`);
+            // a Sequence or Fallback over simple leaves as their flow
             NodeKind::Sequence { children }
             | NodeKind::Pipeline { children }
-            | NodeKind::SequenceWithMemory { children, .. } => self.in_turn(id, children, true),
+            | NodeKind::SequenceWithMemory { children, .. } => match self.leaf_flow(id)? {
+                Some(law) => Ok(law),
+                None => self.in_turn(id, children, true),
+            },
             NodeKind::Fallback { children } | NodeKind::RoundRobin { children, .. } => {
-                self.in_turn(id, children, false)
+                match self.leaf_flow(id)? {
+                    Some(law) => Ok(law),
+                    None => self.in_turn(id, children, false),
+                }
             }
             NodeKind::Flow(flow) => self.flow(id, flow),
             NodeKind::Decorator { decorator, child } => {
@@ -1005,6 +1032,47 @@ impl Builder<'_> {
             .iter()
             .map(|&c| self.law(c))
             .collect::<Result<Vec<_>, AnalysisError>>()?;
+        self.flow_of(id, flow, &laws)
+    }
+
+    /// A subtree of Sequences and Fallbacks over leaves with fixed,
+    /// exponential, shifted exponential or hybrid times and conditions, as
+    /// the flow over its leaves ([`super::flow::leaf_flow`]): every
+    /// convolution is then one with a leaf's law — a shift, or the
+    /// exponential kernel's recursion — linear in the panels, where folding
+    /// the children's laws convolves two densities (quadratic).
+    fn leaf_flow(&self, id: NodeId) -> Result<Option<Law>, AnalysisError> {
+        let simple = |d: Option<Duration>| match d {
+            None | Some(Duration::Fixed { .. }) => true,
+            Some(Duration::Exponential { .. } | Duration::TruncatedExponential { .. }) => true,
+            Some(Duration::PhaseType { stages, .. }) => matches!(stages.as_erlang(), Some((1, _))),
+        };
+        let leaf = |c: NodeId| match &self.tree.node(c).kind {
+            NodeKind::Condition { .. } => true,
+            NodeKind::Action(a) => simple(a.success) && simple(a.failure),
+            _ => false,
+        };
+        let Some(flow) = super::flow::leaf_flow(self.tree, id, leaf) else {
+            return Ok(None);
+        };
+        let laws = flow
+            .children
+            .iter()
+            .map(|&c| match self.tree.node(c).kind {
+                NodeKind::Condition { ps } => Ok(Law {
+                    parts: [
+                        self.measure(vec![(0.0, ps)], None, Vec::new(), 0.0),
+                        self.measure(vec![(0.0, 1.0 - ps)], None, Vec::new(), 0.0),
+                    ],
+                }),
+                _ => self.leaf_law(c),
+            })
+            .collect::<Result<Vec<_>, AnalysisError>>()?;
+        self.flow_of(id, &flow, &laws).map(Some)
+    }
+
+    /// A flow whose children's laws are `laws`.
+    fn flow_of(&self, id: NodeId, flow: &Flow, laws: &[Law]) -> Result<Law, AnalysisError> {
         let mut entered: Vec<Option<Measure>> = vec![None; flow.states.len()];
         entered[0] = Some(Measure::unit());
         let mut ends = [Measure::zero(), Measure::zero()];
@@ -1136,7 +1204,8 @@ impl Builder<'_> {
                 budget: self.max_states,
             });
         }
-        let dropped = x.dropped + y.dropped;
+        // dropped mass d_x carried by y's mass (and d_y by x's) within [0, T]
+        let dropped = x.dropped * (y.mass() + y.dropped) + y.dropped * x.mass();
         // δ_0-only factors scale the other
         for (a, b) in [(x, y), (y, x)] {
             if a.density.is_none() && a.atoms.len() == 1 && a.atoms[0].0 == 0.0 {
@@ -1144,7 +1213,10 @@ impl Builder<'_> {
                 let mut out = b.clone();
                 out.atoms.iter_mut().for_each(|t| t.1 *= c);
                 out.density = b.density.as_ref().map(|d| d.scaled(c));
-                out.dropped = c.abs() * b.dropped + a.dropped;
+                out.dropped = c.abs() * b.dropped + a.dropped * (b.mass() + b.dropped);
+                if let Some(k) = &mut out.kernel {
+                    k.weight *= c;
+                }
                 return Ok(out);
             }
         }
@@ -1159,6 +1231,12 @@ impl Builder<'_> {
         }
         if x.density.is_none() && y.density.is_none() {
             return Ok(self.measure(atoms, None, Vec::new(), dropped));
+        }
+        // a leaf's exponential time: linear in the panels
+        match (x.kernel, y.kernel) {
+            (_, Some(k)) => return self.convolve_kernel(id, x, y, k, atoms, dropped),
+            (Some(k), None) => return self.convolve_kernel(id, y, x, k, atoms, dropped),
+            (None, None) => {}
         }
         // a density jumps at an atom plus a jump of the density it shifts
         // (g * h is continuous: its kinks are resolved by halving panels)
@@ -1182,14 +1260,76 @@ impl Builder<'_> {
                 (Some(g), Some(h)) => g.convolve_many(h, points),
                 _ => vec![0.0; points.len()],
             };
-            Ok(points
+            let xs = shifted_many(&x.atoms, y.density.as_ref(), points);
+            let ys = shifted_many(&y.atoms, x.density.as_ref(), points);
+            Ok(conv
                 .iter()
-                .zip(conv)
-                .map(|(&t, c)| {
-                    c + shifted(&x.atoms, y.density.as_ref(), t)
-                        + shifted(&y.atoms, x.density.as_ref(), t)
-                })
+                .zip(xs)
+                .zip(ys)
+                .map(|((c, a), b)| c + a + b)
                 .collect())
+        })?;
+        Ok(self.measure(atoms, Some(density), breaks, dropped))
+    }
+
+    /// [`Self::convolve`] where `y`'s density is the closed form `k`:
+    /// `y = atoms + w·λe^{−λ(· − s)}` on `[s, s + c)`, so that
+    /// `x ⊛ y = x ⊛ atoms + w (z(· − s) − e^{−λc} z(· − s − c))` with
+    /// `z = λe^{−λ·} ⊛ x` ([`ExponentialConvolution`]); `atoms` are the
+    /// products of both measures' atoms.
+    fn convolve_kernel(
+        &self,
+        id: NodeId,
+        x: &Measure,
+        y: &Measure,
+        k: Kernel,
+        atoms: Vec<(f64, f64)>,
+        dropped: f64,
+    ) -> Result<Measure, AnalysisError> {
+        let end = self.end;
+        let z = ExponentialConvolution::new(k.rate, &x.atoms, x.density.as_ref());
+        let tail = if k.cap.is_finite() {
+            (-k.rate * k.cap).exp()
+        } else {
+            0.0
+        };
+        // z jumps at x's atoms and kinks at x's breaks; the cut-off and
+        // y's atoms shift x's jumps
+        let mut breaks: Vec<f64> = Vec::new();
+        let limit = 4 * MAX_BREAKS;
+        let mut from_x: Vec<f64> = x.atoms.iter().map(|a| a.0).collect();
+        from_x.push(0.0);
+        for shift in [k.shift, k.shift + k.cap] {
+            if shift.is_finite() {
+                breaks.extend(from_x.iter().map(|b| b + shift).take_while(|&b| b < end));
+            }
+        }
+        if x.density.is_some() {
+            for &(t, _) in &y.atoms {
+                if breaks.len() >= limit || t > end {
+                    break;
+                }
+                breaks.push(t);
+                breaks.extend(x.breaks.iter().map(|s| t + s).take_while(|&s| s < end));
+            }
+        }
+        breaks.truncate(limit);
+        let breaks = self.measure(Vec::new(), None, breaks, 0.0).breaks;
+        let density = self.density(id, &breaks, |points| {
+            let kernel = |t: f64| {
+                let mut v = z.at(t - k.shift);
+                if tail > 0.0 {
+                    v -= tail * z.at(t - k.shift - k.cap);
+                }
+                k.weight * v
+            };
+            let kernel: Vec<f64> = if points.len() >= 4096 {
+                points.par_iter().map(|&t| kernel(t)).collect()
+            } else {
+                points.iter().map(|&t| kernel(t)).collect()
+            };
+            let ys = shifted_many(&y.atoms, x.density.as_ref(), points);
+            Ok(kernel.iter().zip(ys).map(|(a, b)| a + b).collect())
         })?;
         Ok(self.measure(atoms, Some(density), breaks, dropped))
     }
@@ -1201,7 +1341,8 @@ impl Builder<'_> {
                 let breaks: Vec<f64> = x.breaks.iter().chain(&y.breaks).copied().collect();
                 let breaks = self.measure(Vec::new(), None, breaks, 0.0).breaks;
                 Some(self.density(id, &breaks, |points| {
-                    Ok(points.iter().map(|&t| g.eval(t) + h.eval(t)).collect())
+                    let (gv, hv) = (g.eval_many(points), h.eval_many(points));
+                    Ok(gv.iter().zip(hv).map(|(a, b)| a + b).collect())
                 })?)
             }
         };
@@ -1211,14 +1352,21 @@ impl Builder<'_> {
     }
 }
 
-/// `Σ a_i h(t − τ_i)` over `atoms` `(τ_i, a_i)` (sorted), 0 without `h`.
-fn shifted(atoms: &[(f64, f64)], h: Option<&Interpolant>, t: f64) -> f64 {
-    let Some(h) = h else { return 0.0 };
-    atoms
-        .iter()
-        .take_while(|a| a.0 <= t)
-        .map(|&(tau, a)| a * h.eval(t - tau))
-        .sum()
+/// `Σ a_i h(t − τ_i)` over `atoms` `(τ_i, a_i)` at each of `points`, 0
+/// without `h` (each atom's shift evaluated in blocks).
+fn shifted_many(atoms: &[(f64, f64)], h: Option<&Interpolant>, points: &[f64]) -> Vec<f64> {
+    let mut out = vec![0.0; points.len()];
+    let Some(h) = h else { return out };
+    let mut local = vec![0.0; points.len()];
+    for &(tau, a) in atoms {
+        for (l, &t) in local.iter_mut().zip(points) {
+            *l = t - tau;
+        }
+        for (o, v) in out.iter_mut().zip(h.eval_many(&local)) {
+            *o += a * v;
+        }
+    }
+    out
 }
 
 /// `(go, stop)`: the outcome on which a Sequence (`sequence`) goes on to
@@ -1240,6 +1388,20 @@ struct Measure {
     breaks: Vec<f64>,
     /// Mass of the atoms dropped below [`ATOM_FLOOR`].
     dropped: f64,
+    /// The density's closed form when it is a leaf's exponential time
+    /// (`convolve` then takes the exponential kernel's recursion).
+    kernel: Option<Kernel>,
+}
+
+/// A density `weight · λe^{−λ(t − shift)}` on `[shift, shift + cap)`: a
+/// leaf's exponential time, shifted (`shift > 0`) or the random side of a
+/// hybrid (`cap` finite: the atom at the cap is the measure's).
+#[derive(Debug, Clone, Copy)]
+struct Kernel {
+    weight: f64,
+    rate: f64,
+    shift: f64,
+    cap: f64,
 }
 
 impl Measure {

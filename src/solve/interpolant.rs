@@ -263,12 +263,53 @@ impl Interpolant {
         std::array::from_fn(|j| c[0] + x[j] * b1[j] - b2[j])
     }
 
+    /// The panel holding `t` (clamped to the domain).
+    pub(crate) fn panel_at(&self, t: f64) -> usize {
+        self.panel_of(t)
+    }
+
+    /// Whether panel `k` is identically zero.
+    pub(crate) fn panel_is_zero(&self, k: usize) -> bool {
+        self.scale[k] == 0.0
+    }
+
+    /// Panel `k`'s polynomial at the [`POINTS`] instants `ts`.
+    pub(crate) fn eval_block_at(&self, k: usize, ts: &[f64; POINTS]) -> [f64; POINTS] {
+        self.eval_block_in(k, ts)
+    }
+
     /// The value at `t` (0 outside the domain).
     pub fn eval(&self, t: f64) -> f64 {
         if !(t >= self.edges[0] && t <= self.end()) {
             return 0.0;
         }
         self.eval_in(self.panel_of(t), t)
+    }
+
+    /// [`Self::eval`] at many instants: each run of [`POINTS`] that lies
+    /// in one panel (a panel's points, shifted) is evaluated as a block.
+    pub fn eval_many(&self, ts: &[f64]) -> Vec<f64> {
+        let mut out = Vec::with_capacity(ts.len());
+        let (start, end) = (self.edges[0], self.end());
+        for chunk in ts.chunks(POINTS) {
+            let inside = |t: f64| t >= start && t <= end;
+            if let Ok(block) = <&[f64; POINTS]>::try_from(chunk) {
+                let (lo, hi) = block
+                    .iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &t| {
+                        (l.min(t), h.max(t))
+                    });
+                if inside(lo) && inside(hi) {
+                    let k = self.panel_of(lo);
+                    if self.panel_of(hi) == k {
+                        out.extend_from_slice(&self.eval_block_in(k, block));
+                        continue;
+                    }
+                }
+            }
+            out.extend(chunk.iter().map(|&t| self.eval(t)));
+        }
+        out
     }
 
     /// `∫` from the domain's start to `t` (clamped to the domain).

@@ -23,6 +23,7 @@
 pub mod chain;
 pub mod dd;
 pub mod expm;
+pub mod exponential;
 pub mod interpolant;
 pub mod quadrature;
 pub mod transient;
