@@ -94,6 +94,10 @@ pub const ATOM_FLOOR: f64 = 1e-22;
 /// Most atom mass a law may have dropped (else it is refused).
 pub const DROPPED_LIMIT: f64 = 1e-12;
 
+/// A density's jump times the horizon below which the jump does not keep
+/// a break (it changes the mass of a panel by less than this).
+const JUMP_FLOOR: f64 = 1e-16;
+
 /// Most instants that start interpolation panels, per density.
 pub const MAX_BREAKS: usize = 4096;
 
@@ -602,6 +606,12 @@ impl Builder<'_> {
         breaks.sort_by(f64::total_cmp);
         breaks.dedup_by(|b, a| same_time(*a, *b));
         breaks.truncate(MAX_BREAKS);
+        // a jump too small to need its own panels is interpolated through
+        // (panels that hold it are halved as any others)
+        if let Some(d) = &density {
+            let floor = JUMP_FLOOR / end.max(1.0);
+            breaks.retain(|&b| d.jump_at(b).is_none_or(|j| j > floor));
+        }
         Measure {
             atoms: merged,
             density,

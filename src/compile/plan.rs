@@ -24,7 +24,7 @@
 //! | 5 | every leaf below phase-type (exponential, Erlang, hypoexponential), the chain within the budget (a Parallel with the book's thresholds: its product ≤ [`super::PRODUCT_LIMIT`]) | [`Representation::Chain`]: the exact phase chain |
 //! | 6 | a Parallel with the book's thresholds (`F ≥ N − M + 1`) | [`Representation::Counted`]: the count programme over the children's own laws |
 //! | 7 | a Parallel whose two thresholds can both be met | [`Representation::Race`]: the race of the children's laws |
-//! | 8 | a leaf below is deterministic, hybrid or shifted | [`Representation::Shifted`]: the shifted phase-type mixture; where it exceeds the budget (every distinct sum of fixed times is a component) or cannot hold a Parallel below, the curve comes from the composed outcome laws with atoms at any instant ([`law`]) |
+//! | 8 | a leaf below is deterministic, hybrid or shifted | [`Representation::Shifted`]: the shifted phase-type mixture; where it exceeds the budget (every distinct sum of fixed times is a component; a curve tries it within [`SHIFTED_FIRST`] phases first) or cannot hold a Parallel below, the curve comes from the composed outcome laws with atoms at any instant ([`law`]) |
 //! | 9 | otherwise (a chain over the budget: a wide Parallel below) | [`Representation::Composed`]: the composed outcome laws (interpolated densities) |
 //!
 //! One rule goes before the table for the curve: a race against a renewal
@@ -53,6 +53,12 @@ use crate::solve::chain::PhaseChain;
 use crate::solve::solve_absorbing;
 use crate::tree::nav2::MAX_RERUN_TERMS;
 use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
+
+/// Most phases the shifted mixture may hold on its first attempt at a
+/// node's curve: past it the composed laws answer (exact too, and faster
+/// there); the mixture gets the whole `--max-states` only where the laws
+/// cannot hold the node.
+const SHIFTED_FIRST: usize = 1 << 16;
 
 /// How the engine represents one node's outcome law (the planner's table,
 /// module docs).
@@ -524,21 +530,32 @@ impl<'t> Plan<'t> {
                     node: node.name.clone(),
                     leaf: self.mixed_leaf(id),
                 };
-                match super::shifted::shifted_law(self.tree, id, self.max_states) {
+                // the mixture within a smaller budget first: past it (every
+                // distinct sum of fixed times is a component) the composed
+                // laws are the faster exact answer
+                let first = self.max_states.min(SHIFTED_FIRST);
+                match super::shifted::shifted_law(self.tree, id, first) {
                     Ok(Some(law)) => {
                         curve_query::curve_by_shifted(&law, times, options, &node.name)
                     }
                     // a form the mixture cannot hold
                     Ok(None) => law::curve_by_laws(self.tree, id, times, options, mixed),
                     // too many components: where the composed laws cannot
-                    // hold the node either, the budget is what stops it
-                    Err(e @ AnalysisError::StateBudget { .. }) => {
-                        law::curve_by_laws(self.tree, id, times, options, e.clone()).map_err(|l| {
-                            match l {
-                                AnalysisError::MixedTiming { .. } => e,
-                                l => l,
+                    // hold the node either, the mixture within the whole
+                    // budget, and the budget is what stops it
+                    Err(budget @ AnalysisError::StateBudget { .. }) => {
+                        match law::curve_by_laws(self.tree, id, times, options, mixed.clone()) {
+                            Err(AnalysisError::MixedTiming { .. }) if first < self.max_states => {
+                                match super::shifted::shifted_law(self.tree, id, self.max_states)? {
+                                    Some(law) => curve_query::curve_by_shifted(
+                                        &law, times, options, &node.name,
+                                    ),
+                                    None => Err(mixed),
+                                }
                             }
-                        })
+                            Err(AnalysisError::MixedTiming { .. }) => Err(budget),
+                            r => r,
+                        }
                     }
                     Err(e) => Err(e),
                 }

@@ -307,9 +307,48 @@ impl Interpolant {
                     }
                 }
             }
-            out.extend(chunk.iter().map(|&t| self.eval(t)));
+            // a run across panels: one block per panel it touches
+            let base = out.len();
+            out.extend(std::iter::repeat_n(0.0, chunk.len()));
+            let mut todo: Vec<(usize, usize)> = chunk
+                .iter()
+                .enumerate()
+                .filter(|&(_, &t)| inside(t))
+                .map(|(j, &t)| (self.panel_of(t), j))
+                .collect();
+            todo.sort_unstable();
+            for run in todo.chunk_by(|a, b| a.0 == b.0) {
+                let k = run[0].0;
+                let mut block = [chunk[run[0].1]; POINTS];
+                for (slot, &(_, j)) in block.iter_mut().zip(run) {
+                    *slot = chunk[j];
+                }
+                let v = self.eval_block_in(k, &block);
+                for (i, &(_, j)) in run.iter().enumerate() {
+                    out[base + j] = v[i];
+                }
+            }
         }
         out
+    }
+
+    /// `|f(t+) − f(t−)|` where a panel starts at `t` (within `1e-13·end`
+    /// of an edge), `None` where none does (the function may jump there
+    /// without a panel edge: interpolated through).
+    pub fn jump_at(&self, t: f64) -> Option<f64> {
+        let k = self.edges.partition_point(|&e| e < t);
+        let near = |i: usize| {
+            self.edges
+                .get(i)
+                .filter(|&&e| (e - t).abs() <= 1e-13 * self.end().max(1.0))
+                .map(|_| i)
+        };
+        let k = near(k).or_else(|| k.checked_sub(1).and_then(near))?;
+        if k == 0 || k >= self.panels() {
+            return None;
+        }
+        let e = self.edges[k];
+        Some((self.eval_in(k, e) - self.eval_in(k - 1, e)).abs())
     }
 
     /// `∫` from the domain's start to `t` (clamped to the domain).
@@ -660,6 +699,24 @@ mod tests {
             g.panels(),
             h.panels()
         );
+        // the jump 2e^{−0.3} where a panel starts there; none elsewhere
+        let jump = g.jump_at(at).expect("a panel starts at the break");
+        assert!((jump - 2.0 * (-at).exp()).abs() < 1e-11, "{jump}");
+        assert_eq!(g.jump_at(0.123_456), None);
+    }
+
+    #[test]
+    fn many_values_match_single_ones() {
+        // runs of POINTS that fall in one panel, across panels, outside
+        let g = build1(4.0, |t| (t * 3.0).sin() * (-t).exp());
+        let ts: Vec<f64> = (0..400)
+            .map(|i| -0.5 + 5.0 * ((i * 37) % 400) as f64 / 400.0)
+            .chain(panel_points(1.0, 1.25))
+            .collect();
+        let many = g.eval_many(&ts);
+        for (t, v) in ts.iter().zip(many) {
+            assert_eq!(v, g.eval(*t), "t = {t}");
+        }
     }
 
     #[test]
