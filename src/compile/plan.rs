@@ -24,7 +24,7 @@
 //! | 5 | every leaf below phase-type (exponential, Erlang, hypoexponential), the chain within the budget (a Parallel with the book's thresholds: its product ≤ [`super::PRODUCT_LIMIT`]) | [`Representation::Chain`]: the exact phase chain |
 //! | 6 | a Parallel with the book's thresholds (`F ≥ N − M + 1`) | [`Representation::Counted`]: the count programme over the children's own laws |
 //! | 7 | a Parallel whose two thresholds can both be met | [`Representation::Race`]: the race of the children's laws |
-//! | 8 | a leaf below is deterministic, hybrid or shifted | [`Representation::Shifted`]: the shifted phase-type mixture; where it exceeds the budget (every distinct sum of fixed times is a component; a curve tries it within [`SHIFTED_FIRST`] phases first) or cannot hold a Parallel below, the curve comes from the composed outcome laws with atoms at any instant ([`law`]) |
+//! | 8 | a leaf below is deterministic, hybrid or shifted | [`Representation::Shifted`]: the shifted phase-type mixture; where it exceeds the budget (every distinct sum of fixed times is a component; a curve tries it within `SHIFTED_FIRST` = 65,536 phases first) or cannot hold a Parallel below, the curve comes from the composed outcome laws with atoms at any instant ([`law`]) |
 //! | 9 | otherwise (a chain over the budget: a wide Parallel below) | [`Representation::Composed`]: the composed outcome laws (interpolated densities) |
 //!
 //! One rule goes before the table for the curve: a race against a renewal
