@@ -85,13 +85,20 @@ fn large_mixed_trees_match_the_closed_form_reference() {
     every_node_matches_the_reference(&[(40, 1), (60, 2)]);
 }
 
-#[test]
-fn a_large_mixed_tree_matches_simulation() {
-    let t = tree(&random_tree_yaml(&Shape::mixed_timing(40), 7));
+/// The root's figures and π(t) of the random mixed tree (`leaves`,
+/// `seed`) against 100,000 simulated runs (|z| < 5).
+fn matches_simulation(leaves: usize, seed: u64) {
+    let t = tree(&random_tree_yaml(&Shape::mixed_timing(leaves), seed));
     let ts = times();
     let pts = curve(&t, 0, &ts, &CurveOptions::default()).expect("curve");
     let sim = simulate_root(&t, 100_000, &ts);
-    assert_root_and_curve_within_z("40 mixed leaves", root_figures(&t), &pts, &sim);
+    let label = format!("{leaves} mixed leaves, seed {seed}");
+    assert_root_and_curve_within_z(&label, root_figures(&t), &pts, &sim);
+}
+
+#[test]
+fn a_large_mixed_tree_matches_simulation() {
+    matches_simulation(40, 7);
 }
 
 /// `Fallback(Parallel(M = 2 of 3; F = 2), exponential)`: the Parallel's
@@ -176,9 +183,5 @@ fn a_flow_over_leaves_through_inverter_and_force_decorators_matches_the_closed_f
 /// dropped atom mass was added up without its weights) against simulation.
 #[test]
 fn a_ten_thousand_leaf_mixed_tree_matches_simulation() {
-    let t = tree(&random_tree_yaml(&Shape::mixed_timing(10_000), 2));
-    let ts = times();
-    let pts = curve(&t, 0, &ts, &CurveOptions::default()).expect("curve");
-    let sim = simulate_root(&t, 100_000, &ts);
-    assert_root_and_curve_within_z("10k mixed leaves", root_figures(&t), &pts, &sim);
+    matches_simulation(10_000, 2);
 }

@@ -125,13 +125,7 @@ impl<'a> ExponentialConvolution<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::solve::interpolant::build;
-
-    fn density(end: f64, f: impl Fn(f64) -> f64) -> Interpolant {
-        build::<()>(end, 1, |pts| Ok(pts.iter().map(|&t| f(t)).collect()))
-            .unwrap()
-            .remove(0)
-    }
+    use crate::solve::interpolant::build1 as density;
 
     #[test]
     fn atoms_give_shifted_exponentials() {

@@ -612,15 +612,17 @@ fn refine<E>(
     Err(BuildError::NotConverged)
 }
 
+/// `f` interpolated on `[0, end]` (tests' shorthand).
+#[cfg(test)]
+pub(crate) fn build1(end: f64, f: impl Fn(f64) -> f64) -> Interpolant {
+    build::<()>(end, 1, |pts| Ok(pts.iter().map(|&t| f(t)).collect()))
+        .unwrap()
+        .remove(0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn build1(end: f64, f: impl Fn(f64) -> f64) -> Interpolant {
-        build::<()>(end, 1, |pts| Ok(pts.iter().map(|&t| f(t)).collect()))
-            .unwrap()
-            .remove(0)
-    }
 
     #[test]
     fn interpolates_and_integrates_exponential_densities() {
