@@ -29,10 +29,19 @@ fn times() -> Vec<f64> {
 /// against reference/expoly.py kept to the horizon `TIMES[last]` (exact at
 /// every time asked), within 1e-9; returns the largest difference.
 fn every_node_matches_the_reference(cases: &[(usize, u64)]) -> Option<f64> {
+    every_node_matches_the_reference_of(cases, |y| y)
+}
+
+/// [`every_node_matches_the_reference`] for the random trees' YAML as
+/// changed by `edit`.
+fn every_node_matches_the_reference_of(
+    cases: &[(usize, u64)],
+    edit: impl Fn(String) -> String,
+) -> Option<f64> {
     let py = python()?;
     let trees: Vec<_> = cases
         .iter()
-        .map(|&(n, seed)| tree(&random_tree_yaml(&Shape::mixed_timing(n), seed)))
+        .map(|&(n, seed)| tree(&edit(random_tree_yaml(&Shape::mixed_timing(n), seed))))
         .collect();
     let jobs: Vec<_> = trees
         .iter()
@@ -74,6 +83,48 @@ fn every_node_matches_the_reference(cases: &[(usize, u64)]) -> Option<f64> {
 #[test]
 fn mixed_trees_beyond_the_shifted_mixture_match_the_closed_form_reference() {
     every_node_matches_the_reference(&[(34, 3), (36, 1), (36, 2)]);
+}
+
+/// Every other exponential action's Success time of the random trees
+/// made Erlang-2 or hypoexponential of the same mean (stages in series: the
+/// kernel's recursion once per stage).
+fn with_stages(yaml: String) -> String {
+    let mut n = 0;
+    yaml.lines()
+        .map(|line| {
+            let Some(at) = line.find(", mu: ") else {
+                return line.to_string();
+            };
+            let rest = &line[at + 6..];
+            let end = rest.find(',').expect("mu is followed by another key");
+            // (not a hybrid's `mu` with `tau_f`)
+            if !rest[end..].starts_with(", nu: ") {
+                return line.to_string();
+            }
+            let mu: f64 = rest[..end].parse().expect("a rate");
+            n += 1;
+            let time = match n % 4 {
+                1 => format!("success_time: {{erlang: {{k: 2, rate: {}}}}}", 2.0 * mu),
+                3 => format!(
+                    "success_time: {{hypoexponential: [{}, {}]}}",
+                    3.0 * mu,
+                    1.5 * mu
+                ),
+                _ => return line.to_string(),
+            };
+            format!("{}, {time}{}\n", &line[..at], &rest[end..])
+                .trim_end()
+                .to_string()
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+#[test]
+fn mixed_trees_with_erlang_and_hypoexponential_times_match_the_closed_form_reference() {
+    let edited = with_stages(random_tree_yaml(&Shape::mixed_timing(36), 1));
+    assert!(edited.contains("erlang") && edited.contains("hypoexponential"));
+    every_node_matches_the_reference_of(&[(34, 3), (36, 1)], with_stages);
 }
 
 /// Ignored by default: the reference needs about 2.5 minutes for these

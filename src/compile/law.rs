@@ -79,6 +79,7 @@ use crate::solve::transient::{
     absorption_by_phase, transient_split, transient_weighted, uniformization_work, CurvePoint,
     MAX_SINGLE_PASS_STEPS,
 };
+use crate::tree::stages::Stages;
 use crate::tree::{Decorator, Duration, Flow, FlowNext, NodeId, NodeKind, Tree};
 use rayon::prelude::*;
 
@@ -668,6 +669,7 @@ impl Builder<'_> {
                     rate,
                     shift: 0.0,
                     cap,
+                    stages: None,
                 });
                 Ok(m)
             }
@@ -690,13 +692,24 @@ impl Builder<'_> {
                         .collect())
                 })?;
                 let mut m = self.measure(Vec::new(), Some(density), vec![shift], 0.0);
-                m.kernel = match d.stages().and_then(|s| s.as_erlang()) {
-                    Some((1, rate)) => Some(Kernel {
+                m.kernel = match d {
+                    Duration::Exponential { rate } => Some(Kernel {
                         weight: p,
                         rate,
                         shift,
                         cap: f64::INFINITY,
+                        stages: None,
                     }),
+                    Duration::PhaseType { stages, .. } if kernel_stages(stages) => {
+                        let series = stages.series();
+                        Some(Kernel {
+                            weight: p,
+                            rate: series[series.len() - 1],
+                            shift,
+                            cap: f64::INFINITY,
+                            stages: (series.len() > 1).then_some(stages),
+                        })
+                    }
                     _ => None,
                 };
                 Ok(m)
@@ -1046,7 +1059,8 @@ impl Builder<'_> {
     }
 
     /// A subtree of Sequences and Fallbacks over leaves with fixed,
-    /// exponential, shifted exponential or hybrid times and conditions, as
+    /// exponential, Erlang or hypoexponential ([`KERNEL_STAGES`] stages at
+    /// most), shifted or hybrid times and conditions, as
     /// the flow over its leaves ([`super::flow::leaf_flow`]): every
     /// convolution is then one with a leaf's law — a shift, or the
     /// exponential kernel's recursion — linear in the panels, where folding
@@ -1055,7 +1069,7 @@ impl Builder<'_> {
         let simple = |d: Option<Duration>| match d {
             None | Some(Duration::Fixed { .. }) => true,
             Some(Duration::Exponential { .. } | Duration::TruncatedExponential { .. }) => true,
-            Some(Duration::PhaseType { stages, .. }) => matches!(stages.as_erlang(), Some((1, _))),
+            Some(Duration::PhaseType { stages, .. }) => kernel_stages(stages),
         };
         let leaf = |c: NodeId| match &self.tree.node(c).kind {
             NodeKind::Condition { .. } => true,
@@ -1297,7 +1311,18 @@ impl Builder<'_> {
         dropped: f64,
     ) -> Result<Measure, AnalysisError> {
         let end = self.end;
-        let z = ExponentialConvolution::new(k.rate, &x.atoms, x.density.as_ref());
+        // the stages before the last one, one interpolated density each
+        let series = k.stages.map(Stages::series).unwrap_or_default();
+        let mut through = std::borrow::Cow::Borrowed(x);
+        for &rate in series.iter().take(series.len().saturating_sub(1)) {
+            let z = ExponentialConvolution::new(rate, &through.atoms, through.density.as_ref());
+            let jumps: Vec<f64> = through.atoms.iter().map(|a| a.0).collect();
+            let density = self.density(id, &jumps, |points| {
+                Ok(points.iter().map(|&t| z.at(t)).collect())
+            })?;
+            through = std::borrow::Cow::Owned(self.measure(Vec::new(), Some(density), jumps, 0.0));
+        }
+        let z = ExponentialConvolution::new(k.rate, &through.atoms, through.density.as_ref());
         let tail = if k.cap.is_finite() {
             (-k.rate * k.cap).exp()
         } else {
@@ -1307,7 +1332,7 @@ impl Builder<'_> {
         // y's atoms shift x's jumps
         let mut breaks: Vec<f64> = Vec::new();
         let limit = 4 * MAX_BREAKS;
-        let mut from_x: Vec<f64> = x.atoms.iter().map(|a| a.0).collect();
+        let mut from_x: Vec<f64> = through.atoms.iter().map(|a| a.0).collect();
         from_x.push(0.0);
         for shift in [k.shift, k.shift + k.cap] {
             if shift.is_finite() {
@@ -1379,6 +1404,13 @@ fn shifted_many(atoms: &[(f64, f64)], h: Option<&Interpolant>, points: &[f64]) -
     out
 }
 
+/// Whether a time of these stages is a [`Kernel`]: stages in series
+/// (Erlang, hypoexponential; not a general phase-type law), at most
+/// [`KERNEL_STAGES`] of them.
+fn kernel_stages(stages: &Stages) -> bool {
+    stages.as_general().is_none() && (1..=KERNEL_STAGES).contains(&stages.phases())
+}
+
 /// `(go, stop)`: the outcome on which a Sequence (`sequence`) goes on to
 /// its next child, and the one on which it returns.
 fn outcomes(sequence: bool) -> (usize, usize) {
@@ -1412,7 +1444,14 @@ struct Kernel {
     rate: f64,
     shift: f64,
     cap: f64,
+    /// Stages in series before the last one (of rate `rate`): an Erlang
+    /// or hypoexponential time (`None`: one stage).
+    stages: Option<&'static Stages>,
 }
+
+/// Most stages in series that a leaf's time may have to be a kernel (each
+/// is one pass of [`ExponentialConvolution`] and one interpolation).
+const KERNEL_STAGES: u32 = 16;
 
 impl Measure {
     /// `δ₀`.
