@@ -1328,8 +1328,9 @@ impl Builder<'_> {
         } else {
             0.0
         };
-        // z jumps at x's atoms and kinks at x's breaks; the cut-off and
-        // y's atoms shift x's jumps
+        // z jumps at the atoms it convolves (x's; none after a first
+        // stage) and only kinks at x's breaks; the shift and the cut-off
+        // move those jumps, y's atoms x's own
         let mut breaks: Vec<f64> = Vec::new();
         let limit = 4 * MAX_BREAKS;
         let mut from_x: Vec<f64> = through.atoms.iter().map(|a| a.0).collect();
@@ -1437,7 +1438,9 @@ struct Measure {
 
 /// A density `weight · λe^{−λ(t − shift)}` on `[shift, shift + cap)`: a
 /// leaf's exponential time, shifted (`shift > 0`) or the random side of a
-/// hybrid (`cap` finite: the atom at the cap is the measure's).
+/// hybrid (`cap` finite: the atom at the cap is the measure's); with
+/// `stages`, the density of those stages in series, shifted (`cap`
+/// infinite).
 #[derive(Debug, Clone, Copy)]
 struct Kernel {
     weight: f64,
