@@ -220,6 +220,17 @@ pub(crate) fn leaf_flow(tree: &Tree, id: NodeId, leaf: impl Fn(NodeId) -> bool) 
     Flow::new(children, states).ok()
 }
 
+/// Sends every exit of `states` that goes to `from` to `to`.
+fn redirect(states: &mut [FlowState], from: FlowNext, to: FlowNext) {
+    for s in states {
+        for next in [&mut s.on_success, &mut s.on_failure] {
+            if *next == from {
+                *next = to;
+            }
+        }
+    }
+}
+
 /// Appends the states of `id`'s subtree, its own exits left as
 /// `Success`/`Failure` for its parent to redirect.
 fn lay_out(
@@ -230,16 +241,6 @@ fn lay_out(
     states: &mut Vec<FlowState>,
 ) -> Option<()> {
     let start = states.len();
-    // every exit of the states laid out since `start` that is `from` goes to `to`
-    let redirect = |states: &mut Vec<FlowState>, from: FlowNext, to: FlowNext| {
-        for s in &mut states[start..] {
-            for next in [&mut s.on_success, &mut s.on_failure] {
-                if *next == from {
-                    *next = to;
-                }
-            }
-        }
-    };
     match &tree.node(id).kind {
         NodeKind::Condition { .. } | NodeKind::Action(_) if leaf(id) => {
             states.push(FlowState {
@@ -250,11 +251,9 @@ fn lay_out(
             children.push(id);
         }
         NodeKind::Sequence { children: kids } | NodeKind::Fallback { children: kids } => {
-            let sequence = matches!(tree.node(id).kind, NodeKind::Sequence { .. });
-            let (go, _) = if sequence {
-                (FlowNext::Success, FlowNext::Failure)
-            } else {
-                (FlowNext::Failure, FlowNext::Success)
+            let go = match tree.node(id).kind {
+                NodeKind::Sequence { .. } => FlowNext::Success,
+                _ => FlowNext::Failure,
             };
             let (last, earlier) = kids.split_last()?;
             for &c in earlier {
@@ -262,13 +261,7 @@ fn lay_out(
                 lay_out(tree, c, leaf, children, states)?;
                 // the next child starts where this one's states end
                 let next = FlowNext::State(states.len());
-                for s in &mut states[from..] {
-                    for e in [&mut s.on_success, &mut s.on_failure] {
-                        if *e == go {
-                            *e = next;
-                        }
-                    }
-                }
+                redirect(&mut states[from..], go, next);
             }
             lay_out(tree, *last, leaf, children, states)?;
         }
@@ -278,12 +271,17 @@ fn lay_out(
             let hold = FlowNext::State(usize::MAX);
             match decorator.as_primitive() {
                 Decorator::Inverter => {
-                    redirect(states, FlowNext::Success, hold);
-                    redirect(states, FlowNext::Failure, FlowNext::Success);
-                    redirect(states, hold, FlowNext::Failure);
+                    let own = &mut states[start..];
+                    redirect(own, FlowNext::Success, hold);
+                    redirect(own, FlowNext::Failure, FlowNext::Success);
+                    redirect(own, hold, FlowNext::Failure);
                 }
-                Decorator::ForceSuccess => redirect(states, FlowNext::Failure, FlowNext::Success),
-                Decorator::ForceFailure => redirect(states, FlowNext::Success, FlowNext::Failure),
+                Decorator::ForceSuccess => {
+                    redirect(&mut states[start..], FlowNext::Failure, FlowNext::Success)
+                }
+                Decorator::ForceFailure => {
+                    redirect(&mut states[start..], FlowNext::Success, FlowNext::Failure)
+                }
                 _ => return None,
             }
         }

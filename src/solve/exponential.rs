@@ -101,7 +101,7 @@ impl<'a> ExponentialConvolution<'a> {
         if t <= a || a >= g.end() {
             return 0.0;
         }
-        let panel = g.panel_at((a + t) / 2.0);
+        let panel = g.panel_of((a + t) / 2.0);
         if g.panel_is_zero(panel) {
             return 0.0;
         }
@@ -112,7 +112,7 @@ impl<'a> ExponentialConvolution<'a> {
         for p in 0..parts {
             let (c, h) = (a + (p as f64 + 0.5) * width, width / 2.0);
             let v: [f64; POINTS] = std::array::from_fn(|j| c + h * rule.nodes[j]);
-            let gv = g.eval_block_at(panel, &v);
+            let gv = g.eval_block_in(panel, &v);
             total += h
                 * (0..POINTS)
                     .map(|j| rule.weights[j] * (-self.rate * (t - v[j])).exp() * gv[j])

@@ -209,7 +209,7 @@ impl Interpolant {
     }
 
     /// The panel holding `t` (clamped to the domain).
-    fn panel_of(&self, t: f64) -> usize {
+    pub(crate) fn panel_of(&self, t: f64) -> usize {
         let k = self.edges.partition_point(|&e| e <= t);
         k.clamp(1, self.panels()) - 1
     }
@@ -239,7 +239,7 @@ impl Interpolant {
     /// [`Self::eval_in`] at the [`POINTS`] instants `ts`, all in panel `k`:
     /// the same arithmetic, the recurrences run side by side (independent,
     /// so they pipeline and vectorise instead of waiting on each other).
-    fn eval_block_in(&self, k: usize, ts: &[f64; POINTS]) -> [f64; POINTS] {
+    pub(crate) fn eval_block_in(&self, k: usize, ts: &[f64; POINTS]) -> [f64; POINTS] {
         if self.scale[k] == 0.0 {
             return [0.0; POINTS];
         }
@@ -263,19 +263,9 @@ impl Interpolant {
         std::array::from_fn(|j| c[0] + x[j] * b1[j] - b2[j])
     }
 
-    /// The panel holding `t` (clamped to the domain).
-    pub(crate) fn panel_at(&self, t: f64) -> usize {
-        self.panel_of(t)
-    }
-
     /// Whether panel `k` is identically zero.
     pub(crate) fn panel_is_zero(&self, k: usize) -> bool {
         self.scale[k] == 0.0
-    }
-
-    /// Panel `k`'s polynomial at the [`POINTS`] instants `ts`.
-    pub(crate) fn eval_block_at(&self, k: usize, ts: &[f64; POINTS]) -> [f64; POINTS] {
-        self.eval_block_in(k, ts)
     }
 
     /// The value at `t` (0 outside the domain).
