@@ -116,9 +116,122 @@ fn curve_of(
     };
     if options.timing == Timing::Deterministic {
         let det = deterministic_version(tree);
-        return Plan::new(&det, options.method, options.max_states).curve(id, times, &opts);
+        return with_tail(
+            &Plan::new(&det, options.method, options.max_states),
+            id,
+            times,
+            &opts,
+        );
     }
-    Plan::new(tree, options.method, options.max_states).curve(id, times, &opts)
+    with_tail(
+        &Plan::new(tree, options.method, options.max_states),
+        id,
+        times,
+        &opts,
+    )
+}
+
+/// Mass still to return below which `π(t)` is answered from the figures.
+pub const TAIL_TOLERANCE: f64 = 1e-13;
+
+/// `π(t)` of node `id` at `times`, the times far past the node's mean time
+/// answered from its figures.
+///
+/// `S(t) + F(t)` only grows, to `P(S) + P(F)`: once the mass still to
+/// return at some `t*` — `(P(S) − S(t*)) + (P(F) − F(t*))` — is below
+/// [`TAIL_TOLERANCE`], every `t ≥ t*` has `|S(t) − P(S)|` and
+/// `|F(t) − P(F)|` below it too, and is answered `(P(S), P(F))`. `t*` is
+/// searched at 16 × the node's longest mean time, doubling, and only while
+/// it is before the last time asked (and only when that is past 16 × the
+/// sum of its actions' mean times): a curve to `t = 10⁷` of a node that
+/// returns within seconds costs a curve to about a minute. Without figures
+/// (a node whose figures the engine does not answer) every time is computed.
+fn with_tail(
+    plan: &Plan,
+    id: NodeId,
+    times: &[f64],
+    options: &CurveOptions,
+) -> Result<Vec<CurvePoint>, AnalysisError> {
+    let last = times.iter().copied().fold(0.0, f64::max);
+    // the figures are asked only for times far past one run of every leaf
+    // below (a cheap scale: a loop's may be longer)
+    if last <= 16.0 * leaf_time_scale(plan.tree(), id) {
+        return plan.curve(id, times, options);
+    }
+    let figures = match subtree_figures(plan, id) {
+        Some(f) => f,
+        None => return plan.curve(id, times, options),
+    };
+    let scale = figures.mtts.unwrap_or(0.0).max(figures.mttf.unwrap_or(0.0));
+    let limit = |t: f64| CurvePoint {
+        t,
+        success: figures.ps,
+        failure: figures.pf,
+        running: (1.0 - figures.ps - figures.pf).max(0.0),
+    };
+    if figures.ps + figures.pf == 0.0 {
+        // it never returns
+        return Ok(times.iter().map(|&t| limit(t)).collect());
+    }
+    let mut probe = 16.0 * scale;
+    let mut tail = f64::INFINITY;
+    while probe.is_finite() && probe < last && scale > 0.0 {
+        let p = plan.curve(id, &[probe], options)?[0];
+        let remaining = (figures.ps - p.success).abs() + (figures.pf - p.failure).abs();
+        if remaining <= TAIL_TOLERANCE {
+            tail = probe;
+            break;
+        }
+        probe *= 2.0;
+    }
+    if tail.is_infinite() {
+        return plan.curve(id, times, options);
+    }
+    let before: Vec<f64> = times.iter().copied().filter(|&t| t < tail).collect();
+    let mut computed = plan.curve(id, &before, options)?.into_iter();
+    Ok(times
+        .iter()
+        .map(|&t| {
+            if t < tail {
+                computed.next().expect("one point per time before the tail")
+            } else {
+                limit(t)
+            }
+        })
+        .collect())
+}
+
+/// The sum of the mean times of the actions below `id`.
+fn leaf_time_scale(tree: &Tree, id: NodeId) -> f64 {
+    tree.subtree(id)
+        .map(|n| match &tree.node(n).kind {
+            NodeKind::Action(a) => [a.success, a.failure]
+                .iter()
+                .flatten()
+                .map(Duration::mean)
+                .fold(0.0, f64::max),
+            _ => 0.0,
+        })
+        .sum()
+}
+
+/// The figures of node `id` from its subtree's, bottom-up; `None` where the
+/// engine does not answer them.
+fn subtree_figures(plan: &Plan, id: NodeId) -> Option<compile::Figures> {
+    let tree = plan.tree();
+    let range = tree.subtree(id);
+    let mut figs: Vec<Option<compile::Figures>> = vec![None; range.len()];
+    for n in range.clone().rev() {
+        let child_figs: Vec<compile::Figures> = tree
+            .node(n)
+            .kind
+            .children()
+            .iter()
+            .map(|&c| figs[c - range.start])
+            .collect::<Option<_>>()?;
+        figs[n - range.start] = Some(plan.figures(n, &child_figs).ok()?);
+    }
+    figs[0]
 }
 
 /// `π(t)` of a loop without a bound over a child with a phase chain: the

@@ -1,6 +1,7 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
+pub mod anytree;
 pub mod expoly;
 
 use btrel::curve::{curve, CurveOptions};
