@@ -376,7 +376,9 @@ impl<'a> Cdr<'a> {
         Ok(Cdr { b, pos: 4, le })
     }
     fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8], DecodeError> {
-        let align = n.min(8);
+        self.take_aligned(n, n.min(8), what)
+    }
+    fn take_aligned(&mut self, n: usize, align: usize, what: &str) -> Result<&'a [u8], DecodeError> {
         if align > 1 {
             let rel = self.pos - 4;
             self.pos += (align - rel % align) % align;
@@ -424,7 +426,7 @@ impl<'a> Cdr<'a> {
                 ),
             ));
         }
-        let s = self.take(n, what)?;
+        let s = self.take_aligned(n, 1, what)?;
         let s = match s.split_last() {
             Some((0, body)) => body,
             Some(_) => return Err((at, format!("{what}: the string has no terminating NUL"))),
