@@ -94,8 +94,18 @@ fn episodes_are_the_simulated_ones() {
     ] {
         let dir = tempfile::tempdir().unwrap();
         let mut args = vec![
-            "--bags", "2", "--goals", "150", "--seed", "11", "--storage", storage, "--layout",
-            layout, "--cancel", "0.3",
+            "--bags",
+            "2",
+            "--goals",
+            "150",
+            "--seed",
+            "11",
+            "--storage",
+            storage,
+            "--layout",
+            layout,
+            "--cancel",
+            "0.3",
         ];
         args.extend(extra);
         let out = make_bags(&py, dir.path(), &args);
@@ -122,12 +132,26 @@ fn episodes_are_the_simulated_ones() {
             for (id, truth) in out["bags"][b].as_object().unwrap() {
                 let c = counts_of(&read.log, id);
                 let what = format!("{storage} {layout} {extra:?} bag {b} {id}");
-                assert_eq!(c.successes as u64, truth["successes"].as_u64().unwrap(), "{what}");
-                assert_eq!(c.failures as u64, truth["failures"].as_u64().unwrap(), "{what}");
+                assert_eq!(
+                    c.successes as u64,
+                    truth["successes"].as_u64().unwrap(),
+                    "{what}"
+                );
+                assert_eq!(
+                    c.failures as u64,
+                    truth["failures"].as_u64().unwrap(),
+                    "{what}"
+                );
                 assert_eq!(c.halted as u64, truth["halted"].as_u64().unwrap(), "{what}");
                 let close = |a: f64, b: &serde_json::Value| (a - b.as_f64().unwrap()).abs() < 1e-6;
-                assert!(close(c.success_time, &truth["success_time"]), "{what}: {c:?}");
-                assert!(close(c.failure_time, &truth["failure_time"]), "{what}: {c:?}");
+                assert!(
+                    close(c.success_time, &truth["success_time"]),
+                    "{what}: {c:?}"
+                );
+                assert!(
+                    close(c.failure_time, &truth["failure_time"]),
+                    "{what}: {c:?}"
+                );
                 let cens: f64 = c.censored.iter().sum();
                 assert!(close(cens, &truth["censored_time"]), "{what}: {c:?}");
             }
@@ -157,8 +181,18 @@ fn intervals_cover_the_parameters() {
             &py,
             dir.path(),
             &[
-                "--bags", &n, "--goals", "200", "--seed", seed, "--storage", storage, "--layout",
-                layout, "--cancel", "0.3",
+                "--bags",
+                &n,
+                "--goals",
+                "200",
+                "--seed",
+                seed,
+                "--storage",
+                storage,
+                "--layout",
+                layout,
+                "--cancel",
+                "0.3",
             ],
         );
         let truth = &out["truth"];
@@ -173,7 +207,11 @@ fn intervals_cover_the_parameters() {
                 let Timing::Exponential { mu, nu, .. } = &leaf.timing else {
                     panic!("{}: not exponential", leaf.key)
                 };
-                for (e, name) in [(Some(&leaf.ps), "ps"), (mu.as_ref(), "mu"), (nu.as_ref(), "nu")] {
+                for (e, name) in [
+                    (Some(&leaf.ps), "ps"),
+                    (mu.as_ref(), "mu"),
+                    (nu.as_ref(), "nu"),
+                ] {
                     if let Some(e) = e {
                         checks += 1;
                         hits += usize::from(covers(e, t[name].as_f64().unwrap()));
@@ -187,7 +225,10 @@ fn intervals_cover_the_parameters() {
         let sd = (0.95 * 0.05 / checks as f64).sqrt();
         eprintln!("{storage} {layout}: {hits} of {checks} intervals cover the truth ({rate:.3})");
         assert!(checks >= bags * 8, "{checks} checks");
-        assert!(rate > 0.95 - 4.0 * sd, "{storage} {layout}: coverage {rate:.3}");
+        assert!(
+            rate > 0.95 - 4.0 * sd,
+            "{storage} {layout}: coverage {rate:.3}"
+        );
         // pooled
         let f = fit_logs(&logs, By::Id).unwrap();
         assert_eq!(f.leaves.len(), 3);
@@ -196,11 +237,19 @@ fn intervals_cover_the_parameters() {
             let Timing::Exponential { mu, nu, .. } = &leaf.timing else {
                 panic!()
             };
-            for (e, name) in [(Some(&leaf.ps), "ps"), (mu.as_ref(), "mu"), (nu.as_ref(), "nu")] {
+            for (e, name) in [
+                (Some(&leaf.ps), "ps"),
+                (mu.as_ref(), "mu"),
+                (nu.as_ref(), "nu"),
+            ] {
                 let e = e.unwrap();
                 let (v, se, x) = (e.value, e.se.unwrap(), t[name].as_f64().unwrap());
                 eprintln!("pooled {} {name}: {v:.4} ± {se:.4}, truth {x}", leaf.key);
-                assert!((v - x).abs() < 4.0 * se, "pooled {} {name}: {v} ± {se}, truth {x}", leaf.key);
+                assert!(
+                    (v - x).abs() < 4.0 * se,
+                    "pooled {} {name}: {v} ± {se}, truth {x}",
+                    leaf.key
+                );
             }
         }
     }
@@ -214,7 +263,11 @@ fn fit_command_and_the_chain() {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
-    make_bags(&py, dir.path(), &["--bags", "2", "--goals", "100", "--seed", "5"]);
+    make_bags(
+        &py,
+        dir.path(),
+        &["--bags", "2", "--goals", "100", "--seed", "5"],
+    );
     let tree = write(dir.path(), "nav.xml", NAV_XML);
     let params = dir.path().join("nav.params.yaml");
     let bag0 = dir.path().join("bag_0");
@@ -236,10 +289,7 @@ fn fit_command_and_the_chain() {
     for id in ["ComputePathToPose", "ClearEntireCostmap", "FollowPath"] {
         assert!(text.contains(id), "{text}");
     }
-    for args in [
-        vec!["report", "--ci"],
-        vec!["sensitivity"],
-    ] {
+    for args in [vec!["report", "--ci"], vec!["sensitivity"]] {
         let o = bin()
             .args(&args[..1])
             .arg(&tree)
@@ -286,17 +336,31 @@ fn ambiguous_names() {
     let dir = tempfile::tempdir().unwrap();
     let tree = write(dir.path(), "twins.xml", TWINS_XML);
     let nouid = dir.path().join("nouid");
-    make_bags(&py, &nouid, &["--tree", "twins", "--layout", "nouid", "--goals", "20"]);
+    make_bags(
+        &py,
+        &nouid,
+        &["--tree", "twins", "--layout", "nouid", "--goals", "20"],
+    );
     let err = fit_error(&nouid.join("bag_0"), &tree);
     assert!(err.contains("message 1"), "{err}");
     assert!(err.contains("`W`"), "{err}");
     assert!(err.contains("fits 2 nodes"), "{err}");
-    assert!(err.contains("line 4 column 7") && err.contains("line 5 column 7"), "{err}");
+    assert!(
+        err.contains("line 4 column 7") && err.contains("line 5 column 7"),
+        "{err}"
+    );
     let uid = dir.path().join("uid");
-    let out = make_bags(&py, &uid, &["--tree", "twins", "--layout", "uid", "--goals", "20"]);
+    let out = make_bags(
+        &py,
+        &uid,
+        &["--tree", "twins", "--layout", "uid", "--goals", "20"],
+    );
     let read = rosbag::read(&uid.join("bag_0"), &tree, &[], None).unwrap();
     let c = counts_of(&read.log, "Wait");
-    assert_eq!(c.successes as u64, out["bags"][0]["Wait"]["successes"].as_u64().unwrap());
+    assert_eq!(
+        c.successes as u64,
+        out["bags"][0]["Wait"]["successes"].as_u64().unwrap()
+    );
 }
 
 /// A bag without the topic, a wrong tree, truncated storage files: located
@@ -312,7 +376,10 @@ fn bad_bags() {
     let none = dir.path().join("none");
     make_bags(&py, &none, &["--no-log-topic", "--goals", "5"]);
     let err = fit_error(&none.join("bag_0"), &tree);
-    assert!(err.contains("no topic of type nav2_msgs/msg/BehaviorTreeLog"), "{err}");
+    assert!(
+        err.contains("no topic of type nav2_msgs/msg/BehaviorTreeLog"),
+        "{err}"
+    );
     assert!(err.contains("/chatter (std_msgs/msg/String)"), "{err}");
     let o = bin()
         .arg("fit")
@@ -332,14 +399,18 @@ fn bad_bags() {
     );
     for layout in ["uid", "nouid"] {
         let d = dir.path().join(layout);
-        make_bags(&py, &d, &["--layout", layout, "--goals", "30", "--cancel", "0"]);
+        make_bags(
+            &py,
+            &d,
+            &["--layout", layout, "--goals", "30", "--cancel", "0"],
+        );
         let err = fit_error(&d.join("bag_0"), &wrong);
         assert!(err.contains("message "), "{err}");
         assert!(err.contains("change "), "{err}");
         assert!(err.contains("FollowPath"), "{err}");
         assert!(err.contains("wrong.xml"), "{err}");
         if layout == "uid" {
-            assert!(err.contains("node uid 4"), "{err}");
+            assert!(err.contains("node uid 5"), "{err}");
         }
     }
     // truncated storage files
@@ -385,7 +456,10 @@ fn bt_tools_recording() {
     // FollowPath: failed after 11.379877431 s, retried, failed after 0.328717736 s
     let c = counts_of(&read.log, "FollowPath");
     assert_eq!((c.successes, c.failures, c.halted), (0, 2, 0));
-    assert!((c.failure_durations[0] - 11.379877431).abs() < 1e-9, "{c:?}");
+    assert!(
+        (c.failure_durations[0] - 11.379877431).abs() < 1e-9,
+        "{c:?}"
+    );
     assert!((c.failure_durations[1] - 0.328717736).abs() < 1e-9, "{c:?}");
     // the GoalUpdated of FollowPath's fallback: one instant failure; the
     // local costmap clearing: one instant success

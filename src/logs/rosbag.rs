@@ -35,8 +35,9 @@
 //! stored in the bag (MCAP schema, `message_definitions` table) when there is
 //! one; otherwise both layouts are tried on the first message with changes —
 //! a wrong layout reads the `uid` bytes as a string length or the other way
-//! round, which gives no valid status strings — and every later message must
-//! decode with the one chosen.
+//! round, which almost always gives no valid status strings; when both
+//! decode, the one whose uids name the tree's nodes by their names wins —
+//! and every later message must decode with the one chosen.
 //!
 //! The topic carries no tree, so the tree comes from `--tree`; mapping the
 //! changes to its nodes (by uid, or by replaying the change sequence against
@@ -123,9 +124,8 @@ pub fn is_rosbag(path: &Path) -> bool {
         return true;
     }
     if head[..n].starts_with(super::sqlite::MAGIC) {
-        return sqlite_tables(path).is_ok_and(|t| {
-            t.iter().any(|x| x == "topics") && t.iter().any(|x| x == "messages")
-        });
+        return sqlite_tables(path)
+            .is_ok_and(|t| t.iter().any(|x| x == "topics") && t.iter().any(|x| x == "messages"));
     }
     ext(path) == "mcap"
 }
@@ -270,6 +270,18 @@ pub fn read(
                         layout = Some((Layout::WithoutUid, format!("tried on message {count}")));
                         b
                     }
+                    // both decode (the strings can line up by chance): the
+                    // uids must name the tree's nodes by their names
+                    (Ok(a), Ok(b)) if replay.uids_fit(&a) || replay.uids_fit(&b) => {
+                        if replay.uids_fit(&a) {
+                            layout = Some((Layout::WithUid, format!("tried on message {count}")));
+                            a
+                        } else {
+                            layout =
+                                Some((Layout::WithoutUid, format!("tried on message {count}")));
+                            b
+                        }
+                    }
                     (Ok(_), Ok(_)) => {
                         return Err(LogError::new(
                             &bag,
@@ -361,7 +373,10 @@ type DecodeError = (usize, String);
 impl<'a> Cdr<'a> {
     fn new(b: &'a [u8]) -> Result<Cdr<'a>, DecodeError> {
         if b.len() < 4 {
-            return Err((0, format!("{} bytes, too short for the CDR header", b.len())));
+            return Err((
+                0,
+                format!("{} bytes, too short for the CDR header", b.len()),
+            ));
         }
         let le = match (b[0], b[1]) {
             (0, 1) => true,
@@ -378,7 +393,12 @@ impl<'a> Cdr<'a> {
     fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8], DecodeError> {
         self.take_aligned(n, n.min(8), what)
     }
-    fn take_aligned(&mut self, n: usize, align: usize, what: &str) -> Result<&'a [u8], DecodeError> {
+    fn take_aligned(
+        &mut self,
+        n: usize,
+        align: usize,
+        what: &str,
+    ) -> Result<&'a [u8], DecodeError> {
         if align > 1 {
             let rel = self.pos - 4;
             self.pos += (align - rel % align) % align;
@@ -438,7 +458,10 @@ impl<'a> Cdr<'a> {
         let sec = self.u32(what)? as i32;
         let nsec = self.u32(what)?;
         if nsec >= 1_000_000_000 {
-            return Err((self.pos - 4, format!("{what}: {nsec} ns is not below one second")));
+            return Err((
+                self.pos - 4,
+                format!("{what}: {nsec} ns is not below one second"),
+            ));
         }
         Ok(i64::from(sec) * 1_000_000_000 + i64::from(nsec))
     }
@@ -467,7 +490,10 @@ pub fn decode(data: &[u8], layout: Layout) -> Result<Vec<Change>, (usize, String
     if n > data.len() / 20 + 1 {
         return Err((
             at,
-            format!("{n} changes cannot fit in the message's {} bytes", data.len()),
+            format!(
+                "{n} changes cannot fit in the message's {} bytes",
+                data.len()
+            ),
         ));
     }
     let mut out = Vec::with_capacity(n);
@@ -617,7 +643,10 @@ fn natural_key(s: &str) -> Vec<(String, u64)> {
             digits.push(ch);
         } else {
             if !digits.is_empty() {
-                out.push((std::mem::take(&mut text), digits.parse().unwrap_or(u64::MAX)));
+                out.push((
+                    std::mem::take(&mut text),
+                    digits.parse().unwrap_or(u64::MAX),
+                ));
                 digits.clear();
             }
             text.push(ch);
@@ -661,11 +690,18 @@ fn read_storage(path: &Path, want: &dyn Fn(&str, &str) -> bool) -> Result<Storag
     Err(LogError::new(
         &file,
         Some("byte offset 0".into()),
-        format!("{what} ({} bytes; truncated, or compressed whole?)", bytes.len()),
+        format!(
+            "{what} ({} bytes; truncated, or compressed whole?)",
+            bytes.len()
+        ),
     ))
 }
 
-fn read_mcap(bytes: &[u8], file: &str, want: &dyn Fn(&str, &str) -> bool) -> Result<Storage, LogError> {
+fn read_mcap(
+    bytes: &[u8],
+    file: &str,
+    want: &dyn Fn(&str, &str) -> bool,
+) -> Result<Storage, LogError> {
     let mut topics: Vec<Topic> = Vec::new();
     let mut out = Vec::new();
     let stream = mcap::MessageStream::new(bytes).map_err(|e| {
@@ -680,13 +716,20 @@ fn read_mcap(bytes: &[u8], file: &str, want: &dyn Fn(&str, &str) -> bool) -> Res
         let m = m.map_err(|e| {
             LogError::new(
                 file,
-                Some(format!("after message {n} of the file ({} bytes)", bytes.len())),
+                Some(format!(
+                    "after message {n} of the file ({} bytes)",
+                    bytes.len()
+                )),
                 format!("the MCAP file cannot be read further (truncated or damaged?): {e}"),
             )
         })?;
         n += 1;
         let ch = &m.channel;
-        let ty = ch.schema.as_ref().map(|s| s.name.clone()).unwrap_or_default();
+        let ty = ch
+            .schema
+            .as_ref()
+            .map(|s| s.name.clone())
+            .unwrap_or_default();
         if !topics.iter().any(|t| t.name == ch.topic) {
             let definition = ch
                 .schema
@@ -715,7 +758,11 @@ fn read_mcap(bytes: &[u8], file: &str, want: &dyn Fn(&str, &str) -> bool) -> Res
     Ok((topics, out.into_iter().map(|(_, r)| r).collect()))
 }
 
-fn read_db3(path: &Path, file: &str, want: &dyn Fn(&str, &str) -> bool) -> Result<Storage, LogError> {
+fn read_db3(
+    path: &Path,
+    file: &str,
+    want: &dyn Fn(&str, &str) -> bool,
+) -> Result<Storage, LogError> {
     use rusqlite::{Connection, OpenFlags};
     let damaged = |at: &str| {
         let at = at.to_string();
@@ -763,7 +810,9 @@ fn read_db3(path: &Path, file: &str, want: &dyn Fn(&str, &str) -> bool) -> Resul
     if tables.iter().any(|x| x == "message_definitions") {
         let at = "table message_definitions";
         let mut st = db
-            .prepare("SELECT topic_type, encoding, encoded_message_definition FROM message_definitions")
+            .prepare(
+                "SELECT topic_type, encoding, encoded_message_definition FROM message_definitions",
+            )
             .map_err(damaged(at))?;
         let mut rows = st.query([]).map_err(damaged(at))?;
         while let Some(r) = rows.next().map_err(damaged(at))? {
@@ -801,7 +850,9 @@ fn read_db3(path: &Path, file: &str, want: &dyn Fn(&str, &str) -> bool) -> Resul
     let mut out = Vec::new();
     let at = "table messages";
     let mut st = db
-        .prepare("SELECT id, timestamp, data FROM messages WHERE topic_id = ?1 ORDER BY timestamp, id")
+        .prepare(
+            "SELECT id, timestamp, data FROM messages WHERE topic_id = ?1 ORDER BY timestamp, id",
+        )
         .map_err(damaged(at))?;
     for (id, name) in ids {
         let mut rows = st.query([id]).map_err(damaged(at))?;

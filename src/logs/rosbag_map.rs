@@ -116,9 +116,7 @@ impl BagTree {
                         if let Some(id) = m.attr("ID") {
                             match m.name.as_str() {
                                 "Action" => declared.insert(id.to_string(), Declared::Action),
-                                "Condition" => {
-                                    declared.insert(id.to_string(), Declared::Condition)
-                                }
+                                "Condition" => declared.insert(id.to_string(), Declared::Condition),
                                 _ => None,
                             };
                         }
@@ -206,7 +204,10 @@ impl BagTree {
             e.name.as_str(),
             "Action" | "Condition" | "Control" | "Decorator"
         );
-        let subtree = matches!(e.name.as_str(), "SubTree" | "SubTreePlus" | "SubTreeWrapper");
+        let subtree = matches!(
+            e.name.as_str(),
+            "SubTree" | "SubTreePlus" | "SubTreeWrapper"
+        );
         let id = if explicit || subtree {
             e.attr("ID").unwrap_or(&e.name).to_string()
         } else {
@@ -262,7 +263,11 @@ impl BagTree {
                     format!(
                         "SubTree `{id}` is not defined in the tree file{}: add the file that \
                          defines it with --include",
-                        if docs.len() > 1 { " nor in the --include files" } else { "" }
+                        if docs.len() > 1 {
+                            " nor in the --include files"
+                        } else {
+                            ""
+                        }
                     ),
                 ));
             };
@@ -344,6 +349,18 @@ impl Replay {
         }
     }
 
+    /// Whether every change's uid names a node of the tree by its name
+    /// (changes without uid: whether every name is in the tree).
+    pub(super) fn uids_fit(&self, changes: &[Change]) -> bool {
+        changes.iter().all(|c| match c.uid {
+            Some(u) => usize::from(u)
+                .checked_sub(1)
+                .and_then(|i| self.tree.nodes.get(i))
+                .is_some_and(|n| n.name == c.name),
+            None => self.tree.by_name.contains_key(&c.name),
+        })
+    }
+
     fn err(&self, at: &dyn Fn() -> String, m: String) -> LogError {
         LogError::new(&self.bag, Some(at()), m)
     }
@@ -379,7 +396,11 @@ impl Replay {
                     text(c.cur),
                     named
                         .iter()
-                        .map(|&i| format!("{} is {}", nodes[i].node.label, text(nodes[i].node.status)))
+                        .map(|&i| format!(
+                            "{} is {}",
+                            nodes[i].node.label,
+                            text(nodes[i].node.status)
+                        ))
                         .collect::<Vec<_>>()
                         .join("; ")
                 ),
@@ -405,15 +426,19 @@ impl Replay {
             } else if c.cur != Status::Idle {
                 let all = cands.clone();
                 keep(&mut cands, &|i| {
-                    !all.iter().any(|&a| {
-                        self.is_ancestor(a, i) && nodes[a].node.status != Status::Running
-                    })
+                    !all.iter()
+                        .any(|&a| self.is_ancestor(a, i) && nodes[a].node.status != Status::Running)
                 });
             } else {
                 keep(&mut cands, &|i| {
                     !active(
                         i,
-                        &[Status::Running, Status::Success, Status::Failure, Status::Skipped],
+                        &[
+                            Status::Running,
+                            Status::Success,
+                            Status::Failure,
+                            Status::Skipped,
+                        ],
                     )
                 });
             }
@@ -570,8 +595,10 @@ impl Replay {
             }
         }
         let was = self.tree.nodes[idx].node.status;
-        let episode = step(&mut self.tree.nodes[idx].node, c.cur, now, |d| d as f64 * 1e-9)
-            .map_err(|m| self.err(at, m))?;
+        let episode = step(&mut self.tree.nodes[idx].node, c.cur, now, |d| {
+            d as f64 * 1e-9
+        })
+        .map_err(|m| self.err(at, m))?;
         if let Some(e) = episode {
             self.push(idx, e);
         }
