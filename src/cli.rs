@@ -74,17 +74,27 @@ Examples:
   btrel fit runs.db3 -o params.yaml                   # every session of a SqliteLogger file
   btrel fit episodes.csv --tree tree.xml -o tree.params.yaml
   btrel fit run.btlog --timing auto -o params.yaml    # Erlang, shifted, ... per outcome by BIC
+  btrel fit my_bag/ --tree navigate.xml -o params.yaml  # Nav2's /behavior_tree_log (rosbag2)
 
 LOG is a BehaviorTree.CPP v4 FileLogger2 file (.btlog), a BehaviorTree.CPP v4 SqliteLogger
 database (.db3/.btdb, or any file starting with `SQLite format 3`; opened read-only, each
 session one run), or a CSV with the columns run,node,start,end,status (times in s; status
-success|failure|halted). Halted episodes are right-censored.";
+success|failure|halted), or a rosbag2 recording of Nav2's behavior_tree_log topic (a bag folder
+or its .mcap / .db3 files; --tree names the tree that ran: changes are mapped to its nodes by
+uid, or, in bags without uid, by replaying them against the tree's structure). Halted episodes
+are right-censored.";
 
 #[derive(clap::Args)]
 struct FitArgs {
-    /// The logs: .btlog (BT.CPP FileLogger2), .db3 (BT.CPP SqliteLogger) or CSV files; episodes of all are pooled.
+    /// The logs: .btlog (BT.CPP FileLogger2), .db3 (BT.CPP SqliteLogger) or CSV files, or rosbag2
+    /// recordings of Nav2's behavior_tree_log (a bag folder, or its .mcap / .db3 files; need --tree);
+    /// episodes of all are pooled.
     #[arg(required = true, value_name = "LOG")]
     logs: Vec<PathBuf>,
+    /// The topic of Nav2's behavior tree log in rosbag2 recordings (default: the one topic of type
+    /// nav2_msgs/msg/BehaviorTreeLog, in any namespace).
+    #[arg(long, value_name = "TOPIC")]
+    topic: Option<String>,
     /// The XML tree the params file is for (default: the tree in the first .btlog or SQLite session);
     /// the fitted file is checked against it.
     #[arg(long, value_name = "TREE.xml")]
@@ -1122,8 +1132,42 @@ fn fit(args: FitArgs) -> Result<(), Failure> {
         ));
     }
     let mut logs = Vec::new();
+    let mut bags = 0;
     for path in &args.logs {
-        logs.extend(btrel::logs::read_logs(path).map_err(Failure::input)?);
+        if !btrel::logs::rosbag::is_rosbag(path) {
+            logs.extend(btrel::logs::read_logs(path).map_err(Failure::input)?);
+            continue;
+        }
+        let Some(tree) = &args.tree else {
+            return Err(Failure::input(format!(
+                "{}: a rosbag2 recording: Nav2's behavior_tree_log carries no tree, give the tree \
+                 bt_navigator ran with --tree TREE.xml",
+                path.display()
+            )));
+        };
+        let bag = btrel::logs::rosbag::read(path, tree, &include, args.topic.as_deref())
+            .map_err(Failure::input)?;
+        bags += 1;
+        eprintln!(
+            "note: {}: {} messages of {}, {} status changes{}",
+            bag.log.file,
+            bag.messages,
+            bag.topic,
+            bag.log.records,
+            bag.layout
+                .as_ref()
+                .map(|(l, from)| format!(" ({}, from {from})", l.describe()))
+                .unwrap_or_default()
+        );
+        for n in &bag.notes {
+            eprintln!("note: {}: {n}", bag.log.file);
+        }
+        logs.push(bag.log);
+    }
+    if args.topic.is_some() && bags == 0 {
+        return Err(Failure::input(
+            "--topic goes with rosbag2 recordings; none of the LOGs is one: remove --topic",
+        ));
     }
     for log in logs.iter().filter(|l| l.out_of_order > 0) {
         eprintln!(

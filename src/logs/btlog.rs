@@ -32,7 +32,7 @@ pub const MAX_STEP_BACK_US: u64 = 100_000;
 
 /// Leaves BT.CPP runs itself in zero time (btrel models them without a
 /// params entry); they are not fitted.
-const BUILTIN_LEAVES: &[&str] = &[
+pub(super) const BUILTIN_LEAVES: &[&str] = &[
     "AlwaysSuccess",
     "AlwaysFailure",
     "Script",

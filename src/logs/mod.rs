@@ -4,7 +4,8 @@
 //! [`btlog`]), BehaviorTree.CPP v4 SqliteLogger databases (`.db3`, `.btdb`,
 //! any file starting with the SQLite magic bytes, [`sqlite`]; one log per
 //! session) and a plain CSV of episodes (`run,node,start,end,status`,
-//! [`csv`]).
+//! [`csv`]), plus rosbag2 recordings of Nav2's `behavior_tree_log` topic
+//! ([`rosbag`]; they carry no tree, so they are read with the tree's XML).
 //!
 //! An *episode* is one execution of a leaf: it starts when the leaf goes
 //! IDLE → RUNNING and ends at SUCCESS or FAILURE; RUNNING → IDLE is a halt:
@@ -15,6 +16,8 @@
 
 pub mod btlog;
 pub mod csv;
+pub mod rosbag;
+mod rosbag_map;
 pub mod sqlite;
 
 use std::fmt;
@@ -128,6 +131,14 @@ pub fn read_logs(path: &Path) -> Result<Vec<Log>, LogError> {
         .unwrap_or_default();
     let cannot =
         |e: std::io::Error| LogError::new(&file, None, format!("cannot read the file: {e}"));
+    if rosbag::is_rosbag(path) {
+        return Err(LogError::new(
+            &file,
+            None,
+            "a rosbag2 recording: its behavior_tree_log carries no tree, so it is read with \
+             the tree that ran (`btrel fit BAG --tree TREE.xml`, rosbag::read)",
+        ));
+    }
     let meta = std::fs::metadata(path).map_err(cannot)?;
     if meta.len() > MAX_LOG_BYTES {
         return Err(LogError::new(
