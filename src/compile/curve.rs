@@ -256,10 +256,17 @@ pub(super) fn loop_curve(
     let mut c = match phase::chain_of(tree, child, options.max_states) {
         Ok(c) => c,
         // a child with mixed timing: the loop's truncated geometric series
+        // as a shifted mixture where it is small (as the planner's
+        // `Shifted` rule), else the loop's composed law (`law`: the
+        // geometric sum by binary powering, any child)
         Err(AnalysisError::NotMarkovian { .. }) => {
-            return match shifted::shifted_law(tree, id, options.max_states)? {
-                Some(law) => curve_by_shifted(&law, times, options, &node.name),
-                None => Err(unbounded()),
+            let first = options.max_states.min(super::plan::SHIFTED_FIRST);
+            return match shifted::shifted_law(tree, id, first) {
+                Ok(Some(law)) => curve_by_shifted(&law, times, options, &node.name),
+                Ok(None) | Err(AnalysisError::StateBudget { .. }) => {
+                    super::law::curve_by_laws(tree, id, times, options, unbounded())
+                }
+                Err(e) => Err(e),
             };
         }
         Err(e) => return Err(e),
@@ -420,6 +427,11 @@ const MEAN_QUADRATURE_TOLERANCE: f64 = 1e-13;
 /// Most rounds of panel refinement (each halves the panels not yet accepted).
 const MAX_REFINEMENTS: usize = 40;
 
+/// A gap `P(S) − S(t)` below this fraction of the outcome probabilities is
+/// rounding of the children's curves: the tail stops there (what it drops
+/// is about this fraction of the mean times, below their tolerance).
+const TAIL_ROUNDING: f64 = 1e-15;
+
 /// `[E[T·1{S}], E[T·1{F}]]` of Parallel `id` with the book's thresholds
 /// (success threshold `m`) whose children have curves but not all phase
 /// chains — deterministic or hybrid actions beside stochastic ones, e.g. the
@@ -514,9 +526,13 @@ pub(crate) fn parallel_times_by_quadrature(
             }
         }
         // extend the tail while the mass still running matters
+        // extend the tail while the mass still running matters: its
+        // remainder is about `gap × width`; a gap within rounding of the
+        // outcome probabilities (the curve's `1e-16`-level error) is done
         let running = gaps(&[start])?[0];
-        if running[0] + running[1] > 0.0
-            && (running[0] + running[1]) * width > 1e-16 * (total[0] + total[1]).max(1e-300)
+        let gap = running[0] + running[1];
+        if gap > TAIL_ROUNDING * (ps + pf)
+            && gap * width > 1e-16 * (total[0] + total[1]).max(1e-300)
         {
             next.push((start, start + width));
             start += width;

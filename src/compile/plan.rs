@@ -58,7 +58,7 @@ use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
 /// node's curve: past it the composed laws answer (exact too, and faster
 /// there); the mixture gets the whole `--max-states` only where the laws
 /// cannot hold the node.
-const SHIFTED_FIRST: usize = 1 << 16;
+pub(super) const SHIFTED_FIRST: usize = 1 << 16;
 
 /// How the engine represents one node's outcome law (the planner's table,
 /// module docs).

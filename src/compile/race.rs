@@ -549,7 +549,18 @@ impl Race {
     }
 
     /// `[P(S), P(F), E[T·1{S}], E[T·1{F}]]`: the limits of the curve.
-    fn limits(&self, scale: f64) -> Result<[f64; 4], AnalysisError> {
+    /// `ends`: the children's own figures, in child order, whose limits
+    /// give the probability that the race never returns (children that
+    /// never return may leave both thresholds unmet for ever): the tail
+    /// is integrated until the running probability is within rounding of
+    /// that limit, not of zero.
+    fn limits(&self, scale: f64, ends: &[Figures]) -> Result<[f64; 4], AnalysisError> {
+        let never = if ends.len() == self.children.len() {
+            let rows: Vec<Row> = ends.iter().map(|c| [c.ps, c.pf, 0.0, 0.0]).collect();
+            race_densities(&rows, self.m, self.f)[2].max(0.0)
+        } else {
+            0.0
+        };
         let mut out = [0.0f64; 4];
         for &(t, s, f) in &self.atoms {
             out[0] += s;
@@ -564,7 +575,7 @@ impl Race {
         }
         let mut width = scale.max(start / 8.0).max(f64::MIN_POSITIVE);
         for _ in 0..200 {
-            let running = self.densities(&[start])?[0][2];
+            let running = (self.densities(&[start])?[0][2] - never).max(0.0);
             let mean = (out[2] + out[3]).max(f64::MIN_POSITIVE);
             // (a floor of a few 1e-16 is rounding in `1 − S_h − F_h`)
             if running <= 1e-14 || running <= 1e-12 && running * width <= 1e-12 * mean {
@@ -887,7 +898,7 @@ pub(crate) fn figures(
         .iter()
         .map(Figures::mean_time)
         .fold(0.0, f64::max);
-    let limits = |race: Race| race.limits(scale).map(Figures::from_moments);
+    let limits = |race: Race| race.limits(scale, child_figures).map(Figures::from_moments);
     match super::renewal::figures(tree, id, max_states)? {
         Renewal::Figures(f) => return Ok(f),
         // R without a phase chain: the process's law from its levels
