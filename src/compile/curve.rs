@@ -217,7 +217,7 @@ fn leaf_time_scale(tree: &Tree, id: NodeId) -> f64 {
 
 /// The figures of node `id` from its subtree's, bottom-up; `None` where the
 /// engine does not answer them.
-fn subtree_figures(plan: &Plan, id: NodeId) -> Option<compile::Figures> {
+pub(super) fn subtree_figures(plan: &Plan, id: NodeId) -> Option<compile::Figures> {
     let tree = plan.tree();
     let range = tree.subtree(id);
     let mut figs: Vec<Option<compile::Figures>> = vec![None; range.len()];

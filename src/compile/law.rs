@@ -157,6 +157,91 @@ fn non_markovian(tree: &Tree) -> Vec<bool> {
 
 /// A Parallel with thresholds M = 1, F = 1 over a deadline — an action that
 /// fails at a fixed time `D > 0` and cannot succeed — and one other child:
+/// A subtree's composed outcome law on `[0, end]`, as a child of a race
+/// or a count ([`super::race`]): the universal representation, for any
+/// subtree the faster ones cannot hold (mixed timing in a loop or a race,
+/// a shifted mixture over its budget). Past `end` its probabilities stay
+/// at their values there and its densities are 0: exact where the caller
+/// picks `end` past all but a negligible mass (stated by [`Self::mass`]).
+pub(crate) struct HorizonLaw {
+    law: Law,
+    end: f64,
+}
+
+impl HorizonLaw {
+    /// The law of `id` on `[0, end]`.
+    pub(crate) fn build(
+        tree: &Tree,
+        id: NodeId,
+        end: f64,
+        max_states: usize,
+    ) -> Result<HorizonLaw, AnalysisError> {
+        let memo = LawMemo::default();
+        let mixed = non_markovian(tree);
+        let b = Builder {
+            tree,
+            end,
+            max_states,
+            memo: &memo,
+            mixed: &mixed,
+        };
+        let law = b.law(id)?;
+        if law.dropped() > DROPPED_LIMIT {
+            return Err(AnalysisError::Numerical {
+                node: b.name(id),
+                what: format!(
+                    "its law has {:.1e} probability in atoms below {ATOM_FLOOR:e} (more than \
+                     {DROPPED_LIMIT:e})",
+                    law.dropped()
+                ),
+            });
+        }
+        Ok(HorizonLaw { law, end })
+    }
+
+    /// Probability of returning by `end`.
+    pub(crate) fn mass(&self) -> f64 {
+        self.law.cdf(SUCCESS, self.end) + self.law.cdf(FAILURE, self.end)
+    }
+
+    /// `[S, F, s, f]` at `t`; `left`: without a return exactly at `t`.
+    pub(crate) fn row(&self, t: f64, left: bool) -> [f64; 4] {
+        if t > self.end && !same_time(t, self.end) {
+            return [
+                self.law.cdf(SUCCESS, self.end),
+                self.law.cdf(FAILURE, self.end),
+                0.0,
+                0.0,
+            ];
+        }
+        let p = &self.law.parts;
+        let cdf = |m: &Measure| if left { m.cdf_left(t) } else { m.cdf(t) };
+        [
+            cdf(&p[SUCCESS]),
+            cdf(&p[FAILURE]),
+            p[SUCCESS].density_at(t),
+            p[FAILURE].density_at(t),
+        ]
+    }
+
+    /// Instants with an atom.
+    pub(crate) fn instants(&self) -> impl Iterator<Item = f64> + '_ {
+        self.law
+            .parts
+            .iter()
+            .flat_map(|m| m.atoms.iter().map(|a| a.0))
+    }
+
+    /// Where its densities may jump or kink (and its end).
+    pub(crate) fn cuts(&self) -> impl Iterator<Item = f64> + '_ {
+        self.law
+            .parts
+            .iter()
+            .flat_map(|m| m.breaks.iter().copied().chain(m.atoms.iter().map(|a| a.0)))
+            .chain(std::iter::once(self.end))
+    }
+}
+
 /// BT.CPP's `Timeout` (the deadline first) or a user's race.
 pub(crate) struct DeadlineRace {
     /// `D` (s).

@@ -40,7 +40,7 @@
 //! an *estimate*, not a bound.
 
 use super::curve::CurvePoint;
-use super::law::sample_weighted;
+use super::law::{sample_weighted, HorizonLaw};
 use super::renewal::Renewal;
 use super::renewal_curve;
 use super::shifted::{self, ShiftedLaw};
@@ -83,7 +83,18 @@ pub(crate) enum Racer {
     /// The first failure of a re-run process (a renewal loop) from its
     /// levels on `[0, horizon]` ([`renewal_curve::prepare_process`]).
     Renewal(Box<RenewalLoop>),
+    /// Any subtree: its composed law ([`HorizonLaw`]) on a horizon past
+    /// which it has returned but for [`LAW_TAIL`] of its mass.
+    Law(Box<HorizonLaw>),
 }
+
+/// Mass a [`Racer::Law`] may leave unreturned past its horizon (its
+/// probabilities are held there: the race's figures change by at most
+/// this, its mean times by this times the node's time scale).
+const LAW_TAIL: f64 = 1e-13;
+
+/// Most doublings of a [`Racer::Law`]'s horizon.
+const LAW_DOUBLINGS: usize = 12;
 
 /// A re-run process's law of first failure on `[0, horizon]`, level by
 /// level; beyond the horizon its Failure stays at its value there (its
@@ -169,12 +180,16 @@ impl Racer {
     fn build_within(plan: &Plan, id: NodeId, horizon: f64) -> Result<Racer, AnalysisError> {
         let tree = plan.tree();
         let node = tree.node(id);
-        let shifted = || match shifted::shifted_law_within(tree, id, plan.max_states(), horizon)? {
-            Some(law) => Ok(Racer::Shifted(law)),
-            None => Err(AnalysisError::MixedTiming {
+        // the shifted mixture where it holds the subtree within the budget,
+        // else the subtree's composed law (any subtree)
+        let shifted = || match shifted::shifted_law_within(tree, id, plan.max_states(), horizon) {
+            Ok(Some(law)) => Ok(Racer::Shifted(law)),
+            Ok(None) => Racer::law(plan, id, horizon, || AnalysisError::MixedTiming {
                 node: node.name.clone(),
                 leaf: plan.mixed_leaf(id),
             }),
+            Err(e @ AnalysisError::StateBudget { .. }) => Racer::law(plan, id, horizon, || e),
+            Err(e) => Err(e),
         };
         match plan.representation(id)? {
             Representation::Chain => Ok(Racer::Chain(plan.chain(id)?)),
@@ -209,6 +224,45 @@ impl Racer {
         }
     }
 
+    /// The composed law of `id` ([`Racer::Law`]) on `[0, horizon]`, or,
+    /// for all time, on a horizon doubled from 32 times its mean time
+    /// until all but [`LAW_TAIL`] of its returning mass is within it (its
+    /// figures say how much returns). `refusal`: the error where the
+    /// subtree's figures are not known.
+    fn law(
+        plan: &Plan,
+        id: NodeId,
+        horizon: f64,
+        refusal: impl FnOnce() -> AnalysisError,
+    ) -> Result<Racer, AnalysisError> {
+        let (tree, max_states) = (plan.tree(), plan.max_states());
+        if horizon.is_finite() {
+            let law = HorizonLaw::build(tree, id, horizon, max_states)?;
+            return Ok(Racer::Law(Box::new(law)));
+        }
+        let Some(figures) = super::curve::subtree_figures(plan, id) else {
+            return Err(refusal());
+        };
+        let returns = figures.ps + figures.pf;
+        let scale = figures.mtts.unwrap_or(0.0).max(figures.mttf.unwrap_or(0.0));
+        let mut end = 32.0 * scale.max(f64::MIN_POSITIVE);
+        if returns == 0.0 || scale == 0.0 {
+            // it never returns, or returns at once
+            end = end.max(1.0);
+        }
+        for _ in 0..LAW_DOUBLINGS {
+            let law = HorizonLaw::build(tree, id, end, max_states)?;
+            if returns - law.mass() <= LAW_TAIL {
+                return Ok(Racer::Law(Box::new(law)));
+            }
+            end *= 2.0;
+        }
+        Err(numerical(
+            &tree.node(id).name,
+            "its composed law did not return its mass within 2^12 times its mean time",
+        ))
+    }
+
     /// Instants at which the subtree may return with positive probability.
     fn instants(&self, out: &mut Vec<f64>) {
         match self {
@@ -227,6 +281,7 @@ impl Racer {
             Racer::Counted { children, .. } => children.iter().for_each(|c| c.instants(out)),
             Racer::Race(r) => out.extend(r.atoms.iter().map(|a| a.0)),
             Racer::Renewal(_) => {}
+            Racer::Law(l) => out.extend(l.instants()),
         }
     }
 
@@ -251,6 +306,7 @@ impl Racer {
                     .map(|(_, v)| v.start)
                     .filter(|&t| t <= l.horizon),
             ),
+            Racer::Law(l) => out.extend(l.cuts()),
         }
     }
 
@@ -270,6 +326,8 @@ impl Racer {
             }
             Racer::Race(r) => r.children.iter().map(Racer::fastest).fold(0.0, f64::max),
             Racer::Renewal(l) => l.levels.iter().map(|v| v.rate()).fold(0.0, f64::max),
+            // its interpolation panels resolve its boundary layers
+            Racer::Law(_) => 0.0,
         }
     }
 
@@ -347,6 +405,7 @@ impl Racer {
             }
             Racer::Race(r) => r.rows(times, left),
             Racer::Renewal(l) => Ok(times.iter().map(|&t| l.row(t)).collect()),
+            Racer::Law(l) => Ok(times.iter().map(|&t| l.row(t, left)).collect()),
         }
     }
 }

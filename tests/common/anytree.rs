@@ -329,6 +329,45 @@ fn at(o: Outcome, t0: f64) -> Outcome {
 }
 
 impl Node {
+    /// `[may succeed, may fail]`: false only where the outcome is
+    /// impossible by the node's structure (an over-approximation read from
+    /// the semantics, so a loop whose child cannot end it is known to run
+    /// for ever without sampling `LOOP_CAP` runs).
+    pub fn may(&self) -> [bool; 2] {
+        match self {
+            Node::Condition { ps } | Node::Action { ps, .. } => [*ps > 0.0, *ps < 1.0],
+            Node::Sequence(ks) => may_chain(ks, 0),
+            Node::Fallback(ks) => {
+                let [f, s] = may_chain(ks, 1);
+                [s, f]
+            }
+            Node::IfThenElse(ks) => {
+                let [cs, cf] = ks[0].may();
+                let [ts, tf] = ks[1].may();
+                let [es, ef] = if ks.len() == 3 {
+                    ks[2].may()
+                } else {
+                    [false, true]
+                };
+                [cs && ts || cf && es, cs && tf || cf && ef]
+            }
+            Node::Parallel { m, f, kids } => {
+                let f = (*f).min(kids.len() - m + 1);
+                let count = |o: usize| kids.iter().filter(|k| k.may()[o]).count();
+                [count(0) >= *m, count(1) >= f]
+            }
+            Node::Inverter(k) => {
+                let [s, f] = k.may();
+                [f, s]
+            }
+            Node::ForceSuccess(k) => [k.may().iter().any(|&x| x), false],
+            Node::ForceFailure(k) => [false, k.may().iter().any(|&x| x)],
+            Node::Retry(_, k) | Node::Repeat(_, k) => k.may(),
+            Node::UntilSuccess(k) => [k.may()[0], false],
+            Node::UntilFailure(k) => [false, k.may()[1]],
+        }
+    }
+
     /// One run of the node from time 0 (a fresh, independent run).
     pub fn sample(&self, rng: &mut Rng) -> Outcome {
         match self {
@@ -397,6 +436,8 @@ impl Node {
             },
             Node::Retry(n, k) => repeat_until(k, rng, *n, false),
             Node::Repeat(n, k) => repeat_until(k, rng, *n, true),
+            Node::UntilSuccess(k) if !k.may()[0] => Outcome::Never,
+            Node::UntilFailure(k) if !k.may()[1] => Outcome::Never,
             Node::UntilSuccess(k) => repeat_until(k, rng, LOOP_CAP, false),
             Node::UntilFailure(k) => {
                 let mut t0 = 0.0;
@@ -411,6 +452,19 @@ impl Node {
             }
         }
     }
+}
+
+/// `[may go on to the end, may stop early]` of children run in turn that
+/// go on after outcome `on` (0: Success, a Sequence; 1: Failure).
+fn may_chain(ks: &[Node], on: usize) -> [bool; 2] {
+    let mut reach = true;
+    let mut stop = false;
+    for k in ks {
+        let m = k.may();
+        stop |= reach && m[1 - on];
+        reach &= m[on];
+    }
+    [reach, stop]
 }
 
 /// A Sequence (`on = true`: go on after a Success) or a Fallback.
