@@ -1278,6 +1278,11 @@ impl Builder<'_> {
     /// atom of mass 1 at 0: it would loop within one instant) is refused.
     fn unbounded(&self, id: NodeId, law: &Law, sequence: bool) -> Result<Law, AnalysisError> {
         let (go, stop) = outcomes(sequence);
+        if law.parts[stop].mass() == 0.0 {
+            // the child cannot end the loop within the horizon: every term
+            // of the series is a convolution with that zero measure
+            return Ok(self.law_from(go, Measure::zero(), Measure::zero()));
+        }
         let step = law.measure(go);
         let (mut p, mut q, mut m) = (step, Measure::unit(), 1.0f64);
         for _ in 0..64 {
