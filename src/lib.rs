@@ -55,6 +55,7 @@ pub mod compile;
 pub mod curve;
 pub mod export;
 pub mod fit;
+pub mod gate;
 pub mod generate;
 pub mod logs;
 mod model;
