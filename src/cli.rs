@@ -660,11 +660,11 @@ struct SimulateArgs {
     runs: String,
     /// Run until every probability (ps, pf, never, the curve's points) is within ±EPS, instead of
     /// --runs: Okamoto's pre-computed bound (exact for any tree).
-    #[arg(long, value_name = "EPS", conflicts_with = "runs")]
+    #[arg(long, value_name = "EPS", conflicts_with = "runs", allow_hyphen_values = true)]
     precision: Option<String>,
     /// Run until every MTTS and MTTF is within ±S seconds, instead of --runs: the Chow–Robbins
     /// sequential rule (asymptotically exact).
-    #[arg(long, value_name = "S", conflicts_with = "runs")]
+    #[arg(long, value_name = "S", conflicts_with = "runs", allow_hyphen_values = true)]
     time_precision: Option<String>,
     /// Confidence of each interval, with --precision or --time-precision (default 0.95).
     #[arg(long, value_name = "LEVEL")]
