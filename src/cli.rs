@@ -660,11 +660,21 @@ struct SimulateArgs {
     runs: String,
     /// Run until every probability (ps, pf, never, the curve's points) is within ±EPS, instead of
     /// --runs: Okamoto's pre-computed bound (exact for any tree).
-    #[arg(long, value_name = "EPS", conflicts_with = "runs", allow_hyphen_values = true)]
+    #[arg(
+        long,
+        value_name = "EPS",
+        conflicts_with = "runs",
+        allow_hyphen_values = true
+    )]
     precision: Option<String>,
     /// Run until every MTTS and MTTF is within ±S seconds, instead of --runs: the Chow–Robbins
     /// sequential rule (asymptotically exact).
-    #[arg(long, value_name = "S", conflicts_with = "runs", allow_hyphen_values = true)]
+    #[arg(
+        long,
+        value_name = "S",
+        conflicts_with = "runs",
+        allow_hyphen_values = true
+    )]
     time_precision: Option<String>,
     /// Confidence of each interval, with --precision or --time-precision (default 0.95).
     #[arg(long, value_name = "LEVEL")]
@@ -724,8 +734,18 @@ struct CheckArgs {
     /// Largest chain (number of states) an exact analysis may build.
     #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_STATES)]
     max_states: usize,
-    #[command(flatten)]
-    ci: CiArgs,
+    /// Decide by the LEVEL interval (default 0.95; 90 means 0.90) from the fitted parameters'
+    /// sampling uncertainty (the `fit:` statistics `btrel fit` writes in the params file; the
+    /// parametric bootstrap of `report --ci`): its lower bound must meet a >= or >
+    /// requirement, its upper bound a <= or <.
+    #[arg(long, value_name = "LEVEL", num_args = 0..=1, default_missing_value = "0.95", requires = "require")]
+    ci: Option<String>,
+    /// Bootstrap draws, with --ci (default 1000).
+    #[arg(long, value_name = "N", requires = "ci")]
+    ci_draws: Option<String>,
+    /// Seed of the bootstrap draws, with --ci (decimal or 0x hex; default 0x5EEDC1).
+    #[arg(long, value_name = "S", allow_hyphen_values = true, requires = "ci")]
+    ci_seed: Option<String>,
 }
 
 /// Most time points one request may ask for.
@@ -1366,11 +1386,6 @@ fn sensitivity(args: SensitivityArgs) -> Result<(), Failure> {
 fn check(args: CheckArgs) -> Result<(), Failure> {
     if !args.require.is_empty() {
         return check_requirements(args);
-    }
-    if args.ci.ci.is_some() {
-        return Err(Failure::input(
-            "--ci decides requirements: add --require EXPR (e.g. --require 'ps >= 0.95')",
-        ));
     }
     let path = args.tree.as_path();
     let tree = load(path)?;
@@ -2645,7 +2660,11 @@ fn check_requirements(args: CheckArgs) -> Result<(), Failure> {
     use btrel::report::intervals::percent;
     use btrel::report::number::significant;
     use btrel::sim::sequential::Decision;
-    let ci = ci_settings(&args.ci)?;
+    let ci = ci_settings(&CiArgs {
+        ci: args.ci.clone(),
+        ci_draws: args.ci_draws.clone(),
+        ci_seed: args.ci_seed.clone(),
+    })?;
     if ci.is_some() && args.mc {
         return Err(Failure::input(
             "--ci and --mc decide in two different ways (the fitted parameters' interval, a \
