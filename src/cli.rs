@@ -59,7 +59,7 @@ Examples:
   generate-tree | btrel check -
   btrel check trees/search-and-grasp.yaml --require 'ps >= 0.45' --require 'search.mtts <= 200'
   btrel check trees/search-and-grasp.yaml --require 'success_by(100) >= 0.15' --mc --alpha 0.01
-  btrel check tree.xml --params fitted.params.yaml --require 'ps >= 0.9' --ci
+  btrel check trees/search-and-grasp.xml --params docs/fit/search-and-grasp.fitted.params.yaml --require 'ps >= 0.45' --ci
 
 TREE is YAML or BehaviorTree.CPP v4 XML (.xml, or --input-format xml); `-` reads standard input.
 Without --require the tree is only validated. A requirement is [NODE.]FIGURE OP NUMBER: FIGURE
