@@ -37,7 +37,7 @@ use std::fmt;
 
 use crate::compile::{analyze, AnalysisError, Options};
 use crate::curve::CurveOptions;
-use crate::report::number::{full, significant};
+use crate::report::number::significant;
 use crate::sim::sequential::{
     chow_robbins_stops, chunk_seed, normal_quantile, run_until, Acc, Chunking, Decision, Sprt,
     TEST_CHUNK,
@@ -671,7 +671,7 @@ pub fn test(
         } else {
             can.1
         };
-        let method = format!("Chow–Robbins interval ±{} s at z = {:.3}", full(d), z);
+        let method = format!("Chow–Robbins interval ±{} s at z = {:.3}", short(d), z);
         if !possible {
             return Ok(TestOutcome {
                 decision: Decision::Fails,
@@ -735,8 +735,8 @@ pub fn test(
         half_width: None,
         method: format!(
             "SPRT of p {ge} {} against p {le} {}, α = {}, β = {}",
-            full(p0),
-            full(p1),
+            short(p0),
+            short(p1),
             s.alpha,
             s.beta
         ),
@@ -749,5 +749,17 @@ pub fn show(figure: Figure, value: Option<f64>) -> String {
         None => "undefined".to_string(),
         Some(v) if figure.is_time() => format!("{} s", significant(v, 5)),
         Some(v) => significant(v, 5),
+    }
+}
+
+/// A threshold as written: at most 12 decimals, trailing zeros dropped
+/// (`0.94 - 0.01` prints as `0.93`).
+fn short(x: f64) -> String {
+    let s = format!("{x:.12}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s.is_empty() || s == "-" {
+        "0".to_string()
+    } else {
+        s.to_string()
     }
 }
