@@ -60,6 +60,7 @@
 //! ```
 
 mod engine;
+pub mod sequential;
 mod stats;
 
 use rand::SeedableRng;
