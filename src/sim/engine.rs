@@ -104,6 +104,14 @@ impl Leaf {
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Op {
     Leaf(u32),
+    /// Returns this outcome at once, drawing nothing (recording programs:
+    /// an empty Sequence / Fallback spliced into one of its kind).
+    Const(bool),
+    /// Recording programs: a chainable subtree ([`Op::Chain`]) as nested
+    /// ops, run by [`Program::acc`].
+    Acc {
+        inner: u32,
+    },
     /// A subtree of Sequences, Fallbacks, Inverters, ForceSuccess /
     /// ForceFailure and leaves, flattened: [`Program::code`] from `entry`.
     Chain {
@@ -399,6 +407,8 @@ pub(crate) struct Program {
     base: usize,
     /// Nodes in the subtree.
     nodes: usize,
+    /// Compiling inside an [`Op::Acc`].
+    in_chain: bool,
 }
 
 /// `Program::node_of` of an op that is no tree node's own.
@@ -467,6 +477,7 @@ impl Program {
             node_of: Vec::new(),
             base: id,
             nodes: tree.subtree(id).len(),
+            in_chain: false,
         };
         p.root = p.compile(tree, id);
         p
@@ -538,6 +549,21 @@ impl Program {
             // (an empty Sequence or Fallback is a constant leaf: never empty)
             let entry = self.chain(tree, id, FLOW_SUCCESS, FLOW_FAILURE);
             return self.push(Op::Chain { entry });
+        }
+        if self.record && !self.in_chain && Self::chainable(tree, id) {
+            // the recording program runs what the other compiles to a chain
+            // as nested ops summing the leaves' times in the same order
+            // ([`Program::acc`]): the same runs to the last bit
+            self.in_chain = true;
+            let inner = self.compile_node(tree, id);
+            self.in_chain = false;
+            if matches!(
+                tree.nodes[id].kind,
+                NodeKind::Action(_) | NodeKind::Condition { .. }
+            ) {
+                return inner;
+            }
+            return self.push(Op::Acc { inner });
         }
         let (chain, children) = match &tree.nodes[id].kind {
             NodeKind::Action(a) => return self.push_leaf(Leaf::new(a.ps, a.success, a.failure)),
@@ -640,6 +666,28 @@ impl Program {
         };
         let mut list = Vec::new();
         Self::chain_children(tree, chain, children, self.record, &mut list);
+        if self.record {
+            // as spliced into a same-kind parent, an empty Sequence (Fallback)
+            // adds nothing and draws nothing; one left empty at the top of
+            // the splicing is a constant leaf (which draws)
+            let mut spliced = Vec::new();
+            Self::chain_children(tree, chain, children, false, &mut spliced);
+            if spliced.is_empty() {
+                let kind_of = |n: NodeId| match tree.nodes[n].kind {
+                    NodeKind::Sequence { .. } => Some(Chain::Sequence),
+                    NodeKind::Fallback { .. } => Some(Chain::Fallback),
+                    _ => None,
+                };
+                let inside =
+                    id != self.base && tree.nodes[id].parent.and_then(kind_of) == Some(chain);
+                let ok = chain == Chain::Sequence;
+                return if inside {
+                    self.push(Op::Const(ok))
+                } else {
+                    self.push_leaf(Leaf::constant(ok))
+                };
+            }
+        }
         match list[..] {
             [] => return self.push_leaf(Leaf::constant(chain == Chain::Sequence)),
             [only] if !self.record => return self.compile(tree, only),
@@ -894,6 +942,53 @@ impl Program {
         }
     }
 
+    /// Runs op `op` of a chainable subtree started when the enclosing
+    /// [`Op::Acc`] had run for `t0`; returns its outcome and the enclosing
+    /// op's time when it returns. The leaves' times are added one by one to
+    /// the running total, in the order an [`Op::Chain`] adds them, so the
+    /// totals are the chain's to the last bit. With `REC` each node's run is
+    /// recorded, its duration the difference of the totals.
+    fn acc<R: Rng, const REC: bool>(
+        &self,
+        op: u32,
+        t0: f64,
+        rng: &mut R,
+        scratch: &mut Scratch,
+    ) -> (bool, f64) {
+        let (ok, t) = match self.ops[op as usize] {
+            Op::Leaf(i) => {
+                let (ok, d) = self.leaves[i as usize].run(rng);
+                (ok, t0 + d)
+            }
+            Op::Const(ok) => (ok, t0),
+            Op::Sequence { first, end } | Op::Fallback { first, end } => {
+                let keep_going = matches!(self.ops[op as usize], Op::Sequence { .. });
+                let mut t = t0;
+                let mut ok = keep_going;
+                for &c in &self.kids[first as usize..end as usize] {
+                    (ok, t) = self.acc::<R, REC>(c, t, rng, scratch);
+                    if ok != keep_going {
+                        break;
+                    }
+                }
+                (ok, t)
+            }
+            Op::Decorator { child, kind, .. } => {
+                let (ok, t) = self.acc::<R, REC>(child, t0, rng, scratch);
+                match kind {
+                    DecoratorOp::Invert => (!ok, t),
+                    DecoratorOp::Force(outcome) => (outcome, t),
+                    _ => unreachable!("chainable decorators only"),
+                }
+            }
+            _ => unreachable!("chainable subtrees only"),
+        };
+        if REC {
+            self.record(op, (ok, t - t0), scratch);
+        }
+        (ok, t)
+    }
+
     /// [`Program::run`] without the record.
     fn exec<R: Rng, const REC: bool>(
         &self,
@@ -949,6 +1044,8 @@ impl Program {
                 (false, t)
             }
             Op::Never => (false, f64::INFINITY),
+            Op::Const(ok) => (ok, 0.0),
+            Op::Acc { inner } => self.acc::<R, REC>(inner, 0.0, rng, scratch),
             Op::Chain { entry } => {
                 let (mut pc, mut t) = (entry, 0.0);
                 loop {
