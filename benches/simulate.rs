@@ -36,7 +36,10 @@ fn numpy_anchor(label: &str, args: &[&str]) {
         Ok(o) if o.status.success() => {
             let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap_or_default();
             let rate = v["episodes_per_second"].as_f64().unwrap_or(f64::NAN);
-            eprintln!("numpy anchor, {label}: {:.3} M episodes/s (one core)", rate / 1e6);
+            eprintln!(
+                "numpy anchor, {label}: {:.3} M episodes/s (one core)",
+                rate / 1e6
+            );
         }
         _ => eprintln!("numpy anchor, {label}: scripts/numpy_mc.py failed"),
     }
