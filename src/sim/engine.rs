@@ -17,9 +17,21 @@
 //!   spliced into its parent: `Seq[a, Seq[b, c], d] = Seq[a, b, c, d]`;
 //! * a Sequence or Fallback left with one child is that child; one left with
 //!   none returns Success (Sequence) or Failure (Fallback) at time 0;
-//! * a Sequence or Fallback whose children are all leaves becomes one loop
-//!   over a contiguous run of leaf parameters ([`Op::SeqLeaves`],
-//!   [`Op::FbLeaves`]).
+//! * a subtree made only of Sequences, Fallbacks, Inverters, ForceSuccess /
+//!   ForceFailure and leaves becomes one [`Op::Chain`]: a flat list of leaf
+//!   instructions, each naming the next instruction after its Success and
+//!   after its Failure (or the chain's return), run by one loop that adds
+//!   the leaves' times (no recursion, no dispatch on node kinds).
+//!
+//! Per-episode work is proportional to the nodes the episode runs: the
+//! RoundRobin / SequenceWithMemory indices read 0 at each episode's start
+//! without being cleared ([`Slots`]), and nothing is allocated.
+//!
+//! A *recording* program ([`Program::recording`], for `simulate` of every
+//! node) keeps one op per tree node and records each node's first run of
+//! the episode; it draws the same numbers and adds the same times in the
+//! same order as the plain program ([`Program::acc`]), so the root's runs
+//! are identical to the last bit.
 //!
 //! A leaf is evaluated without branching on its outcome: its duration is
 //! `min(E·a + b, c)` with `E ~ Exp(1)` and `(a, b, c)` picked by the outcome:
