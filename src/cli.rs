@@ -57,8 +57,25 @@ Examples:
   btrel check trees/search-and-grasp.yaml
   btrel check trees/search-and-grasp.xml --params trees/search-and-grasp.params.yaml
   generate-tree | btrel check -
+  btrel check trees/search-and-grasp.yaml --require 'ps >= 0.45' --require 'search.mtts <= 200'
+  btrel check trees/search-and-grasp.yaml --require 'success_by(100) >= 0.15' --mc --alpha 0.01
+  btrel check trees/search-and-grasp.xml --params docs/fit/search-and-grasp.fitted.params.yaml --require 'ps >= 0.45' --ci
 
-TREE is YAML or BehaviorTree.CPP v4 XML (.xml, or --input-format xml); `-` reads standard input.";
+TREE is YAML or BehaviorTree.CPP v4 XML (.xml, or --input-format xml); `-` reads standard input.
+Without --require the tree is only validated. A requirement is [NODE.]FIGURE OP NUMBER: FIGURE
+is ps, pf, never (P(never returns)), mtts, mttf (s), success_by(T) or failure_by(T) (P(returned
+Success / Failure by T s)); OP is >=, <=, > or <; NODE a name or a path such as 0.1 (default the
+root). One line per requirement: PASS or FAIL (UNDECIDED with --mc), the requirement, the value.
+Decided by the exact engine; --ci by the interval from the fitted parameters (the lower bound
+for >= and >, the upper for <= and <); --mc by simulation: a probability by Wald's sequential
+probability ratio test of p >= θ+δ (holds) against p <= θ−δ (fails), δ = --indifference, so a
+requirement that holds with margin δ is failed with probability at most α/(1−β) and one that
+fails by δ passes with at most β/(1−α) (--alpha, --beta); a mean time by a Chow–Robbins
+fixed-width interval of half-width --time-indifference at the one-sided normal quantile of
+min(α, β), then the side of the threshold its mean lies on (asymptotically the same error
+bounds). Exit codes: 0 every requirement holds, 1 one fails or is undecided (or the analysis is
+not possible), 2 invalid input or usage (an unknown node, figure or operator, located with a
+caret under the requirement).";
 
 const COMPLETIONS_EXAMPLES: &str = "\
 Examples:
@@ -253,12 +270,9 @@ enum Command {
     /// Estimate the leaves' parameters from execution logs (.btlog, CSV) into a params file.
     #[command(after_help = FIT_EXAMPLES)]
     Fit(FitArgs),
-    /// Validate a tree file without analysing it.
     #[command(after_help = CHECK_EXAMPLES)]
-    Check {
-        /// The tree: YAML, or BehaviorTree.CPP v4 XML (.xml; actions' parameters from --params); - reads standard input.
-        tree: PathBuf,
-    },
+    /// Validate a tree file, or gate it on requirements (`--require 'ps >= 0.95'`): exit 0 / 1.
+    Check(CheckArgs),
     /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
     #[command(after_help = COMPLETIONS_EXAMPLES)]
     Completions {
@@ -441,6 +455,19 @@ Examples:
   btrel simulate trees/two-arm-parallel.xml --params trees/two-arm-parallel.params.yaml --runs 1e5
   btrel report trees/search-and-grasp.yaml --mc 1e6        # Table 9.1-style check
   btrel curve trees/search-and-grasp.yaml --t-end 1000 --mc 1e5
+  btrel simulate trees/search-and-grasp.yaml --precision 0.01            # every probability ±0.01
+  btrel simulate trees/search-and-grasp.yaml --precision 0.005 --time-precision 2 --confidence 0.99
+
+--precision EPS runs until every probability (ps, pf, never, the curve's points) is within ±EPS:
+Okamoto's (Chernoff–Hoeffding) bound, n = ceil(ln(2/δ)/(2·EPS²)) runs, δ = 1 − confidence, an
+exact guarantee for any tree. --time-precision S runs until every MTTS and MTTF is within ±S
+seconds: the Chow–Robbins fixed-width sequential rule (stop at the first check with m >= 30
+durations and z·sqrt((s²+1/m)/m) <= S; coverage tends to the confidence as S shrinks). Each
+interval has the confidence on its own (not all at once). The output gives the runs used and
+every figure ± the half-width of its interval; a figure that could not reach its precision
+within --max-runs (default 1e8) is named (warning, exit 0). Runs are made in chunks with one
+seed each, merged and checked in order: the same seed gives the same runs and figures whatever
+--threads is. A progress bar is shown on a terminal.
 
 The same seed gives bit-identical output whatever --threads is (default seed 0x5EEDB7E1).
 For a simulated curve as CSV use `btrel curve --mc N`. A run that reaches a loop whose child
@@ -641,6 +668,30 @@ struct SimulateArgs {
     /// Runs per node (e.g. 1000000 or 1e6).
     #[arg(long, value_name = "N", default_value = "1000000")]
     runs: String,
+    /// Run until every probability (ps, pf, never, the curve's points) is within ±EPS, instead of
+    /// --runs: Okamoto's pre-computed bound (exact for any tree).
+    #[arg(
+        long,
+        value_name = "EPS",
+        conflicts_with = "runs",
+        allow_hyphen_values = true
+    )]
+    precision: Option<String>,
+    /// Run until every MTTS and MTTF is within ±S seconds, instead of --runs: the Chow–Robbins
+    /// sequential rule (asymptotically exact).
+    #[arg(
+        long,
+        value_name = "S",
+        conflicts_with = "runs",
+        allow_hyphen_values = true
+    )]
+    time_precision: Option<String>,
+    /// Confidence of each interval, with --precision or --time-precision (default 0.95).
+    #[arg(long, value_name = "LEVEL")]
+    confidence: Option<String>,
+    /// Most runs per node, with --precision or --time-precision (default 1e8).
+    #[arg(long, value_name = "N")]
+    max_runs: Option<String>,
     #[command(flatten)]
     sim: SimArgs,
     /// Simulate this node's subtree instead of the whole tree (name or path).
@@ -654,6 +705,57 @@ struct SimulateArgs {
     /// Write to this file (atomically) instead of standard output (- is standard output).
     #[arg(short, long, value_name = "FILE")]
     output: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+struct CheckArgs {
+    /// The tree: YAML, or BehaviorTree.CPP v4 XML (.xml; actions' parameters from --params); - reads standard input.
+    tree: PathBuf,
+    /// A requirement the tree must meet (repeatable): [NODE.]FIGURE OP NUMBER, e.g. 'ps >= 0.95',
+    /// 'NavigateRecovery.mtts <= 90', 'success_by(120) >= 0.8'. FIGURE: ps, pf, never, mtts,
+    /// mttf, success_by(T), failure_by(T); OP: >=, <=, >, <.
+    #[arg(long = "require", value_name = "EXPR", allow_hyphen_values = true)]
+    require: Vec<String>,
+    /// Decide by Monte Carlo instead of the exact engine: Wald's SPRT for probabilities, a
+    /// Chow–Robbins interval for mean times (see below); prints the decision and the runs used.
+    #[arg(long, requires = "require")]
+    mc: bool,
+    /// With --mc: bound on failing a requirement that holds with margin (default 0.05).
+    #[arg(long, value_name = "A", requires = "mc")]
+    alpha: Option<String>,
+    /// With --mc: bound on passing a requirement that fails by the margin (default 0.05).
+    #[arg(long, value_name = "B", requires = "mc")]
+    beta: Option<String>,
+    /// With --mc: half-width δ of the indifference region θ ± δ of a probability (default 0.01).
+    #[arg(long, value_name = "D", requires = "mc")]
+    indifference: Option<String>,
+    /// With --mc: half-width of the indifference region of a mean time, in s (default 1% of
+    /// its threshold).
+    #[arg(long, value_name = "S", requires = "mc")]
+    time_indifference: Option<String>,
+    /// With --mc: most runs per requirement (default 1e8); a test still undecided then fails.
+    #[arg(long, value_name = "N", requires = "mc")]
+    max_runs: Option<String>,
+    /// With --mc: seed of the runs (decimal or 0x hex; default 0x5EEDB7E1).
+    #[arg(long, value_name = "S", allow_hyphen_values = true, requires = "mc")]
+    seed: Option<String>,
+    #[arg(long, value_name = "K", help = threads_help("Worker threads of the simulation, with --mc"), requires = "mc")]
+    threads: Option<usize>,
+    /// Largest chain (number of states) an exact analysis may build.
+    #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_STATES)]
+    max_states: usize,
+    /// Decide by the LEVEL interval (default 0.95; 90 means 0.90) from the fitted parameters'
+    /// sampling uncertainty (the `fit:` statistics `btrel fit` writes in the params file; the
+    /// parametric bootstrap of `report --ci`): its lower bound must meet a >= or >
+    /// requirement, its upper bound a <= or <.
+    #[arg(long, value_name = "LEVEL", num_args = 0..=1, default_missing_value = "0.95", requires = "require")]
+    ci: Option<String>,
+    /// Bootstrap draws, with --ci (default 1000).
+    #[arg(long, value_name = "N", requires = "ci")]
+    ci_draws: Option<String>,
+    /// Seed of the bootstrap draws, with --ci (decimal or 0x hex; default 0x5EEDC1).
+    #[arg(long, value_name = "S", allow_hyphen_values = true, requires = "ci")]
+    ci_seed: Option<String>,
 }
 
 /// Most time points one request may ask for.
@@ -697,6 +799,7 @@ impl Failure {
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Cmd {
     Report,
+    Check,
     Curve,
     Compare,
     Plot,
@@ -717,11 +820,15 @@ fn or_list(items: &[String]) -> String {
 fn analysis_failure(cmd: Cmd, method: Method) -> impl Fn(AnalysisError) -> Failure {
     move |e| {
         let exact = method == Method::Exact;
-        let has_method = cmd != Cmd::ExportPrism;
+        let has_method = !matches!(cmd, Cmd::ExportPrism | Cmd::Check);
         let has_timing = matches!(cmd, Cmd::Curve | Cmd::Plot);
         let mut fixes: Vec<String> = Vec::new();
         let book = "`--method book` (the book's approximation)".to_string();
-        let simulate = "`btrel simulate` (Monte Carlo)".to_string();
+        let simulate = if cmd == Cmd::Check {
+            "`--mc` (a sequential Monte Carlo test)".to_string()
+        } else {
+            "`btrel simulate` (Monte Carlo)".to_string()
+        };
         match &e {
             AnalysisError::NotMarkovian { .. } => {
                 if exact && has_method {
@@ -836,7 +943,7 @@ pub fn main() -> ExitCode {
     let _ = INPUT.set((cli.input_format, cli.params.clone(), cli.include.clone()));
     let result = match cli.command {
         Command::Report(args) => report(args),
-        Command::Check { tree } => check(&tree),
+        Command::Check(args) => check(args),
         Command::Fit(args) => fit(args),
         Command::Sensitivity(args) => sensitivity(args),
         Command::Curve(args) => curve(args),
@@ -1320,7 +1427,11 @@ fn sensitivity(args: SensitivityArgs) -> Result<(), Failure> {
     })
 }
 
-fn check(path: &Path) -> Result<(), Failure> {
+fn check(args: CheckArgs) -> Result<(), Failure> {
+    if !args.require.is_empty() {
+        return check_requirements(args);
+    }
+    let path = args.tree.as_path();
     let tree = load(path)?;
     warn_endless(&tree);
     emit(None, |out| {
@@ -1652,6 +1763,20 @@ fn run_simulation(
 
 fn simulate(args: SimulateArgs) -> Result<(), Failure> {
     use btrel::report::simulation;
+    if args.precision.is_some() || args.time_precision.is_some() {
+        return simulate_precision(args);
+    }
+    for (given, name) in [
+        (args.confidence.is_some(), "--confidence"),
+        (args.max_runs.is_some(), "--max-runs"),
+    ] {
+        if given {
+            return Err(Failure::input(format!(
+                "{name} goes with --precision EPS or --time-precision S (runs until the figures \
+                 are that precise): add one, or remove {name}"
+            )));
+        }
+    }
     let runs = parse_count("--runs", &args.runs)?;
     let times = grid_times(&args.grid)?.unwrap_or_default();
     if matches!(args.format, FormatArg::Csv) && !times.is_empty() {
@@ -2447,4 +2572,327 @@ fn emit(
             }
         }
     }
+}
+
+/// A probability-like option in (0, 1): `0.95`, or a percentage `95`.
+fn parse_level(what: &str, s: &str) -> Result<f64, Failure> {
+    let bad = || {
+        Failure::input(format!(
+            "{what}: '{s}' is not a level (a number in (0, 1) such as 0.95, or a percentage from \
+             50 to 99.99 such as 95)"
+        ))
+    };
+    let mut x: f64 = s.trim().trim_end_matches('%').parse().map_err(|_| bad())?;
+    if (50.0..100.0).contains(&x) {
+        x /= 100.0;
+    }
+    if !(x > 0.0 && x < 1.0) {
+        return Err(bad());
+    }
+    Ok(x)
+}
+
+/// A positive finite number option.
+fn parse_positive(what: &str, s: &str) -> Result<f64, Failure> {
+    match s.trim().parse::<f64>() {
+        Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
+        _ => Err(Failure::input(format!("{what}: '{s}' is not a number > 0"))),
+    }
+}
+
+/// `simulate --precision / --time-precision`: runs until the figures are
+/// that precise ([`btrel::sim::sequential`]).
+fn simulate_precision(args: SimulateArgs) -> Result<(), Failure> {
+    use btrel::report::sequential as out_seq;
+    use btrel::sim::sequential::{simulate_to_precision, Precision, Progress, DEFAULT_MAX_RUNS};
+    use std::io::IsTerminal;
+    let probability = args
+        .precision
+        .as_deref()
+        .map(|s| parse_positive("--precision", s))
+        .transpose()?;
+    if let Some(p) = probability.filter(|&p| p >= 0.5) {
+        return Err(Failure::input(format!(
+            "--precision {p}: a probability's half-width must be below 0.5 (e.g. 0.01)"
+        )));
+    }
+    let time = args
+        .time_precision
+        .as_deref()
+        .map(|s| parse_positive("--time-precision", s))
+        .transpose()?;
+    let confidence = match args.confidence.as_deref() {
+        None => 0.95,
+        Some(c) => parse_level("--confidence", c)?,
+    };
+    let max_runs = match args.max_runs.as_deref() {
+        None => DEFAULT_MAX_RUNS,
+        Some(n) => parse_count("--max-runs", n)?,
+    };
+    if max_runs == 0 || max_runs > btrel::sim::MAX_RUNS {
+        return Err(Failure::input(format!(
+            "--max-runs must be between 1 and {} (10^12)",
+            btrel::sim::MAX_RUNS
+        )));
+    }
+    let times = grid_times(&args.grid)?.unwrap_or_default();
+    if matches!(args.format, FormatArg::Csv) && !times.is_empty() {
+        return Err(Failure::input(
+            "--format csv prints the per-node figures; for the curve with intervals use --format table or json",
+        ));
+    }
+    let base = sim_options(&args.sim, 1, times, true)?;
+    let tree = load(&args.tree)?;
+    warn_endless(&tree);
+    let node = match &args.node {
+        Some(n) => find_nodes(&tree, std::slice::from_ref(n), &args.tree)?[0],
+        None => Tree::ROOT,
+    };
+    let precision = Precision {
+        probability,
+        time,
+        confidence,
+        max_runs,
+    };
+    let bar = io::stderr().is_terminal().then(|| {
+        let b = indicatif::ProgressBar::new(1);
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "simulating to a precision {bar:40} {pos}/{len} runs (estimated; {elapsed})",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        b
+    });
+    let callback = |p: &Progress| {
+        if let Some(b) = &bar {
+            b.set_length(p.needed.max(p.runs));
+            b.set_position(p.runs);
+        }
+    };
+    let result = simulate_to_precision(
+        &tree,
+        node,
+        &base,
+        &precision,
+        bar.as_ref()
+            .map(|_| &callback as &(dyn Fn(&Progress) + Sync)),
+    );
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    let result = result.map_err(Failure::input)?;
+    let missed = out_seq::missed_phrases(&tree, &result);
+    if !missed.is_empty() {
+        eprintln!(
+            "warning: stopped at --max-runs {} before every figure reached its precision: {}",
+            result.sim.runs,
+            missed.join(", ")
+        );
+    }
+    emit(args.output.as_deref(), |out| match args.format {
+        FormatArg::Table => out_seq::write_table(&tree, &result, out),
+        FormatArg::Json => out_seq::write_json(&tree, &result, out),
+        FormatArg::Csv => out_seq::write_csv(&tree, &result, out),
+    })
+}
+
+/// `check --require`: every requirement decided, one line each; exit 1 when
+/// one fails.
+fn check_requirements(args: CheckArgs) -> Result<(), Failure> {
+    use btrel::gate::{self, show};
+    use btrel::report::intervals::percent;
+    use btrel::report::number::significant;
+    use btrel::sim::sequential::Decision;
+    let ci = ci_settings(&CiArgs {
+        ci: args.ci.clone(),
+        ci_draws: args.ci_draws.clone(),
+        ci_seed: args.ci_seed.clone(),
+    })?;
+    if ci.is_some() && args.mc {
+        return Err(Failure::input(
+            "--ci and --mc decide in two different ways (the fitted parameters' interval, a \
+             sequential simulation): give one of them",
+        ));
+    }
+    let mc_settings = if args.mc {
+        let mut s = gate::TestSettings::default();
+        if let Some(a) = args.alpha.as_deref() {
+            s.alpha = parse_positive("--alpha", a)?;
+        }
+        if let Some(b) = args.beta.as_deref() {
+            s.beta = parse_positive("--beta", b)?;
+        }
+        if !(s.alpha < 1.0 && s.beta < 1.0 && s.alpha + s.beta < 1.0) {
+            return Err(Failure::input(format!(
+                "--alpha {} and --beta {}: each must be in (0, 1), and their sum below 1 (e.g. 0.05)",
+                s.alpha, s.beta
+            )));
+        }
+        if let Some(d) = args.indifference.as_deref() {
+            s.indifference = parse_positive("--indifference", d)?;
+        }
+        if let Some(d) = args.time_indifference.as_deref() {
+            s.time_indifference = Some(parse_positive("--time-indifference", d)?);
+        }
+        if let Some(n) = args.max_runs.as_deref() {
+            s.max_runs = parse_count("--max-runs", n)?;
+            if s.max_runs == 0 || s.max_runs > btrel::sim::MAX_RUNS {
+                return Err(Failure::input(format!(
+                    "--max-runs must be between 1 and {} (10^12)",
+                    btrel::sim::MAX_RUNS
+                )));
+            }
+        }
+        if let Some(seed) = args.seed.as_deref() {
+            s.seed = parse_seed("--seed", seed)?;
+        }
+        s.threads = args.threads.unwrap_or(0);
+        Some(s)
+    } else {
+        None
+    };
+    let (tree, source) = load_keyed(&args.tree)?;
+    warn_endless(&tree);
+    let reqs = args
+        .require
+        .iter()
+        .map(|text| gate::parse(text, &tree))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| {
+            let text = e.to_string();
+            Failure::input(format!(
+                "--require{}",
+                text.strip_prefix("requirement").unwrap_or(&text)
+            ))
+        })?;
+    if let Some(s) = &mc_settings {
+        for r in &reqs {
+            s.validate(r).map_err(|e| {
+                let help = match e {
+                    gate::TestError::Region { .. } => {
+                        "\n  help: a smaller --indifference, or decide it exactly (without --mc)"
+                    }
+                    _ => "",
+                };
+                Failure::input(format!("{e}{help}"))
+            })?;
+        }
+    }
+    let options = Options {
+        method: Method::Exact,
+        max_states: args.max_states,
+    };
+    let mut lines = Vec::with_capacity(reqs.len());
+    let mut failed = 0;
+    let verdict = |ok: bool| if ok { "PASS" } else { "FAIL" };
+    if let Some(s) = &mc_settings {
+        for (i, r) in reqs.iter().enumerate() {
+            let t = gate::test(&tree, r, i, s).map_err(Failure::input)?;
+            let word = match t.decision {
+                Decision::Holds => "PASS",
+                Decision::Fails => "FAIL",
+                Decision::Undecided => "UNDECIDED",
+            };
+            failed += usize::from(t.decision != Decision::Holds);
+            let estimate = match (t.estimate, t.half_width) {
+                (Some(v), Some(h)) if r.figure.is_time() => {
+                    format!("{} ± {} s", significant(v, 5), significant(h, 2))
+                }
+                (v, _) => show(r.figure, v),
+            };
+            let why = match t.decision {
+                Decision::Undecided => ", the cap (--max-runs): counted as failing",
+                _ if t.runs == 0 => ", the node never returns that outcome",
+                _ => "",
+            };
+            lines.push(format!(
+                "{word}  {}: {estimate} after {} runs ({}){why}",
+                r.text, t.runs, t.method
+            ));
+        }
+    } else {
+        let values = gate::exact_values(&tree, &reqs, &options)
+            .map_err(analysis_failure(Cmd::Check, options.method))?;
+        let bounds = match &ci {
+            None => None,
+            Some(ci) => {
+                let sampler = ci_sampler(&tree, source.as_ref(), ci, reqs.len())?;
+                let b = sampler
+                    .intervals(ci.level, ci.draws, ci.seed, |t| {
+                        gate::exact_values(t, &reqs, &options)
+                    })
+                    .map_err(analysis_failure(Cmd::Check, options.method))?;
+                eprintln!(
+                    "note: {} intervals from {} draws (seed {}): {}",
+                    percent(ci.level),
+                    ci.draws,
+                    ci.seed,
+                    btrel::uncertainty::METHOD
+                );
+                if !sampler.fixed.is_empty() {
+                    eprintln!(
+                        "note: fixed (no `fit:` statistics in the params file): {}",
+                        sampler.fixed.join(", ")
+                    );
+                }
+                for h in sampler.held.iter().chain(&sampler.independent) {
+                    eprintln!("note: {h}");
+                }
+                Some(b)
+            }
+        };
+        for (i, r) in reqs.iter().enumerate() {
+            let line = match (&bounds, &ci) {
+                (Some(b), Some(ci)) => {
+                    let (bound, ok) = match b[i] {
+                        Some((lo, hi)) => {
+                            let x = if r.op.at_least() { lo } else { hi };
+                            (Some(x), r.holds(x))
+                        }
+                        None => (None, false),
+                    };
+                    let side = if r.op.at_least() { "lower" } else { "upper" };
+                    failed += usize::from(!ok);
+                    format!(
+                        "{}  {}: {side} bound {} of the {} interval [{}] (estimate {})",
+                        verdict(ok),
+                        r.text,
+                        show(r.figure, bound),
+                        percent(ci.level),
+                        b[i].map_or("undefined".to_string(), |(lo, hi)| format!(
+                            "{}, {}",
+                            significant(lo, 5),
+                            significant(hi, 5)
+                        )),
+                        show(r.figure, values[i])
+                    )
+                }
+                _ => {
+                    let ok = values[i].is_some_and(|v| r.holds(v));
+                    failed += usize::from(!ok);
+                    format!(
+                        "{}  {}: {} (exact)",
+                        verdict(ok),
+                        r.text,
+                        show(r.figure, values[i])
+                    )
+                }
+            };
+            lines.push(line);
+        }
+    }
+    emit(None, |out| {
+        for l in &lines {
+            writeln!(out, "{l}")?;
+        }
+        Ok(())
+    })?;
+    if failed > 0 {
+        return Err(Failure::analysis(format!(
+            "{failed} of {} failed",
+            plural(reqs.len(), "requirement", "requirements")
+        )));
+    }
+    Ok(())
 }

@@ -42,7 +42,10 @@
 //!    or CSV), [`curve`] (π(t)), [`compare`] (Fallback orderings), [`plot`],
 //!    [`sensitivity`], [`uncertainty`] (intervals from the parameters'
 //!    sampling uncertainty);
-//! 5. [`export`]: DOT, PRISM, Storm.
+//! 5. [`export`]: DOT, PRISM, Storm;
+//! 6. [`gate`]: requirements on the figures (`ps >= 0.95`) decided exactly,
+//!    by fitted-parameter intervals, or by sequential tests
+//!    ([`sim::sequential`]: SPRT, Chow–Robbins, Okamoto's bound).
 //!
 //! [`sim`] (Monte Carlo) stands beside them and shares only the parsed tree.
 //! Dependencies run one way: `compile` uses `solve` and `tree`; the queries
@@ -55,6 +58,7 @@ pub mod compile;
 pub mod curve;
 pub mod export;
 pub mod fit;
+pub mod gate;
 pub mod generate;
 pub mod logs;
 mod model;

@@ -1014,9 +1014,14 @@ fn every_help_example_runs() {
     let mut ran = 0;
     for cmd in COMMANDS.iter().chain(&["completions", "man"]) {
         for line in examples_of(cmd) {
-            // the part before a shell pipe, redirection or `&&`
-            let line = line.split(['|', '>', '&']).next().unwrap().trim();
-            let words: Vec<&str> = line.split_whitespace().skip(1).collect();
+            // the words (shell quoting: `--require 'ps >= 0.9'` is one) before a
+            // shell pipe, redirection or `&&`
+            let all = shlex::split(&line).unwrap_or_else(|| panic!("`{line}`: unbalanced quotes"));
+            let end = all
+                .iter()
+                .position(|w| matches!(w.as_str(), "|" | "&&") || w.starts_with('>'))
+                .unwrap_or(all.len());
+            let words: Vec<&str> = all[1..end].iter().map(String::as_str).collect();
             if words.contains(&"-") && words.get(1) == Some(&"-") {
                 continue; // reads standard input
             }

@@ -10,6 +10,7 @@ pub mod json;
 pub mod number;
 pub mod ranking;
 pub mod sensitivity;
+pub mod sequential;
 pub mod simulation;
 pub mod table;
 

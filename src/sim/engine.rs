@@ -17,9 +17,21 @@
 //!   spliced into its parent: `Seq[a, Seq[b, c], d] = Seq[a, b, c, d]`;
 //! * a Sequence or Fallback left with one child is that child; one left with
 //!   none returns Success (Sequence) or Failure (Fallback) at time 0;
-//! * a Sequence or Fallback whose children are all leaves becomes one loop
-//!   over a contiguous run of leaf parameters ([`Op::SeqLeaves`],
-//!   [`Op::FbLeaves`]).
+//! * a subtree made only of Sequences, Fallbacks, Inverters, ForceSuccess /
+//!   ForceFailure and leaves becomes one [`Op::Chain`]: a flat list of leaf
+//!   instructions, each naming the next instruction after its Success and
+//!   after its Failure (or the chain's return), run by one loop that adds
+//!   the leaves' times (no recursion, no dispatch on node kinds).
+//!
+//! Per-episode work is proportional to the nodes the episode runs: the
+//! RoundRobin / SequenceWithMemory indices read 0 at each episode's start
+//! without being cleared ([`Slots`]), and nothing is allocated.
+//!
+//! A *recording* program ([`Program::recording`], for `simulate` of every
+//! node) keeps one op per tree node and records each node's first run of
+//! the episode; it draws the same numbers and adds the same times in the
+//! same order as the plain program ([`Program::acc`]), so the root's runs
+//! are identical to the last bit.
 //!
 //! A leaf is evaluated without branching on its outcome: its duration is
 //! `min(E·a + b, c)` with `E ~ Exp(1)` and `(a, b, c)` picked by the outcome:
@@ -31,6 +43,7 @@
 use rand::Rng;
 use rand_distr::{Distribution, Exp1};
 
+use super::stats::Raw;
 use crate::tree::{Decorator, Duration, FlowNext, NodeId, NodeKind, Stages, Tree};
 
 /// Outcomes compare the top 53 bits of a `u64` draw with `round(ps · 2^53)`.
@@ -103,6 +116,19 @@ impl Leaf {
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Op {
     Leaf(u32),
+    /// Returns this outcome at once, drawing nothing (recording programs:
+    /// an empty Sequence / Fallback spliced into one of its kind).
+    Const(bool),
+    /// Recording programs: a chainable subtree ([`Op::Chain`]) as nested
+    /// ops, run by [`Program::acc`].
+    Acc {
+        inner: u32,
+    },
+    /// A subtree of Sequences, Fallbacks, Inverters, ForceSuccess /
+    /// ForceFailure and leaves, flattened: [`Program::code`] from `entry`.
+    Chain {
+        entry: u32,
+    },
     SeqLeaves {
         first: u32,
         end: u32,
@@ -212,6 +238,21 @@ struct Step {
 const FLOW_SUCCESS: u32 = u32::MAX - 1;
 const FLOW_FAILURE: u32 = u32::MAX;
 
+/// One leaf of an [`Op::Chain`]: run `leaves[leaf]`, then go to the
+/// instruction `next[ok as usize]`, or return Success ([`FLOW_SUCCESS`]) or
+/// Failure ([`FLOW_FAILURE`]) with the time so far.
+///
+/// A subtree of Sequences and Fallbacks over leaves is an automaton: which
+/// leaf runs next depends only on the last leaf and its outcome, and the
+/// subtree's duration is the sum of the leaves run. So an episode of it is
+/// one loop over instructions (no recursion, no dispatch on node kinds),
+/// drawing the same numbers in the same order as the nested ops would.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Instr {
+    leaf: u32,
+    next: [u32; 2],
+}
+
 /// What a decorator does with its child's runs.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum DecoratorOp {
@@ -229,9 +270,9 @@ pub(crate) struct Scratch {
     /// `(success, time)` of each child in child order (Parallels with an
     /// independent failure threshold, whose ties are replayed).
     order: Vec<(bool, f64)>,
-    /// Index of each RoundRobin and SequenceWithMemory slot (reset to 0 at
-    /// every episode).
-    rr: Vec<u32>,
+    /// Index of each RoundRobin and SequenceWithMemory slot (0 at the start
+    /// of every episode, without clearing: [`Slots`]).
+    rr: Slots,
     /// Earlier children of the PipelineSequences being run.
     reruns: Vec<Rerun>,
     /// Index changes of the nodes a halt may reach ([`Journal`]).
@@ -239,6 +280,83 @@ pub(crate) struct Scratch {
     /// Parallels and PipelineSequences being run (the journal is kept
     /// while one is).
     halters: u32,
+    /// Per node of a recording program (by offset from its root node).
+    rec: Vec<Record>,
+}
+
+/// The first runs of one node in the episodes of a recording program.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Record {
+    /// The episode of the last record.
+    seen: u32,
+    /// Episodes that ran the node (also runs that never returned).
+    pub(crate) visits: u64,
+    /// Durations of its failed and successful first runs.
+    pub(crate) raw: [Raw; 2],
+}
+
+impl Scratch {
+    /// The records of a recording program, by node offset from its root
+    /// (zeroed).
+    pub(crate) fn take_records(&mut self) -> Vec<Record> {
+        let fresh = vec![Record::default(); self.rec.len()];
+        std::mem::replace(&mut self.rec, fresh)
+    }
+}
+
+/// The index slots of RoundRobin and SequenceWithMemory nodes: each reads 0
+/// at the start of an episode. A slot written in an earlier episode is
+/// stale (its stamp is not the current episode's) and reads 0, so starting
+/// an episode costs O(1) whatever the number of slots: per-episode work is
+/// proportional to the nodes the episode visits.
+#[derive(Debug, Default)]
+pub(crate) struct Slots {
+    value: Vec<u32>,
+    /// The episode that last wrote each slot.
+    stamp: Vec<u32>,
+    /// The current episode (≥ 1; stamps start at 0).
+    epoch: u32,
+}
+
+impl Slots {
+    fn new(n: usize) -> Slots {
+        Slots {
+            value: vec![0; n],
+            stamp: vec![0; n],
+            epoch: 1,
+        }
+    }
+
+    /// Starts an episode: every slot reads 0.
+    #[inline(always)]
+    fn new_episode(&mut self) {
+        self.epoch = self.epoch.wrapping_add(1);
+        if self.epoch == 0 {
+            // after 2^32 episodes on one scratch: stamps could repeat
+            self.stamp.fill(0);
+            self.epoch = 1;
+        }
+    }
+
+    #[inline(always)]
+    fn get(&self, slot: u32) -> u32 {
+        let i = slot as usize;
+        if self.stamp[i] == self.epoch {
+            self.value[i]
+        } else {
+            0
+        }
+    }
+
+    /// Sets a slot; its previous value.
+    #[inline(always)]
+    fn set(&mut self, slot: u32, v: u32) -> u32 {
+        let old = self.get(slot);
+        let i = slot as usize;
+        self.value[i] = v;
+        self.stamp[i] = self.epoch;
+        old
+    }
 }
 
 /// What a halt needs to know of an index slot's past within one episode.
@@ -275,6 +393,8 @@ pub(crate) struct Program {
     kids: Vec<u32>,
     leaves: Vec<Leaf>,
     steps: Vec<Step>,
+    /// The instructions of the [`Op::Chain`]s.
+    code: Vec<Instr>,
     root: u32,
     /// Total number of children of Parallel nodes (bounds the scratch stacks).
     parallel_kids: usize,
@@ -290,7 +410,21 @@ pub(crate) struct Program {
     /// `(can succeed, can fail)` of each tree node ([`super::outcomes`]),
     /// shared by the programs of one simulation.
     can: std::sync::Arc<Vec<(bool, bool)>>,
+    /// A recording program ([`Program::recording`]): every tree node that
+    /// is run has an op of its own, `node_of[op]` (its offset from the
+    /// program's root node; [`NO_NODE`] for none).
+    record: bool,
+    node_of: Vec<u32>,
+    /// The tree node of the program's root.
+    base: usize,
+    /// Nodes in the subtree.
+    nodes: usize,
+    /// Compiling inside an [`Op::Acc`].
+    in_chain: bool,
 }
+
+/// `Program::node_of` of an op that is no tree node's own.
+const NO_NODE: u32 = u32::MAX;
 
 /// The kind of control node a child may be spliced into.
 #[derive(Clone, Copy, PartialEq)]
@@ -313,11 +447,37 @@ impl Program {
         id: NodeId,
         can: std::sync::Arc<Vec<(bool, bool)>>,
     ) -> Program {
+        Program::build(tree, id, can, false)
+    }
+
+    /// Compiles the subtree rooted at `id` as a *recording* program: its
+    /// episodes draw exactly the random numbers of [`Program::with_outcomes`]'s
+    /// and return the same runs, and
+    /// [`episode_recording`](Program::episode_recording) also records the
+    /// first run, in each episode, of every node of the subtree. Neutral
+    /// conditions are still dropped (they are never run: no record), but
+    /// nothing is spliced and leaves are not grouped, so that every other
+    /// node runs as an op of its own.
+    pub(crate) fn recording(
+        tree: &Tree,
+        id: NodeId,
+        can: std::sync::Arc<Vec<(bool, bool)>>,
+    ) -> Program {
+        Program::build(tree, id, can, true)
+    }
+
+    fn build(
+        tree: &Tree,
+        id: NodeId,
+        can: std::sync::Arc<Vec<(bool, bool)>>,
+        record: bool,
+    ) -> Program {
         let mut p = Program {
             ops: Vec::new(),
             kids: Vec::new(),
             leaves: Vec::new(),
             steps: Vec::new(),
+            code: Vec::new(),
             root: 0,
             parallel_kids: 0,
             modes: Vec::new(),
@@ -325,6 +485,11 @@ impl Program {
             pipeline_kids: 0,
             halters: 0,
             can,
+            record,
+            node_of: Vec::new(),
+            base: id,
+            nodes: tree.subtree(id).len(),
+            in_chain: false,
         };
         p.root = p.compile(tree, id);
         p
@@ -342,15 +507,23 @@ impl Program {
     }
 
     /// Children of a Sequence/Fallback after dropping neutral conditions and
-    /// splicing same-kind children, in execution order.
-    fn chain_children(tree: &Tree, chain: Chain, children: &[NodeId], out: &mut Vec<NodeId>) {
+    /// (unless `keep`) splicing same-kind children, in execution order.
+    fn chain_children(
+        tree: &Tree,
+        chain: Chain,
+        children: &[NodeId],
+        keep: bool,
+        out: &mut Vec<NodeId>,
+    ) {
         for &c in children {
             match (&tree.nodes[c].kind, chain) {
                 (NodeKind::Condition { ps }, Chain::Sequence) if *ps == 1.0 => {}
                 (NodeKind::Condition { ps }, Chain::Fallback) if *ps == 0.0 => {}
                 (NodeKind::Sequence { children }, Chain::Sequence)
-                | (NodeKind::Fallback { children }, Chain::Fallback) => {
-                    Self::chain_children(tree, chain, children, out)
+                | (NodeKind::Fallback { children }, Chain::Fallback)
+                    if !keep =>
+                {
+                    Self::chain_children(tree, chain, children, keep, out)
                 }
                 _ => out.push(c),
             }
@@ -369,6 +542,41 @@ impl Program {
     }
 
     fn compile(&mut self, tree: &Tree, id: NodeId) -> u32 {
+        let op = self.compile_node(tree, id);
+        if self.record {
+            self.node_of.resize(self.ops.len(), NO_NODE);
+            self.node_of[op as usize] = (id - self.base) as u32;
+        }
+        op
+    }
+
+    fn compile_node(&mut self, tree: &Tree, id: NodeId) -> u32 {
+        if !self.record
+            && !matches!(
+                tree.nodes[id].kind,
+                NodeKind::Action(_) | NodeKind::Condition { .. }
+            )
+            && Self::chainable(tree, id)
+        {
+            // (an empty Sequence or Fallback is a constant leaf: never empty)
+            let entry = self.chain(tree, id, FLOW_SUCCESS, FLOW_FAILURE);
+            return self.push(Op::Chain { entry });
+        }
+        if self.record && !self.in_chain && Self::chainable(tree, id) {
+            // the recording program runs what the other compiles to a chain
+            // as nested ops summing the leaves' times in the same order
+            // ([`Program::acc`]): the same runs to the last bit
+            self.in_chain = true;
+            let inner = self.compile_node(tree, id);
+            self.in_chain = false;
+            if matches!(
+                tree.nodes[id].kind,
+                NodeKind::Action(_) | NodeKind::Condition { .. }
+            ) {
+                return inner;
+            }
+            return self.push(Op::Acc { inner });
+        }
         let (chain, children) = match &tree.nodes[id].kind {
             NodeKind::Action(a) => return self.push_leaf(Leaf::new(a.ps, a.success, a.failure)),
             NodeKind::Condition { ps } => return self.push_leaf(Leaf::new(*ps, None, None)),
@@ -469,10 +677,32 @@ impl Program {
             NodeKind::Fallback { children } => (Chain::Fallback, children),
         };
         let mut list = Vec::new();
-        Self::chain_children(tree, chain, children, &mut list);
+        Self::chain_children(tree, chain, children, self.record, &mut list);
+        if self.record {
+            // as spliced into a same-kind parent, an empty Sequence (Fallback)
+            // adds nothing and draws nothing; one left empty at the top of
+            // the splicing is a constant leaf (which draws)
+            let mut spliced = Vec::new();
+            Self::chain_children(tree, chain, children, false, &mut spliced);
+            if spliced.is_empty() {
+                let kind_of = |n: NodeId| match tree.nodes[n].kind {
+                    NodeKind::Sequence { .. } => Some(Chain::Sequence),
+                    NodeKind::Fallback { .. } => Some(Chain::Fallback),
+                    _ => None,
+                };
+                let inside =
+                    id != self.base && tree.nodes[id].parent.and_then(kind_of) == Some(chain);
+                let ok = chain == Chain::Sequence;
+                return if inside {
+                    self.push(Op::Const(ok))
+                } else {
+                    self.push_leaf(Leaf::constant(ok))
+                };
+            }
+        }
         match list[..] {
             [] => return self.push_leaf(Leaf::constant(chain == Chain::Sequence)),
-            [only] => return self.compile(tree, only),
+            [only] if !self.record => return self.compile(tree, only),
             _ => {}
         }
         let leaf = |c: &NodeId| match &tree.nodes[*c].kind {
@@ -480,7 +710,12 @@ impl Program {
             NodeKind::Condition { ps } => Some(Leaf::new(*ps, None, None)),
             _ => None,
         };
-        if let Some(leaves) = list.iter().map(leaf).collect::<Option<Vec<Leaf>>>() {
+        let leaves = if self.record {
+            None
+        } else {
+            list.iter().map(leaf).collect::<Option<Vec<Leaf>>>()
+        };
+        if let Some(leaves) = leaves {
             let first = self.leaves.len() as u32;
             self.leaves.extend(leaves);
             let end = self.leaves.len() as u32;
@@ -497,6 +732,73 @@ impl Program {
             Chain::Sequence => Op::Sequence { first, end },
             Chain::Fallback => Op::Fallback { first, end },
         })
+    }
+
+    /// Whether the subtree at `id` is only Sequences, Fallbacks, Inverters,
+    /// ForceSuccess / ForceFailure and leaves ([`Instr`]).
+    fn chainable(tree: &Tree, id: NodeId) -> bool {
+        tree.subtree(id).all(|i| match &tree.nodes[i].kind {
+            NodeKind::Action(_)
+            | NodeKind::Condition { .. }
+            | NodeKind::Sequence { .. }
+            | NodeKind::Fallback { .. } => true,
+            NodeKind::Decorator { decorator, .. } => matches!(
+                decorator,
+                Decorator::Inverter | Decorator::ForceSuccess | Decorator::ForceFailure
+            ),
+            _ => false,
+        })
+    }
+
+    /// Flattens the chainable subtree at `id` ([`Instr`]), whose run goes on
+    /// at `on_s` after a Success and `on_f` after a Failure (an
+    /// instruction, or [`FLOW_SUCCESS`] / [`FLOW_FAILURE`]); its entry.
+    /// The rewrites of [`Program::chain_children`] are kept exactly (same
+    /// draws): a neutral condition in a Sequence (Fallback) is dropped, an
+    /// empty Sequence or Fallback draws one number as a constant leaf.
+    fn chain(&mut self, tree: &Tree, id: NodeId, on_s: u32, on_f: u32) -> u32 {
+        let leaf = |s: &mut Self, leaf: Leaf| {
+            s.leaves.push(leaf);
+            s.code.push(Instr {
+                leaf: (s.leaves.len() - 1) as u32,
+                next: [on_f, on_s],
+            });
+            (s.code.len() - 1) as u32
+        };
+        match &tree.nodes[id].kind {
+            NodeKind::Action(a) => leaf(self, Leaf::new(a.ps, a.success, a.failure)),
+            NodeKind::Condition { ps } => leaf(self, Leaf::new(*ps, None, None)),
+            NodeKind::Decorator { decorator, child } => match decorator {
+                Decorator::Inverter => self.chain(tree, *child, on_f, on_s),
+                Decorator::ForceSuccess => self.chain(tree, *child, on_s, on_s),
+                _ => self.chain(tree, *child, on_f, on_f),
+            },
+            NodeKind::Sequence { children } | NodeKind::Fallback { children } => {
+                let kind = if matches!(tree.nodes[id].kind, NodeKind::Sequence { .. }) {
+                    Chain::Sequence
+                } else {
+                    Chain::Fallback
+                };
+                // the children after the rewrites (spliced into a
+                // same-kind parent, they were dropped there already)
+                let mut list = Vec::new();
+                Self::chain_children(tree, kind, children, false, &mut list);
+                if list.is_empty() {
+                    return leaf(self, Leaf::constant(kind == Chain::Sequence));
+                }
+                // built from the last child back: each child goes on to the
+                // next on its "keep going" outcome
+                let mut next = if kind == Chain::Sequence { on_s } else { on_f };
+                for &c in list.iter().rev() {
+                    next = match kind {
+                        Chain::Sequence => self.chain(tree, c, next, on_f),
+                        Chain::Fallback => self.chain(tree, c, on_s, next),
+                    };
+                }
+                next
+            }
+            _ => unreachable!("chainable subtrees only"),
+        }
     }
 
     /// Appends `ids` to `kids`; their range.
@@ -570,7 +872,12 @@ impl Program {
             succ: Vec::with_capacity(self.parallel_kids),
             fail: Vec::with_capacity(self.parallel_kids),
             order: Vec::with_capacity(self.parallel_kids),
-            rr: vec![0; self.slots.len()],
+            rr: Slots::new(self.slots.len()),
+            rec: if self.record {
+                vec![Record::default(); self.nodes]
+            } else {
+                Vec::new()
+            },
             reruns: Vec::with_capacity(self.pipeline_kids),
             journal: Vec::new(),
             halters: 0,
@@ -582,15 +889,126 @@ impl Program {
     /// can never end it) is `(false, ∞)`.
     #[inline]
     pub(crate) fn episode<R: Rng>(&self, rng: &mut R, scratch: &mut Scratch) -> (bool, f64) {
-        // every run starts with the RoundRobins at their first child
-        scratch.rr.fill(0);
+        // every run starts with the RoundRobins at their first child: the
+        // slots written in the last episode read 0 again, in O(1)
+        scratch.rr.new_episode();
         scratch.journal.clear();
         scratch.halters = 0;
-        self.run(self.root, 0.0, rng, scratch)
+        self.run::<R, false>(self.root, 0.0, rng, scratch)
     }
 
-    /// Runs op `op`, started at episode time `at` (the journal's clock).
-    fn run<R: Rng>(&self, op: u32, at: f64, rng: &mut R, scratch: &mut Scratch) -> (bool, f64) {
+    /// [`Program::episode`] of a [recording](Program::recording) program:
+    /// the same run, and the first run of each node of the subtree in this
+    /// episode added to [`Scratch::records`].
+    #[inline]
+    pub(crate) fn episode_recording<R: Rng>(
+        &self,
+        rng: &mut R,
+        scratch: &mut Scratch,
+    ) -> (bool, f64) {
+        debug_assert!(self.record);
+        scratch.rr.new_episode();
+        if scratch.rr.epoch == 1 {
+            // the stamps started again (after 2^32 episodes)
+            scratch.rec.iter_mut().for_each(|r| r.seen = 0);
+        }
+        scratch.journal.clear();
+        scratch.halters = 0;
+        self.run::<R, true>(self.root, 0.0, rng, scratch)
+    }
+
+    /// Runs op `op`, started at episode time `at` (the journal's clock);
+    /// with `REC`, records the run if it is its node's first this episode.
+    #[inline(always)]
+    fn run<R: Rng, const REC: bool>(
+        &self,
+        op: u32,
+        at: f64,
+        rng: &mut R,
+        scratch: &mut Scratch,
+    ) -> (bool, f64) {
+        let r = self.exec::<R, REC>(op, at, rng, scratch);
+        if REC {
+            self.record(op, r, scratch);
+        }
+        r
+    }
+
+    /// Records run `r` of op `op` if it is its node's first this episode.
+    #[inline(never)]
+    fn record(&self, op: u32, (ok, t): (bool, f64), scratch: &mut Scratch) {
+        let node = self.node_of[op as usize];
+        if node == NO_NODE {
+            return;
+        }
+        let epoch = scratch.rr.epoch;
+        let rec = &mut scratch.rec[node as usize];
+        if rec.seen == epoch {
+            return;
+        }
+        rec.seen = epoch;
+        rec.visits += 1;
+        // a run that never returns (t = ∞) counts in neither
+        if t.is_finite() {
+            rec.raw[ok as usize].push(t);
+        }
+    }
+
+    /// Runs op `op` of a chainable subtree started when the enclosing
+    /// [`Op::Acc`] had run for `t0`; returns its outcome and the enclosing
+    /// op's time when it returns. The leaves' times are added one by one to
+    /// the running total, in the order an [`Op::Chain`] adds them, so the
+    /// totals are the chain's to the last bit. With `REC` each node's run is
+    /// recorded, its duration the difference of the totals.
+    fn acc<R: Rng, const REC: bool>(
+        &self,
+        op: u32,
+        t0: f64,
+        rng: &mut R,
+        scratch: &mut Scratch,
+    ) -> (bool, f64) {
+        let (ok, t) = match self.ops[op as usize] {
+            Op::Leaf(i) => {
+                let (ok, d) = self.leaves[i as usize].run(rng);
+                (ok, t0 + d)
+            }
+            Op::Const(ok) => (ok, t0),
+            Op::Sequence { first, end } | Op::Fallback { first, end } => {
+                let keep_going = matches!(self.ops[op as usize], Op::Sequence { .. });
+                let mut t = t0;
+                let mut ok = keep_going;
+                for &c in &self.kids[first as usize..end as usize] {
+                    (ok, t) = self.acc::<R, REC>(c, t, rng, scratch);
+                    if ok != keep_going {
+                        break;
+                    }
+                }
+                (ok, t)
+            }
+            Op::Decorator { child, kind, .. } => {
+                let (ok, t) = self.acc::<R, REC>(child, t0, rng, scratch);
+                match kind {
+                    DecoratorOp::Invert => (!ok, t),
+                    DecoratorOp::Force(outcome) => (outcome, t),
+                    _ => unreachable!("chainable decorators only"),
+                }
+            }
+            _ => unreachable!("chainable subtrees only"),
+        };
+        if REC {
+            self.record(op, (ok, t - t0), scratch);
+        }
+        (ok, t)
+    }
+
+    /// [`Program::run`] without the record.
+    fn exec<R: Rng, const REC: bool>(
+        &self,
+        op: u32,
+        at: f64,
+        rng: &mut R,
+        scratch: &mut Scratch,
+    ) -> (bool, f64) {
         match self.ops[op as usize] {
             Op::Leaf(i) => self.leaves[i as usize].run(rng),
             Op::SeqLeaves { first, end } => {
@@ -618,7 +1036,7 @@ impl Program {
             Op::Sequence { first, end } => {
                 let mut t = 0.0;
                 for &c in &self.kids[first as usize..end as usize] {
-                    let (ok, d) = self.run(c, at + t, rng, scratch);
+                    let (ok, d) = self.run::<R, REC>(c, at + t, rng, scratch);
                     t += d;
                     if !ok || !d.is_finite() {
                         return (ok && d.is_finite(), t);
@@ -629,7 +1047,7 @@ impl Program {
             Op::Fallback { first, end } => {
                 let mut t = 0.0;
                 for &c in &self.kids[first as usize..end as usize] {
-                    let (ok, d) = self.run(c, at + t, rng, scratch);
+                    let (ok, d) = self.run::<R, REC>(c, at + t, rng, scratch);
                     t += d;
                     if ok || !d.is_finite() {
                         return (ok && d.is_finite(), t);
@@ -638,8 +1056,26 @@ impl Program {
                 (false, t)
             }
             Op::Never => (false, f64::INFINITY),
-            Op::Parallel { first, end, m, f } => self.parallel(first, end, m, f, at, rng, scratch),
-            Op::Pipeline { first, end } => self.run_pipeline(first, end, at, rng, scratch),
+            Op::Const(ok) => (ok, 0.0),
+            Op::Acc { inner } => self.acc::<R, REC>(inner, 0.0, rng, scratch),
+            Op::Chain { entry } => {
+                let (mut pc, mut t) = (entry, 0.0);
+                loop {
+                    let ins = self.code[pc as usize];
+                    let (ok, d) = self.leaves[ins.leaf as usize].run(rng);
+                    t += d;
+                    pc = ins.next[ok as usize];
+                    if pc >= FLOW_SUCCESS {
+                        return (pc == FLOW_SUCCESS, t);
+                    }
+                }
+            }
+            Op::Parallel { first, end, m, f } => {
+                self.parallel::<R, REC>(first, end, m, f, at, rng, scratch)
+            }
+            Op::Pipeline { first, end } => {
+                self.run_pipeline::<R, REC>(first, end, at, rng, scratch)
+            }
             Op::RoundRobin {
                 first,
                 end,
@@ -649,14 +1085,14 @@ impl Program {
             } => {
                 let kids = &self.kids[first as usize..end as usize];
                 let n = kids.len() as u32;
-                let mut idx = scratch.rr[slot as usize];
+                let mut idx = scratch.rr.get(slot);
                 let mut t = 0.0;
                 // the index it leaves (unchanged if it never returns)
                 let (kept, mut left) = (idx, idx);
                 let mut ok = false;
                 for _ in 0..n {
                     let d;
-                    (ok, d) = self.run(kids[idx as usize], at + t, rng, scratch);
+                    (ok, d) = self.run::<R, REC>(kids[idx as usize], at + t, rng, scratch);
                     t += d;
                     if !d.is_finite() {
                         (ok, left) = (false, kept);
@@ -682,7 +1118,7 @@ impl Program {
                     journal_run(scratch, slot, at, at + t, true);
                     journal_set(scratch, slot, left, at + t);
                 } else {
-                    scratch.rr[slot as usize] = left;
+                    scratch.rr.set(slot, left);
                 }
                 (ok, t)
             }
@@ -698,14 +1134,14 @@ impl Program {
                 // child's Success resets it to 0
                 let kids = &self.kids[first as usize..end as usize];
                 let mut t = 0.0;
-                let start = scratch.rr[slot as usize] as usize;
+                let start = scratch.rr.get(slot) as usize;
                 let mut result = (true, 0);
                 for (i, &c) in kids.iter().enumerate().skip(start) {
                     if halted && i > start {
                         // the index while child i runs (what a halt keeps)
                         journal_set(scratch, slot, i as u32, at + t);
                     }
-                    let (ok, d) = self.run(c, at + t, rng, scratch);
+                    let (ok, d) = self.run::<R, REC>(c, at + t, rng, scratch);
                     t += d;
                     if !ok || !d.is_finite() {
                         result = (false, i as u32);
@@ -716,7 +1152,7 @@ impl Program {
                     journal_run(scratch, slot, at, at + t, resets);
                     journal_set(scratch, slot, result.1, at + t);
                 } else {
-                    scratch.rr[slot as usize] = result.1;
+                    scratch.rr.set(slot, result.1);
                 }
                 (result.0, t)
             }
@@ -725,7 +1161,7 @@ impl Program {
                 let (mut state, mut t) = (0u32, 0.0);
                 loop {
                     let step = steps[state as usize];
-                    let (ok, d) = self.run(step.child, at + t, rng, scratch);
+                    let (ok, d) = self.run::<R, REC>(step.child, at + t, rng, scratch);
                     t += d;
                     if !d.is_finite() {
                         return (false, t);
@@ -740,11 +1176,11 @@ impl Program {
             }
             Op::Decorator { child, kind, n } => match kind {
                 DecoratorOp::Invert => {
-                    let (ok, d) = self.run(child, at, rng, scratch);
+                    let (ok, d) = self.run::<R, REC>(child, at, rng, scratch);
                     (!ok && d.is_finite(), d)
                 }
                 DecoratorOp::Force(outcome) => {
-                    let d = self.run(child, at, rng, scratch).1;
+                    let d = self.run::<R, REC>(child, at, rng, scratch).1;
                     (outcome && d.is_finite(), d)
                 }
                 DecoratorOp::Retry | DecoratorOp::Repeat => {
@@ -752,7 +1188,7 @@ impl Program {
                     let stop = kind == DecoratorOp::Retry;
                     let mut t = 0.0;
                     for _ in 0..n {
-                        let (ok, d) = self.run(child, at + t, rng, scratch);
+                        let (ok, d) = self.run::<R, REC>(child, at + t, rng, scratch);
                         t += d;
                         if !d.is_finite() {
                             return (false, t);
@@ -774,7 +1210,7 @@ impl Program {
     /// returns wins: earlier children are ticked first), and succeeds when
     /// the last child succeeds.
     #[inline(never)]
-    fn run_pipeline<R: Rng>(
+    fn run_pipeline<R: Rng, const REC: bool>(
         &self,
         first: u32,
         end: u32,
@@ -789,7 +1225,7 @@ impl Program {
         let last = end - 1;
         let mut result = None;
         for i in first..end {
-            let (ok, d) = self.run(self.kids[i as usize], at + t, rng, scratch);
+            let (ok, d) = self.run::<R, REC>(self.kids[i as usize], at + t, rng, scratch);
             let stop = t + d;
             // the earliest failure of a re-run that comes before `stop`
             let mut fail = f64::INFINITY;
@@ -799,7 +1235,7 @@ impl Program {
                 // that cannot fail would go on forever: they decide nothing
                 let endless = !stop.is_finite() && !r.can_fail;
                 while r.fail_at == f64::INFINITY && r.next <= stop && !endless {
-                    let (ok, d) = self.run(r.op, at + r.next, rng, scratch);
+                    let (ok, d) = self.run::<R, REC>(r.op, at + r.next, rng, scratch);
                     if !d.is_finite() {
                         // a re-run that never returns: no more re-runs
                         r.next = f64::INFINITY;
@@ -876,7 +1312,7 @@ impl Program {
     /// the children in order, as in BehaviorTree.CPP).
     #[inline(never)]
     #[allow(clippy::too_many_arguments)]
-    fn parallel<R: Rng>(
+    fn parallel<R: Rng, const REC: bool>(
         &self,
         first: u32,
         end: u32,
@@ -894,7 +1330,7 @@ impl Program {
         let f = (f as usize).min(n - m + 1);
         let book = f == n - m + 1;
         for &c in &self.kids[first as usize..end as usize] {
-            let (ok, d) = self.run(c, at, rng, scratch);
+            let (ok, d) = self.run::<R, REC>(c, at, rng, scratch);
             if ok {
                 scratch.succ.push(d);
             } else {
@@ -932,7 +1368,7 @@ impl Program {
 /// Sets `rr[slot]` to `index` at episode time `at`, journaled while a
 /// halter runs.
 fn journal_set(scratch: &mut Scratch, slot: u32, index: u32, at: f64) {
-    let old = std::mem::replace(&mut scratch.rr[slot as usize], index);
+    let old = scratch.rr.set(slot, index);
     if scratch.halters > 0 && old != index {
         scratch.journal.push(Journal::Set { slot, old, at });
     }
@@ -969,7 +1405,7 @@ fn halt_at(scratch: &mut Scratch, from: usize, h: f64) {
         for e in journal[from..].iter().rev() {
             if let Journal::Set { slot, old, at } = *e {
                 if after(at, h) {
-                    rr[slot as usize] = old;
+                    rr.set(slot, old);
                 }
             }
         }
@@ -1094,15 +1530,72 @@ mod tests {
             "tree: {fallback: {children: [{condition: {ps: 0}}, {fallback: {children: [\
              {action: {ps: .5, mu: 1, nu: 1}}, {action: {ps: .5, mu: 1, nu: 1}}]}}]}}",
         );
-        assert_eq!(p.ops[p.root as usize], Op::FbLeaves { first: 0, end: 2 });
-        // Sequence[cond ps 1] returns Success at 0.
+        // (flattened: a, then b on a's Failure)
+        assert_eq!(p.leaves.len(), 2);
+        let Op::Chain { entry } = p.ops[p.root as usize] else {
+            panic!("a chain")
+        };
+        let b = Instr {
+            leaf: 0,
+            next: [FLOW_FAILURE, FLOW_SUCCESS],
+        };
+        assert_eq!(
+            p.code,
+            vec![
+                b,
+                Instr {
+                    leaf: 1,
+                    next: [0, FLOW_SUCCESS]
+                }
+            ]
+        );
+        assert_eq!(entry, 1);
+        // Sequence[cond ps 1] returns Success at 0 (drawing one number).
         let p = compiled("tree: {sequence: {children: [{condition: {ps: 1}}]}}");
         assert_eq!(p.leaves, vec![Leaf::constant(true)]);
-        // A Fallback in a Sequence stays.
+        // A Fallback in a Sequence: the condition's Success goes on to the
+        // Fallback's first child, whose Failure to its second.
         let p = compiled(
             "tree: {sequence: {children: [{condition: {ps: .5}}, {fallback: {children: [\
              {action: {ps: .5, mu: 1, nu: 1}}, {condition: {ps: .2}}]}}]}}",
         );
-        assert!(matches!(p.ops[p.root as usize], Op::Sequence { .. }));
+        let (s, f) = (FLOW_SUCCESS, FLOW_FAILURE);
+        assert_eq!(
+            p.code,
+            vec![
+                Instr {
+                    leaf: 0,
+                    next: [f, s]
+                },
+                Instr {
+                    leaf: 1,
+                    next: [0, s]
+                },
+                Instr {
+                    leaf: 2,
+                    next: [f, 1]
+                },
+            ]
+        );
+        assert_eq!(p.ops[p.root as usize], Op::Chain { entry: 2 });
+        // Inverter(Sequence[a, b]) swaps the exits; the recording program
+        // keeps one op per node.
+        let p = compiled(
+            "tree: {inverter: {child: {sequence: {children: [{condition: {ps: .5}}, \
+             {condition: {ps: .2}}]}}}}",
+        );
+        assert_eq!(
+            p.code,
+            vec![
+                Instr {
+                    leaf: 0,
+                    next: [s, f]
+                },
+                Instr {
+                    leaf: 1,
+                    next: [s, 0]
+                }
+            ]
+        );
     }
 }

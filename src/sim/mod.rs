@@ -21,10 +21,11 @@
 //!
 //! # What is estimated
 //!
-//! * **Per node** ([`SimOptions::per_node`]): every node's subtree is run on
-//!   its own [`SimOptions::runs`] times, as if it were the root, giving `ps`,
-//!   `pf` (binomial), MTTS and MTTF (means of the durations of the successful
-//!   and of the failed runs), comparable with the analytic per-node report.
+//! * **Per node** ([`SimOptions::per_node`]): [`SimOptions::runs`] runs of
+//!   every node's subtree as if it were the root, giving `ps`, `pf`
+//!   (binomial), MTTS and MTTF (means of the durations of the successful and
+//!   of the failed runs), comparable with the analytic per-node report. Most
+//!   of them come from the root's own episodes (below).
 //! * **Curve** ([`SimOptions::times`]): for the simulated root, the
 //!   probabilities of having returned Success, Failure, or neither by each
 //!   time point.
@@ -37,12 +38,38 @@
 //! [`seed_from_u64`](rand::SeedableRng::seed_from_u64)`(seed)` and then
 //! [`jump`](rand_xoshiro::Xoshiro256PlusPlus::jump)ed `k` times (2^128 draws
 //! apart, so streams never overlap). Within a chunk the root's runs come
-//! first, then each other node's runs in tree order, so the root's figures
-//! are also the same with and without `per_node`. Chunks run in parallel,
-//! and their sums are merged strictly in chunk order.
+//! first, then each other node's own runs in tree order (below), so the
+//! root's figures are also the same with and without `per_node`. Chunks run
+//! in parallel, and their sums are merged strictly in chunk order.
 //!
 //! Memory is O(threads × (nodes + time points)), independent of the number
 //! of runs: only counts and sums are kept, never samples.
+//!
+//! # One episode for all nodes
+//!
+//! With `per_node`, each episode of the root also records, for every node
+//! it runs, that node's **first run in the episode** (its outcome and
+//! duration; a run that never returns too). That run is a run of the node
+//! on its own: whether an episode reaches a node is decided before the
+//! node starts (by the draws of the nodes run before it), the node's run
+//! then uses fresh draws of its own, and the engine runs a halted node to
+//! its end (a Parallel's losers, a PipelineSequence's children), so its
+//! outcome and duration are those it would have alone. In each chunk, a
+//! node reached in `v` of the chunk's `n` root episodes gets `n − v` more
+//! runs of its own subtree (drawn after the root's episodes, in tree
+//! order): exactly `n` independent runs, as if it had been simulated on its
+//! own. Only the first run counts: later runs in the same episode (a
+//! retry, a re-plan) are independent too, but how many there are depends on
+//! the earlier runs' outcomes, which would weight the sample.
+//!
+//! This holds for a node whose subtree has **no state across runs**. A
+//! RoundRobin's or SequenceWithMemory's index carries over from one run to
+//! the next within an episode (the copies a RecoveryNode makes share it), so
+//! a node with one in its subtree may start a run at an index other than
+//! 0, which a run on its own never does: such nodes (and their ancestors)
+//! are run on their own `runs` times, as before. For a tree of Sequences,
+//! Fallbacks, Parallels and decorators, simulating every node costs about
+//! as much as the root alone plus the nodes the root seldom reaches.
 //!
 //! ```
 //! let tree = btrel::tree::parse_str(
@@ -60,6 +87,7 @@
 //! ```
 
 mod engine;
+pub mod sequential;
 mod stats;
 
 use rand::SeedableRng;
@@ -419,8 +447,18 @@ pub fn simulate_node(
             .iter()
             .map(|&id| Program::with_outcomes(tree, id, can.clone()))
             .collect();
+        // with per_node, the root's episodes also record every node's first
+        // run (module docs, "One episode for all nodes")
+        let recording = opts
+            .per_node
+            .then(|| Program::recording(tree, node, can.clone()));
+        let reuse: Vec<bool> = targets.iter().map(|&id| stateless(tree, id)).collect();
         let job = Job {
             programs: &programs,
+            recording: recording.as_ref(),
+            reuse: &reuse,
+            root: node,
+            targets: &targets,
             sorted: &sorted,
         };
         job.run_all(opts.runs, opts.seed, progress)
@@ -443,10 +481,34 @@ pub fn simulate_node(
     Ok(total.finish(opts, &targets, &order, &sorted))
 }
 
+/// Whether the subtree at `id` has no state that outlives a run within an
+/// episode (the index of a RoundRobin or SequenceWithMemory, which its copies
+/// made by a RecoveryNode share): then each of its runs in an episode is a
+/// fresh run, and its first run in an episode of an ancestor is a sample of
+/// it run on its own.
+fn stateless(tree: &Tree, id: NodeId) -> bool {
+    use crate::tree::NodeKind;
+    tree.subtree(id).all(|i| {
+        !matches!(
+            tree.nodes[i].kind,
+            NodeKind::RoundRobin { .. } | NodeKind::SequenceWithMemory { .. }
+        )
+    })
+}
+
 /// The fixed inputs of a simulation.
 struct Job<'a> {
     /// One per simulated node; the first has the curve.
     programs: &'a [Program],
+    /// With `per_node`: the first program, recording.
+    recording: Option<&'a Program>,
+    /// Per program: whether its node's first run in a root episode stands
+    /// for a run on its own ([`stateless`]).
+    reuse: &'a [bool],
+    /// The tree node of the first program.
+    root: NodeId,
+    /// The tree node of each program.
+    targets: &'a [NodeId],
     /// Curve time points, ascending.
     sorted: &'a [f64],
 }
@@ -515,19 +577,63 @@ impl Job<'_> {
             hist: vec![[0; 2]; self.sorted.len() + 1],
         };
         let (first, rest) = self.programs.split_first().expect("at least one node");
+        let first = self.recording.unwrap_or(first);
         let mut scratch = first.scratch();
-        if self.sorted.len() <= LINEAR_SEARCH {
-            self.episodes_with_curve(first, n, rng, &mut scratch, &mut sums, |t, times| {
-                times.iter().filter(|&&x| x < t).count()
-            });
-        } else {
-            self.episodes_with_curve(first, n, rng, &mut scratch, &mut sums, |t, times| {
-                times.partition_point(|&x| x < t)
-            });
+        let recording = self.recording.is_some();
+        match (self.sorted.len() <= LINEAR_SEARCH, recording) {
+            (true, false) => self.episodes_with_curve::<false>(
+                first,
+                n,
+                rng,
+                &mut scratch,
+                &mut sums,
+                |t, times| times.iter().filter(|&&x| x < t).count(),
+            ),
+            (false, false) => self.episodes_with_curve::<false>(
+                first,
+                n,
+                rng,
+                &mut scratch,
+                &mut sums,
+                |t, times| times.partition_point(|&x| x < t),
+            ),
+            (true, true) => self.episodes_with_curve::<true>(
+                first,
+                n,
+                rng,
+                &mut scratch,
+                &mut sums,
+                |t, times| times.iter().filter(|&&x| x < t).count(),
+            ),
+            (false, true) => self.episodes_with_curve::<true>(
+                first,
+                n,
+                rng,
+                &mut scratch,
+                &mut sums,
+                |t, times| times.partition_point(|&x| x < t),
+            ),
         }
-        for (program, raw) in rest.iter().zip(&mut sums.nodes[1..]) {
+        let records = if recording {
+            scratch.take_records()
+        } else {
+            Vec::new()
+        };
+        for (k, (program, raw)) in rest.iter().zip(&mut sums.nodes[1..]).enumerate() {
+            // the node's first runs in the root's episodes, topped up with
+            // runs of its own to n
+            let mut own = n;
+            if self.reuse[k + 1] {
+                if let Some(r) = records.get(self.targets[k + 1] - self.root) {
+                    *raw = r.raw;
+                    own = n - r.visits;
+                }
+            }
+            if own == 0 {
+                continue;
+            }
             let mut scratch = program.scratch();
-            for _ in 0..n {
+            for _ in 0..own {
                 let (ok, t) = program.episode(rng, &mut scratch);
                 // a run that never returns (t = ∞) counts in neither
                 if t.is_finite() {
@@ -538,9 +644,10 @@ impl Job<'_> {
         sums
     }
 
-    /// `bin(t, sorted)` is the number of time points before `t`.
+    /// `bin(t, sorted)` is the number of time points before `t`; `REC`:
+    /// `program` is recording.
     #[inline(always)]
-    fn episodes_with_curve(
+    fn episodes_with_curve<const REC: bool>(
         &self,
         program: &Program,
         n: u64,
@@ -551,7 +658,11 @@ impl Job<'_> {
     ) {
         let raw = &mut sums.nodes[0];
         for _ in 0..n {
-            let (ok, t) = program.episode(rng, scratch);
+            let (ok, t) = if REC {
+                program.episode_recording(rng, scratch)
+            } else {
+                program.episode(rng, scratch)
+            };
             // a run that never returns (t = ∞) counts in neither: running
             // at every time point
             if t.is_finite() {
