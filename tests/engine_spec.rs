@@ -103,3 +103,32 @@ fn random_trees_of_every_kind_and_timing_are_answered_and_agree_with_simulation(
         );
     }
 }
+
+/// A Sequence above a race whose children mix fixed, hybrid, shifted,
+/// Erlang and exponential times (refused as mixed timing before the race's
+/// children could enter as their composed laws): answered, and agreeing
+/// with the simulation of the node semantics.
+#[test]
+fn a_sequence_above_a_mixed_race_is_answered() {
+    use common::anytree::Law;
+    let action = |ps: f64, s: Law, f: Law| Node::Action { ps, s, f };
+    let node = Node::Sequence(vec![
+        action(0.9, Law::Exp(2.0), Law::Exp(1.0)),
+        Node::Parallel {
+            m: 2,
+            f: 1,
+            kids: vec![
+                action(0.8, Law::Fixed(0.7), Law::Capped(1.5, 0.7)),
+                action(
+                    0.7,
+                    Law::Shifted(0.3, Box::new(Law::Exp(2.0))),
+                    Law::Erlang(2, 3.0),
+                ),
+                action(0.6, Law::Capped(1.2, 0.9), Law::Fixed(0.9)),
+            ],
+        },
+    ]);
+    if let Err(e) = check(7, &node) {
+        panic!("{e}\n{}", node.yaml());
+    }
+}

@@ -833,19 +833,14 @@ impl Builder<'_> {
             // thresholds that can both be met: ties in child order
             NodeKind::Parallel { .. } => match det::atoms(self.tree, id, self.max_states)? {
                 Some(atoms) => Ok(self.atoms_law(&atoms)),
-                // the race of its children's laws (`race`): its atoms and
-                // interpolated densities
-                None if !self.mixed[id] => {
+                // the race of its children's laws on the horizon (`race`:
+                // phase chains, shifted mixtures, or their own composed
+                // laws): its atoms and interpolated densities
+                None => {
                     let plan = super::Plan::new(self.tree, super::Method::Exact, self.max_states);
-                    let race = super::race::race_of(&plan, id)?;
+                    let race = super::race::race_within(&plan, id, self.end)?;
                     self.race_law(id, &race)
                 }
-                // the shifted mixture holds such a race within a budget:
-                // where it is over the budget, the budget is what stops it
-                None => match super::shifted::shifted_law(self.tree, id, self.max_states) {
-                    Err(e @ AnalysisError::StateBudget { .. }) => Err(e),
-                    _ => Err(fallback),
-                },
             },
             // Nav2 nodes as their primitive equivalents (`primitive_view`);
             // a Sequence or Fallback over simple leaves as their flow

@@ -940,7 +940,12 @@ pub(crate) fn renewal_race(
 
 /// The race node `id` (a Parallel whose thresholds can both be met).
 pub(crate) fn race_of(plan: &Plan, id: NodeId) -> Result<Race, AnalysisError> {
-    let (m, f, kids) = parallel_racers(plan, id, f64::INFINITY)?;
+    race_within(plan, id, f64::INFINITY)
+}
+
+/// The race node `id`, exact on `[0, horizon]` only.
+pub(crate) fn race_within(plan: &Plan, id: NodeId, horizon: f64) -> Result<Race, AnalysisError> {
+    let (m, f, kids) = parallel_racers(plan, id, horizon)?;
     Race::new(plan.tree().node(id).name.clone(), m, f, kids)
 }
 
