@@ -71,13 +71,32 @@ fn random_trees_of_every_kind_and_timing_are_answered_and_agree_with_simulation(
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(0);
+    // the seeds on two workers (the machine's cores), in seed order after
+    let next = std::sync::atomic::AtomicU64::new(from);
+    let results = std::sync::Mutex::new(Vec::new());
+    std::thread::scope(|s| {
+        for _ in 0..2 {
+            s.spawn(|| loop {
+                let seed = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                if seed >= from + n {
+                    break;
+                }
+                let node = random_tree(seed, 10);
+                let start = Instant::now();
+                let r = check(seed, &node);
+                let took = start.elapsed();
+                results
+                    .lock()
+                    .expect("no worker panics")
+                    .push((seed, node, r, took));
+            });
+        }
+    });
+    let mut results = results.into_inner().expect("no worker panics");
+    results.sort_by_key(|r| r.0);
     let mut failures = Vec::new();
     let mut slow = Vec::new();
-    for seed in from..from + n {
-        let node = random_tree(seed, 10);
-        let start = Instant::now();
-        let r = check(seed, &node);
-        let took = start.elapsed();
+    for (seed, node, r, took) in results {
         if took > Duration::from_secs(2) {
             if survey.is_some() {
                 println!("seed {seed}: slow ({took:?})\n{}", node.yaml());
