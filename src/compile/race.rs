@@ -91,7 +91,7 @@ pub(crate) enum Racer {
 /// Mass a [`Racer::Law`] may leave unreturned past its horizon (its
 /// probabilities are held there: the race's figures change by at most
 /// this, its mean times by this times the node's time scale).
-const LAW_TAIL: f64 = 1e-13;
+const LAW_TAIL: f64 = 1e-10;
 
 /// Most doublings of a [`Racer::Law`]'s horizon.
 const LAW_DOUBLINGS: usize = 12;
@@ -252,7 +252,7 @@ impl Racer {
         }
         for _ in 0..LAW_DOUBLINGS {
             let law = HorizonLaw::build(tree, id, end, max_states)?;
-            if returns - law.mass() <= LAW_TAIL {
+            if (returns - law.mass()).abs() <= LAW_TAIL {
                 return Ok(Racer::Law(Box::new(law)));
             }
             end *= 2.0;
