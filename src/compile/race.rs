@@ -91,7 +91,7 @@ pub(crate) enum Racer {
 /// Mass a [`Racer::Law`] may leave unreturned past its horizon (its
 /// probabilities are held there: the race's figures change by at most
 /// this, its mean times by this times the node's time scale).
-const LAW_TAIL: f64 = 1e-10;
+const LAW_TAIL: f64 = 1e-13;
 
 /// Most doublings of a [`Racer::Law`]'s horizon.
 const LAW_DOUBLINGS: usize = 12;
@@ -252,7 +252,7 @@ impl Racer {
         }
         for _ in 0..LAW_DOUBLINGS {
             let law = HorizonLaw::build(tree, id, end, max_states)?;
-            if (returns - law.mass()).abs() <= LAW_TAIL {
+            if returns - law.mass() <= LAW_TAIL {
                 return Ok(Racer::Law(Box::new(law)));
             }
             end *= 2.0;
@@ -615,7 +615,16 @@ impl Race {
     /// that limit, not of zero.
     fn limits(&self, scale: f64, ends: &[Figures]) -> Result<[f64; 4], AnalysisError> {
         let never = if ends.len() == self.children.len() {
-            let rows: Vec<Row> = ends.iter().map(|c| [c.ps, c.pf, 0.0, 0.0]).collect();
+            // a composed-law child holds its probabilities past its horizon:
+            // its limit is those (within its tail of the figures')
+            let rows: Vec<Row> = ends
+                .iter()
+                .zip(&self.children)
+                .map(|(c, r)| match r {
+                    Racer::Law(l) => l.row(f64::INFINITY, false),
+                    _ => [c.ps, c.pf, 0.0, 0.0],
+                })
+                .collect();
             race_densities(&rows, self.m, self.f)[2].max(0.0)
         } else {
             0.0
