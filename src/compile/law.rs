@@ -176,26 +176,7 @@ impl HorizonLaw {
         end: f64,
         max_states: usize,
     ) -> Result<HorizonLaw, AnalysisError> {
-        let memo = LawMemo::default();
-        let mixed = non_markovian(tree);
-        let b = Builder {
-            tree,
-            end,
-            max_states,
-            memo: &memo,
-            mixed: &mixed,
-        };
-        let law = b.law(id)?;
-        if law.dropped() > DROPPED_LIMIT {
-            return Err(AnalysisError::Numerical {
-                node: b.name(id),
-                what: format!(
-                    "its law has {:.1e} probability in atoms below {ATOM_FLOOR:e} (more than \
-                     {DROPPED_LIMIT:e})",
-                    law.dropped()
-                ),
-            });
-        }
+        let law = composed_law(tree, id, end, max_states, |b| b.law(id))?;
         Ok(HorizonLaw { law, end })
     }
 
@@ -335,26 +316,9 @@ pub(super) fn curve_by_laws(
     fallback: AnalysisError,
 ) -> Result<Vec<CurvePoint>, AnalysisError> {
     let end = times.iter().copied().fold(0.0, f64::max);
-    let memo = LawMemo::default();
-    let mixed = non_markovian(tree);
-    let b = Builder {
-        tree,
-        end,
-        max_states: options.max_states,
-        memo: &memo,
-        mixed: &mixed,
-    };
-    let law = b.opaque(id, fallback)?;
-    if law.dropped() > DROPPED_LIMIT {
-        return Err(AnalysisError::Numerical {
-            node: b.name(id),
-            what: format!(
-                "its law has {:.1e} probability in atoms below {ATOM_FLOOR:e} (more than \
-                 {DROPPED_LIMIT:e})",
-                law.dropped()
-            ),
-        });
-    }
+    let law = composed_law(tree, id, end, options.max_states, |b| {
+        b.opaque(id, fallback)
+    })?;
     Ok(times
         .iter()
         .map(|&t| {
@@ -368,6 +332,38 @@ pub(super) fn curve_by_laws(
             }
         })
         .collect())
+}
+
+/// The law of `id` that `build` makes with a fresh builder on `[0, end]`, refused where
+/// it dropped more than [`DROPPED_LIMIT`] of atom mass.
+fn composed_law(
+    tree: &Tree,
+    id: NodeId,
+    end: f64,
+    max_states: usize,
+    build: impl FnOnce(&Builder) -> Result<Law, AnalysisError>,
+) -> Result<Law, AnalysisError> {
+    let memo = LawMemo::default();
+    let mixed = non_markovian(tree);
+    let b = Builder {
+        tree,
+        end,
+        max_states,
+        memo: &memo,
+        mixed: &mixed,
+    };
+    let law = build(&b)?;
+    if law.dropped() > DROPPED_LIMIT {
+        return Err(AnalysisError::Numerical {
+            node: b.name(id),
+            what: format!(
+                "its law has {:.1e} probability in atoms below {ATOM_FLOOR:e} (more than \
+                 {DROPPED_LIMIT:e})",
+                law.dropped()
+            ),
+        });
+    }
+    Ok(law)
 }
 
 /// Accepted bound on the time the children may still run beyond the
