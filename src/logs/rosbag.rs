@@ -47,7 +47,7 @@ use std::path::{Path, PathBuf};
 
 use super::btlog::Status;
 use super::rosbag_map::{BagTree, Replay};
-use super::{Log, LogError, MAX_LOG_BYTES};
+use super::{cannot_read, checked_len, Log, LogError};
 
 /// The message type of Nav2's behavior tree log.
 pub const MESSAGE_TYPE: &str = "nav2_msgs/msg/BehaviorTreeLog";
@@ -660,21 +660,8 @@ type Storage = (Vec<Topic>, Vec<Raw>);
 
 fn read_storage(path: &Path, want: &dyn Fn(&str, &str) -> bool) -> Result<Storage, LogError> {
     let file = path.display().to_string();
-    let meta = std::fs::metadata(path)
-        .map_err(|e| LogError::new(&file, None, format!("cannot read the file: {e}")))?;
-    if meta.len() > MAX_LOG_BYTES {
-        return Err(LogError::new(
-            &file,
-            None,
-            format!(
-                "the file has {} bytes, more than the {} bytes btrel reads",
-                meta.len(),
-                MAX_LOG_BYTES
-            ),
-        ));
-    }
-    let bytes = std::fs::read(path)
-        .map_err(|e| LogError::new(&file, None, format!("cannot read the file: {e}")))?;
+    checked_len(path, &file)?;
+    let bytes = std::fs::read(path).map_err(|e| cannot_read(&file, e))?;
     if bytes.starts_with(super::sqlite::MAGIC) {
         drop(bytes);
         return read_db3(path, &file, want);
