@@ -750,32 +750,11 @@ fn read_db3(
     file: &str,
     want: &dyn Fn(&str, &str) -> bool,
 ) -> Result<Storage, LogError> {
-    use rusqlite::{Connection, OpenFlags};
-    let damaged = |at: &str| {
-        let at = at.to_string();
-        move |e: rusqlite::Error| {
-            LogError::new(
-                file,
-                Some(at.clone()),
-                format!("the rosbag2 SQLite file cannot be read (damaged or truncated?): {e}"),
-            )
-        }
-    };
-    let db = Connection::open_with_flags(
-        path,
-        OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX,
-    )
-    .map_err(damaged("opening"))?;
-    let tables = {
-        let mut st = db
-            .prepare("SELECT name FROM sqlite_master WHERE type = 'table'")
-            .map_err(damaged("the schema"))?;
-        let rows = st
-            .query_map([], |r| r.get::<_, String>(0))
-            .map_err(damaged("the schema"))?;
-        rows.collect::<Result<Vec<_>, _>>()
-            .map_err(damaged("the schema"))?
-    };
+    use super::sqlite;
+    let what = "the rosbag2 SQLite file";
+    let damaged = |at: &str| sqlite::damaged(file, what, at);
+    let db = sqlite::open_read_only(path).map_err(damaged("opening"))?;
+    let tables = sqlite::table_names(&db, file, what)?;
     for t in ["topics", "messages"] {
         if !tables.iter().any(|x| x == t) {
             let btcpp = tables.iter().any(|x| x == "Transitions");
