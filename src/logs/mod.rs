@@ -117,6 +117,26 @@ impl std::error::Error for LogError {}
 /// Largest log file read, in bytes.
 pub const MAX_LOG_BYTES: u64 = 1 << 30;
 
+/// The error for a log file that cannot be read (`file` names it).
+pub(crate) fn cannot_read(file: &str, e: std::io::Error) -> LogError {
+    LogError::new(file, None, format!("cannot read the file: {e}"))
+}
+
+/// The size of a log file in bytes, refused past [`MAX_LOG_BYTES`].
+pub(crate) fn checked_len(path: &Path, file: &str) -> Result<u64, LogError> {
+    let len = std::fs::metadata(path)
+        .map_err(|e| cannot_read(file, e))?
+        .len();
+    if len > MAX_LOG_BYTES {
+        return Err(LogError::new(
+            file,
+            None,
+            format!("the file has {len} bytes, more than the {MAX_LOG_BYTES} bytes btrel reads"),
+        ));
+    }
+    Ok(len)
+}
+
 /// File extensions of SQLite logs (BT.CPP requires `.db3` or `.btdb`).
 const SQLITE_EXTENSIONS: &[&str] = &["db3", "btdb", "db", "sqlite", "sqlite3"];
 
@@ -129,8 +149,7 @@ pub fn read_logs(path: &Path) -> Result<Vec<Log>, LogError> {
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
-    let cannot =
-        |e: std::io::Error| LogError::new(&file, None, format!("cannot read the file: {e}"));
+    let cannot = |e: std::io::Error| cannot_read(&file, e);
     if rosbag::is_rosbag(path) {
         return Err(LogError::new(
             &file,
@@ -139,18 +158,7 @@ pub fn read_logs(path: &Path) -> Result<Vec<Log>, LogError> {
              the tree that ran (`btrel fit BAG --tree TREE.xml`, rosbag::read)",
         ));
     }
-    let meta = std::fs::metadata(path).map_err(cannot)?;
-    if meta.len() > MAX_LOG_BYTES {
-        return Err(LogError::new(
-            &file,
-            None,
-            format!(
-                "the file has {} bytes, more than the {} bytes btrel reads",
-                meta.len(),
-                MAX_LOG_BYTES
-            ),
-        ));
-    }
+    let len = checked_len(path, &file)?;
     let mut head = Vec::with_capacity(sqlite::MAGIC.len());
     std::fs::File::open(path)
         .and_then(|f| f.take(sqlite::MAGIC.len() as u64).read_to_end(&mut head))
@@ -165,7 +173,7 @@ pub fn read_logs(path: &Path) -> Result<Vec<Log>, LogError> {
             format!(
                 "not an SQLite database: the file does not start with `SQLite format 3` \
                  ({} bytes; truncated, or not written by BT.CPP's SqliteLogger?)",
-                meta.len()
+                len
             ),
         ));
     }

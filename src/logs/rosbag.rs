@@ -47,7 +47,7 @@ use std::path::{Path, PathBuf};
 
 use super::btlog::Status;
 use super::rosbag_map::{BagTree, Replay};
-use super::{Log, LogError, MAX_LOG_BYTES};
+use super::{cannot_read, checked_len, Log, LogError};
 
 /// The message type of Nav2's behavior tree log.
 pub const MESSAGE_TYPE: &str = "nav2_msgs/msg/BehaviorTreeLog";
@@ -660,21 +660,8 @@ type Storage = (Vec<Topic>, Vec<Raw>);
 
 fn read_storage(path: &Path, want: &dyn Fn(&str, &str) -> bool) -> Result<Storage, LogError> {
     let file = path.display().to_string();
-    let meta = std::fs::metadata(path)
-        .map_err(|e| LogError::new(&file, None, format!("cannot read the file: {e}")))?;
-    if meta.len() > MAX_LOG_BYTES {
-        return Err(LogError::new(
-            &file,
-            None,
-            format!(
-                "the file has {} bytes, more than the {} bytes btrel reads",
-                meta.len(),
-                MAX_LOG_BYTES
-            ),
-        ));
-    }
-    let bytes = std::fs::read(path)
-        .map_err(|e| LogError::new(&file, None, format!("cannot read the file: {e}")))?;
+    checked_len(path, &file)?;
+    let bytes = std::fs::read(path).map_err(|e| cannot_read(&file, e))?;
     if bytes.starts_with(super::sqlite::MAGIC) {
         drop(bytes);
         return read_db3(path, &file, want);
@@ -763,32 +750,11 @@ fn read_db3(
     file: &str,
     want: &dyn Fn(&str, &str) -> bool,
 ) -> Result<Storage, LogError> {
-    use rusqlite::{Connection, OpenFlags};
-    let damaged = |at: &str| {
-        let at = at.to_string();
-        move |e: rusqlite::Error| {
-            LogError::new(
-                file,
-                Some(at.clone()),
-                format!("the rosbag2 SQLite file cannot be read (damaged or truncated?): {e}"),
-            )
-        }
-    };
-    let db = Connection::open_with_flags(
-        path,
-        OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX,
-    )
-    .map_err(damaged("opening"))?;
-    let tables = {
-        let mut st = db
-            .prepare("SELECT name FROM sqlite_master WHERE type = 'table'")
-            .map_err(damaged("the schema"))?;
-        let rows = st
-            .query_map([], |r| r.get::<_, String>(0))
-            .map_err(damaged("the schema"))?;
-        rows.collect::<Result<Vec<_>, _>>()
-            .map_err(damaged("the schema"))?
-    };
+    use super::sqlite;
+    let what = "the rosbag2 SQLite file";
+    let damaged = |at: &str| sqlite::damaged(file, what, at);
+    let db = sqlite::open_read_only(path).map_err(damaged("opening"))?;
+    let tables = sqlite::table_names(&db, file, what)?;
     for t in ["topics", "messages"] {
         if !tables.iter().any(|x| x == t) {
             let btcpp = tables.iter().any(|x| x == "Transitions");

@@ -56,33 +56,56 @@ fn kind(v: ValueRef<'_>) -> &'static str {
     }
 }
 
+/// Opens an SQLite file read-only (a SqliteLogger database or a rosbag2
+/// `.db3`).
+pub(crate) fn open_read_only(path: &Path) -> rusqlite::Result<Connection> {
+    let flags = OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX;
+    Connection::open_with_flags(path, flags)
+}
+
+/// The error for a failed read of `what` (e.g. "the SQLite database") in
+/// `file`, located at `at` (e.g. "the schema").
+pub(crate) fn damaged(
+    file: &str,
+    what: &str,
+    at: &str,
+) -> impl FnOnce(rusqlite::Error) -> LogError {
+    let (file, what, at) = (file.to_string(), what.to_string(), at.to_string());
+    move |e| {
+        LogError::new(
+            &file,
+            Some(at),
+            format!("{what} cannot be read (damaged or truncated?): {e}"),
+        )
+    }
+}
+
+/// The names of the tables of an SQLite file, sorted; a failure is
+/// reported as `damaged(file, what, "the schema")`.
+pub(crate) fn table_names(
+    db: &Connection,
+    file: &str,
+    what: &str,
+) -> Result<Vec<String>, LogError> {
+    let damaged = || damaged(file, what, "the schema");
+    let mut st = db
+        .prepare("SELECT name FROM sqlite_master WHERE type = 'table' ORDER BY name")
+        .map_err(damaged())?;
+    let rows = st
+        .query_map([], |r| r.get::<_, String>(0))
+        .map_err(damaged())?;
+    rows.collect::<Result<Vec<_>, _>>().map_err(damaged())
+}
+
 /// Reads every session of a SqliteLogger database, opened read-only.
 pub fn read(path: &Path, file: &str) -> Result<Vec<Log>, LogError> {
-    let flags = OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX;
-    let db = Connection::open_with_flags(path, flags)
+    let db = open_read_only(path)
         .map_err(|e| LogError::new(file, None, format!("cannot open the SQLite database: {e}")))?;
-    let damaged = |at: &str| {
-        let at = at.to_string();
-        move |e: rusqlite::Error| {
-            LogError::new(
-                file,
-                Some(at.clone()),
-                format!("the SQLite database cannot be read (damaged or truncated?): {e}"),
-            )
-        }
-    };
+    let what = "the SQLite database";
+    let damaged = |at: &str| damaged(file, what, at);
 
     // the schema
-    let mut tables: Vec<String> = Vec::new();
-    {
-        let mut st = db
-            .prepare("SELECT name FROM sqlite_master WHERE type = 'table' ORDER BY name")
-            .map_err(damaged("the schema"))?;
-        let mut rows = st.query([]).map_err(damaged("the schema"))?;
-        while let Some(r) = rows.next().map_err(damaged("the schema"))? {
-            tables.push(r.get(0).map_err(damaged("the schema"))?);
-        }
-    }
+    let tables = table_names(&db, file, what)?;
     let columns = |table: &str| -> Result<Vec<String>, LogError> {
         let at = format!("table {table}");
         let mut st = db
