@@ -1177,6 +1177,28 @@ fn ci_sampler(
     Ok(sampler)
 }
 
+/// The notes of `--ci` on standard error: the intervals' level, draws, seed
+/// and method, then the parameters held fixed and how the sampler drew the
+/// others.
+fn ci_notes(ci: &CiSettings, sampler: &btrel::uncertainty::Sampler) {
+    eprintln!(
+        "note: {} intervals from {} draws (seed {}): {}",
+        btrel::report::intervals::percent(ci.level),
+        ci.draws,
+        ci.seed,
+        btrel::uncertainty::METHOD
+    );
+    if !sampler.fixed.is_empty() {
+        eprintln!(
+            "note: fixed (no `fit:` statistics in the params file): {}",
+            sampler.fixed.join(", ")
+        );
+    }
+    for h in sampler.held.iter().chain(&sampler.independent) {
+        eprintln!("note: {h}");
+    }
+}
+
 fn completions(shell: clap_complete::Shell) -> Result<(), Failure> {
     use clap::CommandFactory;
     let mut cmd = Cli::command();
@@ -1893,22 +1915,7 @@ fn curve(args: CurveArgs) -> Result<(), Failure> {
                     Ok(v)
                 })
                 .map_err(analysis_failure(Cmd::Curve, options.method))?;
-            eprintln!(
-                "note: {} intervals from {} draws (seed {}): {}",
-                btrel::report::intervals::percent(ci.level),
-                ci.draws,
-                ci.seed,
-                btrel::uncertainty::METHOD
-            );
-            if !sampler.fixed.is_empty() {
-                eprintln!(
-                    "note: fixed (no `fit:` statistics in the params file): {}",
-                    sampler.fixed.join(", ")
-                );
-            }
-            for h in sampler.held.iter().chain(&sampler.independent) {
-                eprintln!("note: {h}");
-            }
+            ci_notes(ci, &sampler);
             Some(flat)
         }
     };
@@ -2201,10 +2208,7 @@ fn plot(args: PlotArgs) -> Result<(), Failure> {
             i += 1;
         }
     }
-    let tree_title = tree
-        .title
-        .clone()
-        .unwrap_or_else(|| tree.nodes[0].name.clone());
+    let tree_title = btrel::report::title(&tree);
     let title = match (&args.compare, deadline) {
         (Some(n), Some(d)) => format!(
             "{tree_title}: orderings of '{n}', best by P(success by {} s) first",
@@ -2823,22 +2827,7 @@ fn check_requirements(args: CheckArgs) -> Result<(), Failure> {
                         gate::exact_values(t, &reqs, &options)
                     })
                     .map_err(analysis_failure(Cmd::Check, options.method))?;
-                eprintln!(
-                    "note: {} intervals from {} draws (seed {}): {}",
-                    percent(ci.level),
-                    ci.draws,
-                    ci.seed,
-                    btrel::uncertainty::METHOD
-                );
-                if !sampler.fixed.is_empty() {
-                    eprintln!(
-                        "note: fixed (no `fit:` statistics in the params file): {}",
-                        sampler.fixed.join(", ")
-                    );
-                }
-                for h in sampler.held.iter().chain(&sampler.independent) {
-                    eprintln!("note: {h}");
-                }
+                ci_notes(ci, &sampler);
                 Some(b)
             }
         };

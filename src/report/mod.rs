@@ -34,6 +34,13 @@ pub struct NodeReport {
     pub figures: Figures,
 }
 
+/// The name reports give a tree: its title, or the root's name.
+pub fn title(tree: &Tree) -> String {
+    tree.title
+        .clone()
+        .unwrap_or_else(|| tree.nodes[0].name.clone())
+}
+
 /// Figures of every node of a tree, in tree order.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Report {
@@ -49,10 +56,7 @@ impl Report {
     /// Pairs a tree with its analysis.
     pub fn new(tree: &Tree, analysis: &Analysis) -> Report {
         Report {
-            tree: tree
-                .title
-                .clone()
-                .unwrap_or_else(|| tree.nodes[0].name.clone()),
+            tree: title(tree),
             method: analysis.method,
             nodes: tree
                 .nodes

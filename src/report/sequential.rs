@@ -93,65 +93,31 @@ pub fn missed_phrases(tree: &Tree, r: &PrecisionResult) -> Vec<String> {
 /// half-width`, then the curve if times were asked.
 pub fn write_table(tree: &Tree, r: &PrecisionResult, out: &mut dyn Write) -> io::Result<()> {
     let s = &r.sim;
-    let title = tree
-        .title
-        .clone()
-        .unwrap_or_else(|| tree.nodes[0].name.clone());
     writeln!(
         out,
-        "{title} — Monte Carlo to a precision: {} runs per node, seed {} (estimate ± half-width \
+        "{} — Monte Carlo to a precision: {} runs per node, seed {} (estimate ± half-width \
          of the {} interval; times in s)",
+        super::title(tree),
         s.runs,
         s.seed,
         percent(r.precision.confidence)
     )?;
     writeln!(out, "{}", rules_line(r))?;
-    let never = s.nodes.iter().any(|n| n.never.mean > 0.0);
-    let mut header = vec![
-        "node".to_string(),
-        "kind".into(),
-        "ps".into(),
-        "MTTS".into(),
-        "MTTF".into(),
-    ];
-    if never {
-        header.insert(3, "never".into());
-    }
-    let root_depth = tree.node(s.nodes[0].node).depth;
-    let mut rows = vec![header];
-    for (n, i) in s.nodes.iter().zip(&r.intervals) {
-        let node = tree.node(n.node);
-        let mut row = vec![
-            format!("{}{}", "  ".repeat(node.depth - root_depth), node.name),
-            node.kind.keyword().into(),
-            pm_p(n.ps.mean, r),
-            pm(n.mtts.map(|e| e.mean), &i[3]),
-            pm(n.mttf.map(|e| e.mean), &i[4]),
-        ];
-        if never {
-            row.insert(3, pm_p(n.never.mean, r));
-        }
-        rows.push(row);
-    }
-    super::table::write_aligned(&rows, |j, _| j < 2, out)?;
-    if !s.curve.is_empty() {
-        writeln!(out)?;
-        let mut rows = vec![vec![
-            "t".to_string(),
-            "P(success by t)".into(),
-            "P(failure by t)".into(),
-            "P(running)".into(),
-        ]];
-        for p in &s.curve {
-            rows.push(vec![
-                full(p.t),
-                pm_p(p.success.mean, r),
-                pm_p(p.failure.mean, r),
-                pm_p(p.running.mean, r),
-            ]);
-        }
-        super::table::write_aligned(&rows, |_, _| false, out)?;
-    }
+    super::simulation::write_node_table(
+        tree,
+        &s.nodes,
+        |k, n| {
+            let i = &r.intervals[k];
+            [
+                pm_p(n.ps.mean, r),
+                pm_p(n.never.mean, r),
+                pm(n.mtts.map(|e| e.mean), &i[3]),
+                pm(n.mttf.map(|e| e.mean), &i[4]),
+            ]
+        },
+        out,
+    )?;
+    super::simulation::write_curve_table(&s.curve, |e| pm_p(e.mean, r), out)?;
     let missed = missed_phrases(tree, r);
     if !missed.is_empty() {
         writeln!(

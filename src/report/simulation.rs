@@ -6,7 +6,7 @@ use serde_json::{json, Map, Value};
 
 use super::number::{full, significant, significant_or_dash};
 use super::Report;
-use crate::sim::{Estimate, NodeEstimate, SimResult};
+use crate::sim::{CurvePoint, Estimate, NodeEstimate, SimResult};
 use crate::tree::Tree;
 
 fn finite(x: f64) -> Option<f64> {
@@ -110,46 +110,27 @@ fn aligned(rows: &[Vec<String>], left: usize, out: &mut dyn Write) -> io::Result
 /// The simulation as tables: per node (mean ± standard error), then the
 /// curve if times were requested.
 pub fn write_table(tree: &Tree, r: &SimResult, out: &mut dyn Write) -> io::Result<()> {
-    let title = tree
-        .title
-        .clone()
-        .unwrap_or_else(|| tree.nodes[0].name.clone());
     writeln!(
         out,
-        "{title} — Monte Carlo: {} per node, seed {} (estimate ± standard error; times in s)",
+        "{} — Monte Carlo: {} per node, seed {} (estimate ± standard error; times in s)",
+        super::title(tree),
         runs(r.runs),
         r.seed
     )?;
-    let root_depth = tree.node(r.nodes[0].node).depth;
-    // a column for the runs that never return, when some did
-    let never = r.nodes.iter().any(|n| n.never.mean > 0.0);
-    let mut header = vec![
-        "node".to_string(),
-        "kind".into(),
-        "ps".into(),
-        "MTTS".into(),
-        "MTTF".into(),
-    ];
-    if never {
-        header.insert(3, "never".into());
-    }
-    let mut rows = vec![header];
     let mut marked = false;
-    for n in &r.nodes {
-        let node = tree.node(n.node);
-        let mut row = vec![
-            format!("{}{}", "  ".repeat(node.depth - root_depth), node.name),
-            node.kind.keyword().into(),
-            pm(Some(&n.ps)),
-            pm_conditional(n.mtts.as_ref(), &mut marked),
-            pm_conditional(n.mttf.as_ref(), &mut marked),
-        ];
-        if never {
-            row.insert(3, pm(Some(&n.never)));
-        }
-        rows.push(row);
-    }
-    aligned(&rows, 2, out)?;
+    write_node_table(
+        tree,
+        &r.nodes,
+        |_, n| {
+            [
+                pm(Some(&n.ps)),
+                pm(Some(&n.never)),
+                pm_conditional(n.mtts.as_ref(), &mut marked),
+                pm_conditional(n.mttf.as_ref(), &mut marked),
+            ]
+        },
+        out,
+    )?;
     if marked {
         writeln!(
             out,
@@ -157,25 +138,69 @@ pub fn write_table(tree: &Tree, r: &SimResult, out: &mut dyn Write) -> io::Resul
              its standard error is unreliable — simulate more runs"
         )?;
     }
-    if !r.curve.is_empty() {
-        writeln!(out)?;
-        let mut rows = vec![vec![
-            "t".to_string(),
-            "P(success by t)".into(),
-            "P(failure by t)".into(),
-            "P(running)".into(),
-        ]];
-        for p in &r.curve {
-            rows.push(vec![
-                full(p.t),
-                pm(Some(&p.success)),
-                pm(Some(&p.failure)),
-                pm(Some(&p.running)),
-            ]);
+    write_curve_table(&r.curve, |e| pm(Some(e)), out)
+}
+
+/// The per-node table of a simulation, one row per node of `nodes`: the
+/// node (indented by depth), its kind, then `cells(i, n)` for the i-th
+/// node: ps, never, MTTS, MTTF; the never column only where some runs never
+/// returned.
+pub(super) fn write_node_table(
+    tree: &Tree,
+    nodes: &[NodeEstimate],
+    mut cells: impl FnMut(usize, &NodeEstimate) -> [String; 4],
+    out: &mut dyn Write,
+) -> io::Result<()> {
+    // a column for the runs that never return, when some did
+    let never = nodes.iter().any(|n| n.never.mean > 0.0);
+    let columns = |node: String, kind: String, [ps, nv, mtts, mttf]: [String; 4]| {
+        let mut row = vec![node, kind, ps, mtts, mttf];
+        if never {
+            row.insert(3, nv);
         }
-        aligned(&rows, 0, out)?;
+        row
+    };
+    let header = ["ps", "never", "MTTS", "MTTF"].map(String::from);
+    let mut rows = vec![columns("node".into(), "kind".into(), header)];
+    let root_depth = tree.node(nodes[0].node).depth;
+    for (i, n) in nodes.iter().enumerate() {
+        let node = tree.node(n.node);
+        rows.push(columns(
+            format!("{}{}", "  ".repeat(node.depth - root_depth), node.name),
+            node.kind.keyword().into(),
+            cells(i, n),
+        ));
     }
-    Ok(())
+    aligned(&rows, 2, out)
+}
+
+/// The curve of a simulation as a table after a blank line (nothing when
+/// there is no curve): t, then `cell` of P(success by t), P(failure by t)
+/// and P(running).
+pub(super) fn write_curve_table(
+    curve: &[CurvePoint],
+    cell: impl Fn(&Estimate) -> String,
+    out: &mut dyn Write,
+) -> io::Result<()> {
+    if curve.is_empty() {
+        return Ok(());
+    }
+    writeln!(out)?;
+    let mut rows = vec![vec![
+        "t".to_string(),
+        "P(success by t)".into(),
+        "P(failure by t)".into(),
+        "P(running)".into(),
+    ]];
+    for p in curve {
+        rows.push(vec![
+            full(p.t),
+            cell(&p.success),
+            cell(&p.failure),
+            cell(&p.running),
+        ]);
+    }
+    aligned(&rows, 0, out)
 }
 
 /// CSV of the per-node figures:
