@@ -30,12 +30,13 @@
 //!   reads this restart loop (ps 0 and the MTTF of the loop, compared as
 //!   above).
 //!
-//! The test needs a Python with behaviortreepy: `BTREL_PYTHON=/path/to/python`
-//! (`bash .ci/run` creates target/pyvenv from tests/python-requirements.txt and
-//! sets it). Without the variable it prints a note and passes. All trees run
+//! The test needs a Python with behaviortreepy: `BTREL_PYTHON`, else the venv
+//! `target/pyvenv` the tests create from tests/python-requirements.txt
+//! (`tests/common/python.rs`); without one it says SKIPPED and passes (fails
+//! with `BTREL_REQUIRE_PYTHON=1`). All trees run
 //! in one Python process, about 20 s of wall clock.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use btrel::tree::xml::parse_xml_str;
@@ -44,22 +45,9 @@ use serde_json::{json, Value};
 
 mod common;
 
-const ROOT: &str = env!("CARGO_MANIFEST_DIR");
+use common::python::python;
 
-fn python() -> Option<PathBuf> {
-    match std::env::var_os("BTREL_PYTHON") {
-        Some(p) if !p.is_empty() => Some(PathBuf::from(p)),
-        _ => {
-            eprintln!(
-                "skipped: set BTREL_PYTHON to a Python interpreter with behaviortreepy \
-                 (python3 -m venv target/pyvenv && target/pyvenv/bin/pip install -r \
-                 tests/python-requirements.txt; bash .ci/run does this) to compare btrel \
-                 with real BehaviorTree.CPP runs"
-            );
-            None
-        }
-    }
-}
+const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
 /// One tree: its BT.CPP XML (the `<BehaviorTree>` bodies), the params (JSON,
 /// which is also YAML for btrel), the number of runs, the wall-clock seconds
@@ -355,7 +343,7 @@ fn referee(python: &Path, cases: &[Case]) -> Vec<Value> {
         .arg("--jobs")
         .arg(&file)
         .output()
-        .expect("run tests/btcpp/referee.py with BTREL_PYTHON");
+        .expect("run tests/btcpp/referee.py with the tests' Python");
     assert!(
         out.status.success(),
         "referee.py failed: {}",
@@ -376,7 +364,9 @@ fn f(v: &Value, key: &str) -> Option<f64> {
 
 #[test]
 fn btrel_matches_behaviortree_cpp_runs() {
-    let Some(python) = python() else { return };
+    let Some(python) = python("the BehaviorTree.CPP referee") else {
+        return;
+    };
     let cases = cases();
     let btrel: Vec<Option<Figures>> = cases.iter().map(btrel_root).collect();
     let runs = referee(&python, &cases);
@@ -531,7 +521,9 @@ fn reactive_nodes_with_actions_in_two_children_are_restart_loops() {
 /// step (A1, the halt, A2: 3).
 #[test]
 fn simulated_halts_match_behaviortree_cpp_runs() {
-    let Some(python) = python() else { return };
+    let Some(python) = python("the BehaviorTree.CPP referee of halts") else {
+        return;
+    };
     let params = json!({"A1": {"ps": 1.0, "tau_s": 1.0},
         "A2": {"ps": 0.7, "tau_s": 1.0, "tau_f": 1.0}, "A3": {"ps": 0.0, "tau_f": 1.5}});
     let case = Case {

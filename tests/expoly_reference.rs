@@ -16,14 +16,15 @@
 //! elsewhere; a floor on the number of answered nodes keeps the test from
 //! passing vacuously).
 //!
-//! The test needs a Python with mpmath (`BTREL_PYTHON`; `bash .ci/run`
-//! creates target/pyvenv from tests/python-requirements.txt and sets it).
-//! Without it the test prints a note and passes.
+//! The test needs a Python with mpmath (`BTREL_PYTHON`, else the venv
+//! `target/pyvenv` the tests create: tests/common/python.rs); without one
+//! it says SKIPPED and passes (fails with `BTREL_REQUIRE_PYTHON=1`).
 
 mod common;
 
 use btrel::tree::Tree;
-use common::expoly::{expoly, python, to_json};
+use common::expoly::{expoly, to_json};
+use common::python::python;
 use common::{random_mixed_tree, tree};
 use serde_json::Value;
 
@@ -91,7 +92,9 @@ const CASES: &[&str] = &[
 
 #[test]
 fn exact_figures_and_curves_match_the_closed_form_reference() {
-    let Some(py) = python() else { return };
+    let Some(py) = python("the mpmath expoly reference") else {
+        return;
+    };
     let mut trees: Vec<(String, Tree)> = CASES.iter().map(|y| (y.to_string(), tree(y))).collect();
     for seed in 0..60 {
         let yaml = random_mixed_tree(seed, 3);

@@ -13,35 +13,24 @@
 //! Agreement: relative 1e-9, with an absolute floor of 1e-12 for values near
 //! 0 (Storm's uniformisation truncates with an absolute error bound).
 //!
-//! The test needs a Python with stormpy: `BTREL_STORM_PYTHON=/path/to/python`
-//! (`bash .ci/run` creates target/pyvenv from tests/python-requirements.txt
-//! and sets it). Without the variable the test prints a note and passes.
+//! The test needs a Python with stormpy: `BTREL_PYTHON`, else the venv
+//! `target/pyvenv` the tests create from tests/python-requirements.txt
+//! (`tests/common/python.rs`); without one it says SKIPPED and passes
+//! (fails with `BTREL_REQUIRE_PYTHON=1`).
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use std::path::Path;
 use std::process::Command;
 
 use btrel::compile::phase::phase_chain;
 use btrel::compile::{analyze, Options};
 use btrel::curve::{curve, CurveOptions};
 use btrel::tree::{parse_file, Tree};
+use common::python::python;
 use serde_json::Value;
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
-
-fn storm_python() -> Option<PathBuf> {
-    match std::env::var_os("BTREL_STORM_PYTHON") {
-        Some(p) if !p.is_empty() => Some(PathBuf::from(p)),
-        _ => {
-            eprintln!(
-                "skipped: set BTREL_STORM_PYTHON to a Python interpreter with stormpy \
-                 (python3 -m venv target/pyvenv && target/pyvenv/bin/pip install -r \
-                 tests/python-requirements.txt; bash .ci/run does this) to solve the \
-                 exports with Storm"
-            );
-            None
-        }
-    }
-}
 
 fn btrel(args: &[&str]) {
     let out = Command::new(env!("CARGO_BIN_EXE_btrel"))
@@ -60,7 +49,7 @@ fn storm(python: &Path, args: &[&str]) -> Value {
         .arg(Path::new(ROOT).join("scripts/storm_check.py"))
         .args(args)
         .output()
-        .expect("run the Storm script with BTREL_STORM_PYTHON");
+        .expect("run the Storm script with the tests' Python");
     assert!(
         out.status.success(),
         "storm_check.py {args:?} failed: {}",
@@ -189,7 +178,7 @@ fn check(python: &Path, file: &str, node: Option<&str>, times: &[f64]) -> usize 
 
 #[test]
 fn storm_solves_the_exports_like_btrel() {
-    let Some(python) = storm_python() else {
+    let Some(python) = python("Storm (stormpy) on the exports") else {
         return;
     };
     let t = [0.0, 1.0, 10.0, 100.0, 1000.0];

@@ -3,7 +3,7 @@
 //! Expected values are hand calculations (closed-form MLEs of small
 //! samples), the score equations of the censored likelihood evaluated
 //! independently here, and real BehaviorTree.CPP logs written by
-//! tests/btcpp/make_log.py (behaviortreepy, BTREL_PYTHON) from known
+//! tests/btcpp/make_log.py (behaviortreepy, tests/common/python.rs) from known
 //! parameters.
 
 mod common;
@@ -11,7 +11,7 @@ mod common;
 use std::path::PathBuf;
 use std::process::Command;
 
-use common::behaviortree_python;
+use common::python::python;
 
 fn bin() -> assert_cmd::Command {
     assert_cmd::Command::cargo_bin("btrel").expect("binary")
@@ -474,7 +474,7 @@ fn fitted_file_is_read_by_report() {
 /// quantisation is well inside the tolerance.
 #[test]
 fn real_btcpp_logs() {
-    let Some(py) = behaviortree_python() else {
+    let Some(py) = python("fitting real BehaviorTree.CPP logs") else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();

@@ -1,14 +1,14 @@
 //! `btrel fit --timing auto` on a real BehaviorTree.CPP log: actions whose
 //! durations are exponential, Erlang-3, shifted exponential and
 //! hyperexponential by construction (tests/btcpp/make_families_log.py, behaviortreepy,
-//! BTREL_PYTHON) get those families, with rates near the truth, and the
+//! tests/common/python.rs) get those families, with rates near the truth, and the
 //! params file drives `report --params` on the tree embedded in the log.
 
 mod common;
 
 use std::process::Command;
 
-use common::behaviortree_python;
+use common::python::python;
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
@@ -23,7 +23,7 @@ fn bin() -> assert_cmd::Command {
 /// loaded 2-core machine against means of 5–20 ms).
 #[test]
 fn auto_timing_finds_the_families_of_a_real_btcpp_log() {
-    let Some(py) = behaviortree_python() else {
+    let Some(py) = python("fitting the families of a real BehaviorTree.CPP log") else {
         return;
     };
     let dir = tempfile::tempdir().expect("tempdir");

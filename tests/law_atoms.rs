@@ -15,7 +15,8 @@ mod common;
 
 use btrel::curve::{curve, CurveOptions};
 use btrel::generate::{random_tree_yaml, Shape};
-use common::expoly::{expoly_within, python, to_json};
+use common::expoly::{expoly_within, to_json};
+use common::python::python;
 use common::{assert_root_and_curve_within_z, root_figures, simulate_root, tree};
 
 /// Times (decimal, read exactly by the reference) across the horizon.
@@ -38,7 +39,7 @@ fn every_node_matches_the_reference_of(
     cases: &[(usize, u64)],
     edit: impl Fn(String) -> String,
 ) -> Option<f64> {
-    let py = python()?;
+    let py = python("the mpmath expoly reference on large mixed trees")?;
     let trees: Vec<_> = cases
         .iter()
         .map(|&(n, seed)| tree(&edit(random_tree_yaml(&Shape::mixed_timing(n), seed))))

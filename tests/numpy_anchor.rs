@@ -8,11 +8,13 @@
 //! re-planning race, the RecoveryNode's retries and the RoundRobin whose
 //! index survives them).
 //!
-//! The test needs a Python with numpy and PyYAML (`BTREL_PYTHON`; `bash
-//! .ci/run` creates target/pyvenv from tests/python-requirements.txt and sets
-//! it). Without it the test prints a note and passes.
+//! The test needs a Python with numpy and PyYAML (`BTREL_PYTHON`, else the
+//! venv `target/pyvenv` the tests create: tests/common/python.rs); without
+//! one it says SKIPPED and passes (fails with `BTREL_REQUIRE_PYTHON=1`).
 
 mod common;
+
+use common::python::python;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -23,17 +25,6 @@ use serde_json::Value;
 
 /// Largest accepted |z| (a fixed seed: the check is deterministic).
 const Z: f64 = 4.0;
-
-fn python() -> Option<PathBuf> {
-    let p = std::env::var_os("BTREL_PYTHON").map(PathBuf::from);
-    if p.is_none() {
-        eprintln!(
-            "skipped: set BTREL_PYTHON to a Python with numpy and PyYAML (bash .ci/run \
-             makes target/pyvenv from tests/python-requirements.txt)"
-        );
-    }
-    p
-}
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -47,7 +38,7 @@ fn numpy_mc(python: &Path, args: &[&str]) -> Value {
         .arg("--json")
         .current_dir(root())
         .output()
-        .expect("run scripts/numpy_mc.py with BTREL_PYTHON");
+        .expect("run scripts/numpy_mc.py with the tests' Python");
     assert!(
         out.status.success(),
         "numpy_mc.py failed: {}",
@@ -83,7 +74,9 @@ fn compare(tree: &btrel::tree::Tree, r: &Value, times: &[f64]) {
 
 #[test]
 fn numpy_search_and_grasp_agrees_with_exact_figures() {
-    let Some(py) = python() else { return };
+    let Some(py) = python("the numpy anchor on search-and-grasp") else {
+        return;
+    };
     let path = root().join("trees/search-and-grasp.yaml");
     let tree = btrel::tree::parse_file(&path).expect("search-and-grasp parses");
     let r = numpy_mc(
@@ -104,7 +97,9 @@ fn numpy_search_and_grasp_agrees_with_exact_figures() {
 
 #[test]
 fn numpy_nav2_default_agrees_with_exact_figures() {
-    let Some(py) = python() else { return };
+    let Some(py) = python("the numpy anchor on Nav2's default tree") else {
+        return;
+    };
     let Some(corpus) = common::corpus() else {
         eprintln!("skipped: the published corpus (../shared/realworld) is not there");
         return;
@@ -134,7 +129,9 @@ fn numpy_nav2_default_agrees_with_exact_figures() {
 
 #[test]
 fn numpy_mc_refuses_what_it_does_not_model() {
-    let Some(py) = python() else { return };
+    let Some(py) = python("the numpy anchor's refusals") else {
+        return;
+    };
     let dir = tempfile::tempdir().expect("temporary directory");
     let file = dir.path().join("p.yaml");
     std::fs::write(

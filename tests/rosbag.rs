@@ -1,6 +1,6 @@
 //! `btrel fit` on rosbag2 recordings of Nav2's `behavior_tree_log`: bags
 //! written by the `rosbags` Python library (tests/python-requirements.txt,
-//! in the venv of `BTREL_PYTHON`) from simulated runs with known parameters
+//! in the tests' Python, tests/common/python.rs) from simulated runs with known parameters
 //! (tests/rosbag/make_bags.py), MCAP and SQLite storage, both message
 //! layouts; and the public bt_tools recording (tests/data/rosbag/).
 
@@ -80,7 +80,7 @@ fn counts_of(log: &btrel::logs::Log, id: &str) -> Counts {
 /// unrelated topic.
 #[test]
 fn episodes_are_the_simulated_ones() {
-    let Some(py) = common::behaviortree_python() else {
+    let Some(py) = common::python::python("rosbag2 recordings made with rosbags") else {
         return;
     };
     let tree_dir = tempfile::tempdir().unwrap();
@@ -168,7 +168,7 @@ fn covers(e: &Estimate, truth: f64) -> bool {
 /// pooled give estimates within 4 standard errors of the truth.
 #[test]
 fn intervals_cover_the_parameters() {
-    let Some(py) = common::behaviortree_python() else {
+    let Some(py) = common::python::python("rosbag2 recordings made with rosbags") else {
         return;
     };
     let tree_dir = tempfile::tempdir().unwrap();
@@ -259,7 +259,7 @@ fn intervals_cover_the_parameters() {
 /// --ci`, `sensitivity` and `check` take.
 #[test]
 fn fit_command_and_the_chain() {
-    let Some(py) = common::behaviortree_python() else {
+    let Some(py) = common::python::python("rosbag2 recordings made with rosbags") else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
@@ -330,7 +330,7 @@ fn fit_error(bag: &Path, tree: &Path) -> String {
 /// naming the nodes; with uid they are read.
 #[test]
 fn ambiguous_names() {
-    let Some(py) = common::behaviortree_python() else {
+    let Some(py) = common::python::python("rosbag2 recordings made with rosbags") else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
@@ -367,7 +367,7 @@ fn ambiguous_names() {
 /// errors, never a panic.
 #[test]
 fn bad_bags() {
-    let Some(py) = common::behaviortree_python() else {
+    let Some(py) = common::python::python("rosbag2 recordings made with rosbags") else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();

@@ -8,26 +8,6 @@ use std::process::{Command, Stdio};
 use btrel::tree::{Decorator, Duration, FlowNext, NodeId, NodeKind, Tree};
 use serde_json::{json, Value};
 
-/// A Python with mpmath (`BTREL_PYTHON`), or `None` with a note.
-pub fn python() -> Option<PathBuf> {
-    let p = std::env::var_os("BTREL_PYTHON").map(PathBuf::from);
-    let ok = p.as_ref().is_some_and(|p| {
-        Command::new(p)
-            .args(["-c", "import mpmath"])
-            .output()
-            .is_ok_and(|o| o.status.success())
-    });
-    if !ok {
-        println!(
-            "skipped: set BTREL_PYTHON to a Python interpreter with mpmath (bash .ci/run \
-             creates target/pyvenv from tests/python-requirements.txt) to compare btrel with \
-             reference/expoly.py"
-        );
-        return None;
-    }
-    p
-}
-
 /// A number as the reference reads it: Rust's shortest round-trip decimal,
 /// which for the trees' decimal inputs is the decimal written.
 pub fn dec(x: f64) -> String {

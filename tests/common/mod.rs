@@ -3,6 +3,7 @@
 
 pub mod anytree;
 pub mod expoly;
+pub mod python;
 
 use btrel::curve::{curve, CurveOptions};
 use btrel::sim::{simulate, Estimate, SimOptions, SimResult};
@@ -225,23 +226,6 @@ pub fn check_figures(f: Figures, ps: f64, mtts: Option<f64>, mttf: Option<f64>) 
         match (got, want) {
             (Some(g), Some(w)) => assert!(close(g, w), "{f:?}: {g} vs {w}"),
             (g, w) => assert_eq!(g.is_some(), w.is_some(), "{f:?}"),
-        }
-    }
-}
-
-/// The Python of `BTREL_PYTHON` (one with behaviortreepy), for the tests
-/// that fit real BehaviorTree.CPP logs; `None`, after saying how to set it,
-/// when unset (the test is skipped).
-pub fn behaviortree_python() -> Option<std::path::PathBuf> {
-    match std::env::var_os("BTREL_PYTHON") {
-        Some(p) if !p.is_empty() => Some(std::path::PathBuf::from(p)),
-        _ => {
-            eprintln!(
-                "skipped: set BTREL_PYTHON to a Python with behaviortreepy (bash .ci/run \
-                 creates target/pyvenv from tests/python-requirements.txt) to fit real \
-                 BehaviorTree.CPP logs"
-            );
-            None
         }
     }
 }
