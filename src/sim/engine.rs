@@ -253,6 +253,45 @@ struct Instr {
     next: [u32; 2],
 }
 
+/// [`Instr`] with its leaf's parameters inline (one 64-byte line, no
+/// indirection), run by [`Program::run_chain`]: the same draws, the same
+/// arithmetic, so the same runs to the last bit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C, align(64))]
+struct Fast {
+    /// [`Leaf::thr`] (bits 0..=53), with [`NO_DRAW`] and [`STAGES`].
+    thr: u64,
+    a: [f64; 2],
+    b: [f64; 2],
+    c: [f64; 2],
+    next: [u32; 2],
+}
+
+/// [`Fast::thr`] flag: the leaf draws no `Exp(1)` ([`Leaf::random`] false).
+const NO_DRAW: u64 = 1 << 63;
+/// [`Fast::thr`] flag: the leaf has exponential stages: run by
+/// [`Leaf::run`] (the [`Instr`] at the same index names it).
+const STAGES: u64 = 1 << 62;
+
+impl Fast {
+    fn new(leaf: &Leaf, next: [u32; 2]) -> Fast {
+        let mut thr = leaf.thr;
+        if !leaf.random {
+            thr |= NO_DRAW;
+        }
+        if leaf.stages.is_some() {
+            thr |= STAGES;
+        }
+        Fast {
+            thr,
+            a: leaf.a,
+            b: leaf.b,
+            c: leaf.c,
+            next,
+        }
+    }
+}
+
 /// What a decorator does with its child's runs.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum DecoratorOp {
@@ -395,6 +434,8 @@ pub(crate) struct Program {
     steps: Vec<Step>,
     /// The instructions of the [`Op::Chain`]s.
     code: Vec<Instr>,
+    /// `code` with the leaves inline ([`Fast`]), at the same indices.
+    fast: Vec<Fast>,
     root: u32,
     /// Total number of children of Parallel nodes (bounds the scratch stacks).
     parallel_kids: usize,
@@ -478,6 +519,7 @@ impl Program {
             leaves: Vec::new(),
             steps: Vec::new(),
             code: Vec::new(),
+            fast: Vec::new(),
             root: 0,
             parallel_kids: 0,
             modes: Vec::new(),
@@ -758,6 +800,7 @@ impl Program {
     /// empty Sequence or Fallback draws one number as a constant leaf.
     fn chain(&mut self, tree: &Tree, id: NodeId, on_s: u32, on_f: u32) -> u32 {
         let leaf = |s: &mut Self, leaf: Leaf| {
+            s.fast.push(Fast::new(&leaf, [on_f, on_s]));
             s.leaves.push(leaf);
             s.code.push(Instr {
                 leaf: (s.leaves.len() - 1) as u32,
@@ -917,6 +960,48 @@ impl Program {
         self.run::<R, true>(self.root, 0.0, rng, scratch)
     }
 
+    /// The entry of the program's [`Op::Chain`] if the whole program is one
+    /// (a tree of Sequences, Fallbacks, Inverters, ForceSuccess /
+    /// ForceFailure and leaves): then [`Program::run_chain`] from it is an
+    /// episode, without the state an [`Program::episode`] resets.
+    pub(crate) fn root_chain(&self) -> Option<u32> {
+        match self.ops[self.root as usize] {
+            Op::Chain { entry } if !self.record => Some(entry),
+            _ => None,
+        }
+    }
+
+    /// Runs the [`Op::Chain`] from instruction `entry`: one loop over
+    /// [`Fast`] instructions adding the leaves' times. Inlined into a
+    /// caller's loop of episodes, the generator's state stays in registers.
+    #[inline(always)]
+    pub(crate) fn run_chain<R: Rng>(&self, entry: u32, rng: &mut R) -> (bool, f64) {
+        let (mut pc, mut t) = (entry, 0.0);
+        loop {
+            let ins = &self.fast[pc as usize];
+            let d;
+            let ok;
+            if ins.thr & STAGES == 0 {
+                ok = (rng.next_u64() >> 11) < (ins.thr & !NO_DRAW);
+                let e: f64 = if ins.thr & NO_DRAW == 0 {
+                    Exp1.sample(rng)
+                } else {
+                    0.0
+                };
+                let i = ok as usize;
+                let (x, cap) = (e * ins.a[i] + ins.b[i], ins.c[i]);
+                d = if x < cap { x } else { cap };
+            } else {
+                (ok, d) = self.leaves[self.code[pc as usize].leaf as usize].run(rng);
+            }
+            t += d;
+            pc = ins.next[ok as usize];
+            if pc >= FLOW_SUCCESS {
+                return (pc == FLOW_SUCCESS, t);
+            }
+        }
+    }
+
     /// Runs op `op`, started at episode time `at` (the journal's clock);
     /// with `REC`, records the run if it is its node's first this episode.
     #[inline(always)]
@@ -1058,18 +1143,7 @@ impl Program {
             Op::Never => (false, f64::INFINITY),
             Op::Const(ok) => (ok, 0.0),
             Op::Acc { inner } => self.acc::<R, REC>(inner, 0.0, rng, scratch),
-            Op::Chain { entry } => {
-                let (mut pc, mut t) = (entry, 0.0);
-                loop {
-                    let ins = self.code[pc as usize];
-                    let (ok, d) = self.leaves[ins.leaf as usize].run(rng);
-                    t += d;
-                    pc = ins.next[ok as usize];
-                    if pc >= FLOW_SUCCESS {
-                        return (pc == FLOW_SUCCESS, t);
-                    }
-                }
-            }
+            Op::Chain { entry } => self.run_chain(entry, rng),
             Op::Parallel { first, end, m, f } => {
                 self.parallel::<R, REC>(first, end, m, f, at, rng, scratch)
             }

@@ -657,6 +657,20 @@ impl Job<'_> {
         bin: impl Fn(f64, &[f64]) -> usize,
     ) {
         let raw = &mut sums.nodes[0];
+        if let (false, Some(entry)) = (REC, program.root_chain()) {
+            // one flat chain: the episodes inlined into this loop, the
+            // generator in a local (kept in registers), the same draws
+            let mut r = rng.clone();
+            for _ in 0..n {
+                let (ok, t) = program.run_chain(entry, &mut r);
+                if t.is_finite() {
+                    raw[ok as usize].push(t);
+                    sums.hist[bin(t, self.sorted)][ok as usize] += 1;
+                }
+            }
+            *rng = r;
+            return;
+        }
         for _ in 0..n {
             let (ok, t) = if REC {
                 program.episode_recording(rng, scratch)
