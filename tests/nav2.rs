@@ -8,7 +8,7 @@ mod common;
 use btrel::compile::curve::{curve, CurveOptions};
 use btrel::sim::{simulate, SimOptions, SimResult};
 use btrel::tree::xml::{is_unsupported, parse_xml_str};
-use btrel::tree::Tree;
+use btrel::tree::{Decorator, NodeKind, Tree};
 use btrel::{analyze, Options};
 use common::{assert_within_z, run_btrel};
 
@@ -450,8 +450,25 @@ fn attributes_are_checked_with_their_place() {
     let e = parse_xml_str(&text(&body("hz=\"0\"")), "t.xml", params, "p.yaml").unwrap_err();
     assert!(!is_unsupported(&e));
     assert!(e.to_string().contains("t.xml:3:17") && e.to_string().contains("not a valid rate"));
+    // a rate from the blackboard: a missing parameter until the params
+    // file gives it, then read as written there (2 Hz: a 0.5 s period)
     let e = parse_xml_str(&text(&body("hz=\"{rate}\"")), "t.xml", params, "p.yaml").unwrap_err();
-    assert!(is_unsupported(&e), "{e}");
+    assert!(!is_unsupported(&e), "{e}");
+    assert!(
+        e.message.starts_with("missing parameters for 1 node")
+            && e.message.contains("hz = \"{rate}\""),
+        "{e}"
+    );
+    let with_rate = format!("{params}\"{{rate}}\": {{value: 2}}\n");
+    let t = parse_xml_str(&text(&body("hz=\"{rate}\"")), "t.xml", &with_rate, "p.yaml")
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert!(
+        t.nodes.iter().any(|n| matches!(
+            n.kind,
+            NodeKind::Decorator { decorator: Decorator::Rate { period, .. }, .. } if period == 0.5
+        )),
+        "{t:?}"
+    );
     let e = parse_xml_str(
         &text("<RoundRobin wrap_around=\"maybe\"><A/></RoundRobin>"),
         "t.xml",

@@ -214,8 +214,8 @@ fn loop_refusals_are_located() {
         (
             "<LoopPose queue=\"{waypoints}\"><A/></LoopPose>",
             (3, 11),
-            "give it in the params file",
-            true,
+            "missing parameters for 1 node",
+            false,
         ),
         (
             "<LoopInt queue=\"1\" if_empty=\"SKIPPED\"><A/></LoopInt>",

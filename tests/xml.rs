@@ -866,7 +866,9 @@ fn recovery_node_is_nav2s_retry_loop() {
         params,
     );
     assert!(
-        is_unsupported(&e) && e.message.contains("blackboard reference"),
+        !is_unsupported(&e)
+            && e.message.starts_with("missing parameters for 1 node")
+            && e.message.contains("number_of_retries = \"{n}\""),
         "{e}"
     );
     // nested retries multiply; the size is checked before building
@@ -1075,13 +1077,31 @@ fn blackboard_counts_and_durations_read_the_params_file() {
     assert!(close(f.ps, ps), "{} vs {ps}", f.ps);
     assert!(close(f.mtts.unwrap(), 1.5 + 1.5 + grab), "{:?}", f.mtts);
 
-    // without the value: a located refusal saying how to give it
-    let e = err(
-        &wrap(body),
-        "Step: {ps: 0.9, mu: 2, nu: 1}\nGrab: {ps: 0.5, mu: 1, nu: 4}\n",
+    // without the values: missing parameters (not a refusal), all of them
+    // at once and each located, with a leaf's missing entry in the same list
+    let e = err(&wrap(body), "Step: {ps: 0.9, mu: 2, nu: 1}\n");
+    assert!(!is_unsupported(&e), "{e}");
+    assert!(
+        e.message.starts_with("missing parameters for 4 nodes"),
+        "{e}"
     );
-    assert!(is_unsupported(&e), "{e}");
+    for (line, col, what) in [
+        (6, 54, "leaf `Grab`"),
+        (4, 17, "num_cycles = \"{n}\""),
+        (5, 16, "msec = \"{pause}\""),
+        (6, 31, "num_attempts = \"{tries}\""),
+    ] {
+        let at = format!("t.xml:{line}:{col}: ");
+        let entry = e.message.lines().find(|l| l.contains(&at));
+        assert!(entry.is_some_and(|l| l.contains(what)), "{at} {what}: {e}");
+    }
     assert!(e.to_string().contains(r#""{n}": {value: N}"#), "{e}");
+    assert!(
+        e.help
+            .as_deref()
+            .is_some_and(|h| h.contains("blackboard value")),
+        "{e}"
+    );
 
     // mistakes in the params file are located there
     let with = |extra: &str| {

@@ -39,12 +39,13 @@
 //! contribution to the mean below 1e-14 relative. The quadrature error is
 //! an *estimate*, not a bound.
 
+use super::atoms::same_time;
 use super::curve::CurvePoint;
 use super::law::{sample_weighted, HorizonLaw};
 use super::renewal::Renewal;
 use super::renewal_curve;
 use super::shifted::{self, ShiftedLaw};
-use super::{atoms, counts, AnalysisError, Figures, Plan, Representation};
+use super::{counts, AnalysisError, Figures, Plan, Representation};
 use crate::solve::chain::PhaseChain;
 use crate::solve::quadrature::GaussLegendre;
 use crate::tree::nav2::MAX_RERUN_TERMS;
@@ -140,10 +141,6 @@ pub(crate) struct Race {
 
 /// `[S, F, s, f]`: probabilities of having succeeded and failed, and densities.
 type Row = [f64; 4];
-
-fn same_time(a: f64, b: f64) -> bool {
-    (a - b).abs() <= atoms::TIME_TOLERANCE * a.abs().max(b.abs()).max(1.0)
-}
 
 fn sorted_unique(mut v: Vec<f64>) -> Vec<f64> {
     v.retain(|t| t.is_finite() && *t >= 0.0);

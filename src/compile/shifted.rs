@@ -38,7 +38,7 @@
 //! solutions of the chains (with their own bounds) and the rounding of the
 //! signed sums. Atoms at the same instant (within 1e-12 relative) are merged.
 
-use super::atoms::{self, Atom};
+use super::atoms::{self, same_time, Atom};
 use super::mrg::Outcome;
 use super::phase;
 use super::AnalysisError;
@@ -144,10 +144,6 @@ fn leaf_side(p: f64, d: Option<Duration>) -> Vec<Component> {
             ]
         }
     }
-}
-
-fn same_time(a: f64, b: f64) -> bool {
-    (a - b).abs() <= atoms::TIME_TOLERANCE * a.abs().max(b.abs()).max(1.0)
 }
 
 /// Whether a component shifted by `shift` starts by `horizon` (the same

@@ -1162,18 +1162,16 @@ impl<'a> Builder<'a> {
     /// reference.
     fn milliseconds(&mut self, e: &Elem, key: &str) -> Result<Option<f64>, TreeError> {
         if let Some(a) = e.attr(key).filter(|a| self.unresolved(&a.value)) {
-            self.problem(
+            let v = a.value.trim();
+            self.missing_values.push((
                 e.doc,
                 a.loc,
                 format!(
-                    "<{}> with {key} = \"{}\", a blackboard reference: the duration is only known at run time \
-                     (give it in the params file, in milliseconds: `\"{}\": {{value: N}}`)",
-                    e.name,
-                    a.value.trim(),
-                    a.value.trim()
+                    "<{}> {key} = \"{v}\": a blackboard value known only at run time; give it in \
+                     milliseconds: `\"{v}\": {{value: N}}`",
+                    e.name
                 ),
-                true,
-            );
+            ));
             return Ok(None);
         }
         match self.int_attr(e, key)? {
@@ -1194,17 +1192,22 @@ impl<'a> Builder<'a> {
             return Ok(Some(0.1));
         };
         let v = a.value.trim();
-        if v.starts_with('{') {
-            self.problem(
+        let given = self.table.blackboard.get(v).map(|g| g.value);
+        if given.is_some() {
+            self.blackboard_used.borrow_mut().insert(v.to_string());
+        } else if v.starts_with('{') {
+            self.missing_values.push((
                 e.doc,
                 a.loc,
-                format!("<{ty}> with hz = \"{v}\", a blackboard reference: the rate is only known at run time"),
-                true,
-            );
+                format!(
+                    "<{ty}> hz = \"{v}\": a blackboard value known only at run time; give the \
+                     rate in Hz: `\"{v}\": {{value: x}}`"
+                ),
+            ));
             return Ok(None);
         }
-        match v.parse::<f64>() {
-            Ok(hz) if hz.is_finite() && hz > 0.0 && (1.0 / hz).is_finite() => Ok(Some(1.0 / hz)),
+        match given.map_or_else(|| v.parse::<f64>().ok(), Some) {
+            Some(hz) if hz.is_finite() && hz > 0.0 && (1.0 / hz).is_finite() => Ok(Some(1.0 / hz)),
             _ => Err(self
                 .err(a.loc, format!("hz = \"{v}\" is not a valid rate"))
                 .with_help("hz is a number of re-runs per second, > 0 (e.g. 1.0 or 0.5)")),
@@ -2111,18 +2114,17 @@ impl<'a> Builder<'a> {
         }
         if let Some(a) = e
             .attr("number_of_retries")
-            .filter(|a| a.value.trim().starts_with('{'))
+            .filter(|a| self.unresolved(&a.value))
         {
-            self.problem(
+            let v = a.value.trim();
+            self.missing_values.push((
                 e.doc,
                 a.loc,
                 format!(
-                    "<{ty}> with number_of_retries = \"{}\", a blackboard reference: the count is \
-                     only known at run time",
-                    a.value.trim()
+                    "<{ty}> number_of_retries = \"{v}\": a blackboard value known only at run \
+                     time; give the count: `\"{v}\": {{value: N}}`"
                 ),
-                true,
-            );
+            ));
             let base = self.name_attr(e)?.unwrap_or_else(|| ty.to_string());
             return self.placeholder(e, &base, parent, depth, &path, prefix, retry);
         }
@@ -2438,18 +2440,16 @@ impl<'a> Builder<'a> {
 
     fn count(&mut self, e: &Elem, key: &str) -> Result<Option<usize>, TreeError> {
         if let Some(a) = e.attr(key).filter(|a| self.unresolved(&a.value)) {
-            self.problem(
+            let v = a.value.trim();
+            self.missing_values.push((
                 e.doc,
                 a.loc,
                 format!(
-                    "<{}> with {key} = \"{}\", a blackboard reference: the count is only known at run time \
-                     (give it in the params file: `\"{}\": {{value: N}}`)",
-                    e.name,
-                    a.value.trim(),
-                    a.value.trim()
+                    "<{}> {key} = \"{v}\": a blackboard value known only at run time; give the \
+                     count: `\"{v}\": {{value: N}}`",
+                    e.name
                 ),
-                true,
-            );
+            ));
             return Ok(None);
         }
         if let Some((-1, at)) = self.int_attr(e, key)? {
@@ -3210,6 +3210,7 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
         };
         b.nodes[leaf.node].kind = new_kind;
     }
+    let values_missing = !b.missing_values.is_empty();
     missing.extend(
         b.missing_values
             .drain(..)
@@ -3256,7 +3257,14 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
             )
             .with_help(format!(
                 "add an entry per node to {params_file}, keyed by name or ID, e.g. \
-                 `grasp: {{ps: 0.5, mu: 0.1, nu: 0.2}}` (actions) or `ready: {{ps: 0.9}}` (conditions)"
+                 `grasp: {{ps: 0.5, mu: 0.1, nu: 0.2}}` (actions) or `ready: {{ps: 0.9}}` \
+                 (conditions){}",
+                if values_missing {
+                    ", and one per blackboard value, keyed by the reference as written, e.g. \
+                     `\"{waypoints}\": {value: 5}`"
+                } else {
+                    ""
+                }
             )));
     }
     let blackboard_used = b.blackboard_used.take();

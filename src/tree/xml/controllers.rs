@@ -61,15 +61,14 @@ impl<'a> Builder<'a> {
             return Ok(Some(given.value));
         }
         if v.starts_with('{') {
-            self.problem(
+            self.missing_values.push((
                 e.doc,
                 a.loc,
                 format!(
-                    "<{ty}> with {key} = \"{v}\", a blackboard reference: known only at run time \
-                     (give it in the params file: `\"{v}\": {{value: x}}`)"
+                    "<{ty}> {key} = \"{v}\": a blackboard value known only at run time; give it: \
+                     `\"{v}\": {{value: x}}`"
                 ),
-                true,
-            );
+            ));
             return Ok(None);
         }
         match v.parse::<f64>() {

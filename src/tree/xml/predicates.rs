@@ -336,15 +336,14 @@ impl<'a> Builder<'a> {
         let n = if q.value.trim().starts_with('{') {
             if self.unresolved(&q.value) {
                 let v = q.value.trim();
-                self.problem(
+                self.missing_values.push((
                     e.doc,
                     q.loc,
                     format!(
-                        "<{ty}> with {port} = \"{v}\", a blackboard reference: its length is only \
-                         known at run time (give it in the params file: `\"{v}\": {{value: N}}`)"
+                        "<{ty}> {port} = \"{v}\": a blackboard value known only at run time; give \
+                         its length: `\"{v}\": {{value: N}}`"
                     ),
-                    true,
-                );
+                ));
                 return self.placeholder(e, &base, parent, depth, path, prefix, retry);
             }
             let Some((n, at)) = self.int_attr(e, port)? else {
