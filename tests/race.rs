@@ -454,3 +454,47 @@ fn a_sequence_above_a_race_composes_the_race_s_law() {
         close(&format!("F({})", p.t), p.failure, f, 1e-9);
     }
 }
+
+/// A race above a race with a deterministic cap: `outer = Parallel{1, 1}(
+/// Sequence(inner), e2)`, `inner = Parallel{1, 1}(timer, e1)` with the
+/// hybrid timer (Success at 1 with 0.6, else Failure at min(X, 1), X ~
+/// Exp(1)), e1 returning at Exp(1) with a fair outcome, e2 at Exp(0.5).
+/// Inner's composed law misses a few 1e-13 of its mass at every horizon
+/// (its quadrature's rounding, not a tail): it was refused ("did not
+/// return its mass within 2^12 times its mean time"). Closed form: inner
+/// returns Success with density `0.5 e^{−t}(0.6 + 0.4 e^{−t})` on (0, 1)
+/// and an atom `0.6 e^{−1}` at 1, Failure with `0.5 e^{−t}(0.6 + 0.4
+/// e^{−t}) + 0.4 e^{−2t}` and an atom `0.4 e^{−2}` at 1; e2 wins while
+/// inner runs, `R(t) = e^{−t}(0.6 + 0.4 e^{−t})`, at rate 0.5.
+#[test]
+fn a_race_over_a_capped_race_is_answered_in_closed_form() {
+    let yaml = "tree: {parallel: {name: outer, success_threshold: 1, failure_threshold: 1, \
+                children: [{sequence: {name: s, children: [{parallel: {name: inner, \
+                success_threshold: 1, failure_threshold: 1, children: [\
+                {action: {name: timer, ps: 0.6, tau_s: 1, nu: 1}}, \
+                {action: {name: e1, ps: 0.5, mu: 1, nu: 1}}]}}]}}, \
+                {action: {name: e2, ps: 0.5, mu: 0.5, nu: 0.5}}]}}";
+    // ∫₀¹ e^{−at} dt and ∫₀¹ t e^{−at} dt
+    let i = |a: f64| (1.0 - (-a).exp()) / a;
+    let j = |a: f64| (1.0 - (-a).exp() * (1.0 + a)) / (a * a);
+    let e2_first = 0.5 * (0.6 * i(1.5) + 0.4 * i(2.5));
+    let e2_first_t = 0.5 * (0.6 * j(1.5) + 0.4 * j(2.5));
+    let ps = 0.3 * i(1.5) + 0.2 * i(2.5) + 0.6 * (-1.5f64).exp() + 0.5 * e2_first;
+    let ts = 0.3 * j(1.5) + 0.2 * j(2.5) + 0.6 * (-1.5f64).exp() + 0.5 * e2_first_t;
+    let tf = 0.3 * j(1.5) + 0.6 * j(2.5) + 0.4 * (-2.5f64).exp() + 0.5 * e2_first_t;
+    let t = tree(yaml);
+    let a = btrel::analyze(&t, &Default::default()).expect("answered");
+    let f = a.nodes[0];
+    close("ps", f.ps, ps, 1e-10);
+    close("MTTS", f.mtts.unwrap(), ts / ps, 1e-10);
+    close("MTTF", f.mttf.unwrap(), tf / (1.0 - ps), 1e-10);
+    // and its curve tends to those figures
+    let pts =
+        btrel::curve::curve(&t, 0, &[0.5, 1.0, 50.0], &Default::default()).expect("curve answered");
+    close("S(50)", pts[2].success, ps, 1e-10);
+    // by 1/2 only e1 and e2 and the timer's Failures return
+    let s_half = 0.3 * (1.0 - (-0.75f64).exp()) / 1.5
+        + 0.2 * (1.0 - (-1.25f64).exp()) / 2.5
+        + 0.5 * 0.5 * (0.6 * (1.0 - (-0.75f64).exp()) / 1.5 + 0.4 * (1.0 - (-1.25f64).exp()) / 2.5);
+    close("S(0.5)", pts[0].success, s_half, 1e-9);
+}
