@@ -97,12 +97,6 @@ const LAW_TAIL: f64 = 1e-13;
 /// Most doublings of a [`Racer::Law`]'s horizon.
 const LAW_DOUBLINGS: usize = 12;
 
-/// Mass a [`Racer::Law`] may miss where its deficit has stopped falling
-/// with the horizon (two doublings without halving): that deficit is the
-/// rounding of its quadrature (a few 1e-13 on `[0, 32 × mean]`), not an
-/// unreturned tail, and its race's figures change by at most this.
-const LAW_ROUNDING: f64 = 1e-11;
-
 /// A re-run process's law of first failure on `[0, horizon]`, level by
 /// level; beyond the horizon its Failure stays at its value there (its
 /// race's horizon is chosen where that no longer matters, see
@@ -230,8 +224,7 @@ impl Racer {
     /// The composed law of `id` ([`Racer::Law`]) on `[0, horizon]`, or,
     /// for all time, on a horizon doubled from 32 times its mean time
     /// until all but [`LAW_TAIL`] of its returning mass is within it (its
-    /// figures say how much returns), or, where that deficit stops falling,
-    /// the horizon with the least deficit if it is at most [`LAW_ROUNDING`]. `refusal`: the error where the
+    /// figures say how much returns). `refusal`: the error where the
     /// subtree's figures are not known.
     fn law(
         plan: &Plan,
@@ -254,41 +247,17 @@ impl Racer {
             // it never returns, or returns at once
             end = end.max(1.0);
         }
-        // the deficit of a horizon short of the tail at least halves with
-        // each doubling; one that stops falling is the law's rounding
-        let mut best: Option<(f64, HorizonLaw)> = None;
-        let mut stalled = 0;
         for _ in 0..LAW_DOUBLINGS {
             let law = HorizonLaw::build(tree, id, end, max_states)?;
-            let deficit = returns - law.mass();
-            if deficit <= LAW_TAIL {
+            if returns - law.mass() <= LAW_TAIL {
                 return Ok(Racer::Law(Box::new(law)));
-            }
-            let least = best.as_ref().map_or(f64::INFINITY, |b| b.0);
-            stalled = if deficit < 0.5 * least {
-                0
-            } else {
-                stalled + 1
-            };
-            if deficit < least {
-                best = Some((deficit, law));
-            }
-            if stalled == 2 {
-                break;
             }
             end *= 2.0;
         }
-        match best {
-            Some((deficit, law)) if deficit <= LAW_ROUNDING => Ok(Racer::Law(Box::new(law))),
-            Some((deficit, _)) => Err(numerical(
-                &tree.node(id).name,
-                &format!(
-                    "its composed law misses {deficit:.1e} of its mass at every horizon up to \
-                     {end:.3e} s (more than {LAW_ROUNDING:e})"
-                ),
-            )),
-            None => unreachable!("LAW_DOUBLINGS > 0"),
-        }
+        Err(numerical(
+            &tree.node(id).name,
+            "its composed law did not return its mass within 2^12 times its mean time",
+        ))
     }
 
     /// Instants at which the subtree may return with positive probability.
