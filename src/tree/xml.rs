@@ -1162,16 +1162,8 @@ impl<'a> Builder<'a> {
     /// reference.
     fn milliseconds(&mut self, e: &Elem, key: &str) -> Result<Option<f64>, TreeError> {
         if let Some(a) = e.attr(key).filter(|a| self.unresolved(&a.value)) {
-            let v = a.value.trim();
-            self.missing_values.push((
-                e.doc,
-                a.loc,
-                format!(
-                    "<{}> {key} = \"{v}\": a blackboard value known only at run time; give it in \
-                     milliseconds: `\"{v}\": {{value: N}}`",
-                    e.name
-                ),
-            ));
+            let (at, ty) = (a.loc, e.name.clone());
+            self.missing_value(e, at, &ty, key, "give it in milliseconds", "N");
             return Ok(None);
         }
         match self.int_attr(e, key)? {
@@ -1196,14 +1188,7 @@ impl<'a> Builder<'a> {
         if given.is_some() {
             self.blackboard_used.borrow_mut().insert(v.to_string());
         } else if v.starts_with('{') {
-            self.missing_values.push((
-                e.doc,
-                a.loc,
-                format!(
-                    "<{ty}> hz = \"{v}\": a blackboard value known only at run time; give the \
-                     rate in Hz: `\"{v}\": {{value: x}}`"
-                ),
-            ));
+            self.missing_value(e, a.loc, ty, "hz", "give the rate in Hz", "x");
             return Ok(None);
         }
         match given.map_or_else(|| v.parse::<f64>().ok(), Some) {
@@ -1239,6 +1224,29 @@ impl<'a> Builder<'a> {
                 .err(a.loc, format!("wrap_around = \"{v}\" is not a boolean"))
                 .with_help("write wrap_around=\"true\" or \"false\"")),
         }
+    }
+
+    /// Records a blackboard reference the params file lacks as a missing
+    /// parameter: `<ty> key = "{v}"`, and what to give (`give`, with the
+    /// entry's placeholder `n`).
+    pub(super) fn missing_value(
+        &mut self,
+        e: &Elem,
+        at: Loc,
+        ty: &str,
+        key: &str,
+        give: &str,
+        n: &str,
+    ) {
+        let v = e.attr(key).map_or("", |a| a.value.trim());
+        self.missing_values.push((
+            e.doc,
+            at,
+            format!(
+                "<{ty}> {key} = \"{v}\": a blackboard value known only at run time; {give}: \
+                 `\"{v}\": {{value: {n}}}`"
+            ),
+        ));
     }
 
     /// Whether `value` is a blackboard reference (`{name}`) without a value
@@ -2116,15 +2124,8 @@ impl<'a> Builder<'a> {
             .attr("number_of_retries")
             .filter(|a| self.unresolved(&a.value))
         {
-            let v = a.value.trim();
-            self.missing_values.push((
-                e.doc,
-                a.loc,
-                format!(
-                    "<{ty}> number_of_retries = \"{v}\": a blackboard value known only at run \
-                     time; give the count: `\"{v}\": {{value: N}}`"
-                ),
-            ));
+            let at = a.loc;
+            self.missing_value(e, at, ty, "number_of_retries", "give the count", "N");
             let base = self.name_attr(e)?.unwrap_or_else(|| ty.to_string());
             return self.placeholder(e, &base, parent, depth, &path, prefix, retry);
         }
@@ -2440,16 +2441,8 @@ impl<'a> Builder<'a> {
 
     fn count(&mut self, e: &Elem, key: &str) -> Result<Option<usize>, TreeError> {
         if let Some(a) = e.attr(key).filter(|a| self.unresolved(&a.value)) {
-            let v = a.value.trim();
-            self.missing_values.push((
-                e.doc,
-                a.loc,
-                format!(
-                    "<{}> {key} = \"{v}\": a blackboard value known only at run time; give the \
-                     count: `\"{v}\": {{value: N}}`",
-                    e.name
-                ),
-            ));
+            let (at, ty) = (a.loc, e.name.clone());
+            self.missing_value(e, at, &ty, key, "give the count", "N");
             return Ok(None);
         }
         if let Some((-1, at)) = self.int_attr(e, key)? {

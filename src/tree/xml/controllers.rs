@@ -61,14 +61,7 @@ impl<'a> Builder<'a> {
             return Ok(Some(given.value));
         }
         if v.starts_with('{') {
-            self.missing_values.push((
-                e.doc,
-                a.loc,
-                format!(
-                    "<{ty}> {key} = \"{v}\": a blackboard value known only at run time; give it: \
-                     `\"{v}\": {{value: x}}`"
-                ),
-            ));
+            self.missing_value(e, a.loc, ty, key, "give it", "x");
             return Ok(None);
         }
         match v.parse::<f64>() {

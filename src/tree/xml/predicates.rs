@@ -335,15 +335,7 @@ impl<'a> Builder<'a> {
         }
         let n = if q.value.trim().starts_with('{') {
             if self.unresolved(&q.value) {
-                let v = q.value.trim();
-                self.missing_values.push((
-                    e.doc,
-                    q.loc,
-                    format!(
-                        "<{ty}> {port} = \"{v}\": a blackboard value known only at run time; give \
-                         its length: `\"{v}\": {{value: N}}`"
-                    ),
-                ));
+                self.missing_value(e, q.loc, ty, port, "give its length", "N");
                 return self.placeholder(e, &base, parent, depth, path, prefix, retry);
             }
             let Some((n, at)) = self.int_attr(e, port)? else {
