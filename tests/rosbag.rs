@@ -256,7 +256,7 @@ fn intervals_cover_the_parameters() {
 }
 
 /// The command line: several bags pooled into a params file that `report
-/// --ci`, `sensitivity` and `check` take.
+/// --ci`, `sensitivity` and `check --ci --require` take.
 #[test]
 fn fit_command_and_the_chain() {
     let Some(py) = common::python::python("rosbag2 recordings made with rosbags") else {
@@ -303,6 +303,23 @@ fn fit_command_and_the_chain() {
             "{args:?}: {}",
             String::from_utf8_lossy(&o.stderr)
         );
+    }
+    // The gate on the fitted params: the root's exact P(S) with the truth
+    // above is 0.7 + 0.3 * 0.8 * 0.7 = 0.868 for the RecoveryNode, times
+    // 0.85 for FollowPath = 0.7378; 200 goals put the 95% interval's lower
+    // bound well above 0.5 and its upper bound well below 0.95.
+    for (bound, code) in [("ps >= 0.5", 0), ("ps >= 0.95", 1)] {
+        let o = bin()
+            .arg("check")
+            .arg(&tree)
+            .arg("--params")
+            .arg(&params)
+            .args(["--ci", "--require", bound])
+            .output()
+            .unwrap();
+        let out = String::from_utf8_lossy(&o.stdout);
+        assert_eq!(o.status.code(), Some(code), "{bound}: {out}");
+        assert!(out.contains("lower bound"), "{out}");
     }
     // without --tree: told to give it
     let o = bin().arg("fit").arg(&bag0).output().unwrap();
