@@ -45,20 +45,49 @@ fn sim_root(tree: &Tree, runs: u64) -> SimResult {
 /// Returns (ps, MTTS, MTTF) of the pipeline.
 #[allow(clippy::too_many_arguments)]
 fn race(r: f64, p: f64, a: f64, b: f64, t: f64, s: f64, mu: f64, nu: f64) -> (f64, f64, f64) {
-    let lam = |x: f64| {
-        (1.0 - p) * (-x * t).exp() * b / (b + x) / (1.0 - p * (-x * t).exp() * a / (a + x))
+    // E[e^{-xX}] of Exp(a) and its derivative in x
+    let exp_lt = |a: f64| move |x: f64| (a / (a + x), -a / ((a + x) * (a + x)));
+    let planner = Planner {
+        p,
+        success: &exp_lt(a),
+        failure: &exp_lt(b),
+        mean_success: 1.0 / a,
+        mean_failure: 1.0 / b,
     };
-    // Λ = N/D with N = (1-p)e^{-xT}b/(b+x), D = 1 − p·e^{-xT}a/(a+x):
-    // N' = −N(T + 1/(b+x)), D' = p·e^{-xT}a/(a+x)·(T + 1/(a+x))
+    race_with(1.0 / r, &planner, t, s, mu, nu)
+}
+
+/// The planner P of [`race`] with any time laws: `success(x)` and
+/// `failure(x)` give `(E[e^{-xX}], d/dx E[e^{-xX}])` of its Success and
+/// Failure times.
+struct Planner<'a> {
+    p: f64,
+    success: &'a dyn Fn(f64) -> (f64, f64),
+    failure: &'a dyn Fn(f64) -> (f64, f64),
+    mean_success: f64,
+    mean_failure: f64,
+}
+
+/// [`race`] for any planner laws A (Success) and B (Failure):
+///   Λ(x) = (1−p)·e^{-xT}·B(x) / (1 − p·e^{-xT}·A(x)),
+/// `sel` the selector's mean time. Returns (ps, MTTS, MTTF).
+fn race_with(sel: f64, pl: &Planner, t: f64, s: f64, mu: f64, nu: f64) -> (f64, f64, f64) {
+    let p = pl.p;
+    let lam = |x: f64| {
+        let e = (-x * t).exp();
+        (1.0 - p) * e * (pl.failure)(x).0 / (1.0 - p * e * (pl.success)(x).0)
+    };
+    // Λ = N/D with N = (1-p)e^{-xT}B, D = 1 − p·e^{-xT}A:
+    // N' = (1-p)e^{-xT}(B' − T·B), D' = −p·e^{-xT}(A' − T·A)
     let dlam = |x: f64| {
         let e = (-x * t).exp();
-        let n = (1.0 - p) * e * b / (b + x);
-        let q = p * e * a / (a + x);
-        let d = 1.0 - q;
-        let (dn, dd) = (-n * (t + 1.0 / (b + x)), q * (t + 1.0 / (a + x)));
+        let ((a, da), (b, db)) = ((pl.success)(x), (pl.failure)(x));
+        let n = (1.0 - p) * e * b;
+        let d = 1.0 - p * e * a;
+        let (dn, dd) = ((1.0 - p) * e * (db - t * b), -p * e * (da - t * a));
         (dn * d - n * dd) / (d * d)
     };
-    let (sel, first) = (1.0 / r, 1.0 / a);
+    let first = pl.mean_success;
     // after P's first success
     let win = s * (1.0 - lam(mu));
     let x_win = s * (1.0 / mu - lam(mu) / mu + dlam(mu));
@@ -67,7 +96,8 @@ fn race(r: f64, p: f64, a: f64, b: f64, t: f64, s: f64, mu: f64, nu: f64) -> (f6
     let ps = p * win;
     let ets = p * ((sel + first) * win + x_win);
     let pf = (1.0 - p) + p * (1.0 - win);
-    let etf = (1.0 - p) * (sel + 1.0 / b) + p * ((sel + first) * (1.0 - win) + y_lose + l_wins);
+    let etf =
+        (1.0 - p) * (sel + pl.mean_failure) + p * ((sel + first) * (1.0 - win) + y_lose + l_wins);
     (ps, ets / ps, etf / pf)
 }
 
@@ -111,6 +141,45 @@ fn rate_controller_replanning_races_the_follower() {
     // the curve of the Sequence that starts the race (the pipeline) is
     // exact too, whatever the series' length
     check_curve(&tree, exact);
+}
+
+/// The re-planning race with a planner whose Success time is a shifted
+/// exponential δ + Exp(a), as `fit --timing auto` writes for real planners:
+/// A(x) = e^{-xδ}·a/(a+x) in the closed form. With p = 0.95 the series of
+/// re-runs would be 629 long (0.95^629 ≤ 1e-14): the lowering once refused
+/// it; the race needs no series (the planner's composed law on the
+/// follower's horizon).
+#[test]
+fn a_shifted_planner_races_the_follower() {
+    let (p, delta, a, b) = (0.95, 0.2, 2.0, 4.0);
+    let tree = xml(
+        "<PipelineSequence name=\"pipe\">\n<Sel/>\n<RateController hz=\"0.5\"><Plan/></RateController>\n<Follow/>\n</PipelineSequence>",
+        "Sel: {ps: 1.0, mu: 100}\nPlan: {ps: 0.95, success_time: {shift: 0.2, rate: 2}, nu: 4}\n\
+         Follow: {ps: 0.8, mu: 0.05, nu: 0.1}\n",
+    );
+    let shifted = move |x: f64| {
+        let v = (-x * delta).exp() * a / (a + x);
+        (v, v * (-delta - 1.0 / (a + x)))
+    };
+    let exponential = move |x: f64| (b / (b + x), -b / ((b + x) * (b + x)));
+    let planner = Planner {
+        p,
+        success: &shifted,
+        failure: &exponential,
+        mean_success: delta + 1.0 / a,
+        mean_failure: 1.0 / b,
+    };
+    let exact = race_with(0.01, &planner, 2.0, 0.8, 0.05, 0.1);
+    // the shift delays every re-plan: the pipeline succeeds more often than
+    // with an unshifted planner of the same rate
+    let unshifted = race(100.0, p, a, b, 2.0, 0.8, 0.05, 0.1);
+    assert!(
+        exact.0 > unshifted.0 && exact.0 < 0.95 * 0.8,
+        "{exact:?} {unshifted:?}"
+    );
+    check_exact(&tree, exact);
+    check_curve(&tree, exact);
+    check_race(&tree, exact, 200_000);
 }
 
 /// The pipeline's curve: its limit is the closed form's ps, and at a few

@@ -311,8 +311,19 @@ pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError
     };
     let plan = Plan::new(tree, options.method, options.max_states);
     let mut figures: Vec<Option<Figures>> = vec![None; tree.nodes.len()];
+    // a subtree's figures depend on it alone: a copy of an analysed subtree
+    // (a RecoveryNode's retries, a re-run's copies) takes its figures
+    let prints = tree.fingerprints();
+    let mut seen: std::collections::HashMap<u64, NodeId> = std::collections::HashMap::new();
     // pre-order: children come after their parent, so reverse order is bottom-up
     for id in (0..tree.nodes.len()).rev() {
+        if let Some(&twin) = seen.get(&prints[id]) {
+            if tree.same_subtree(twin, id) {
+                figures[id] = figures[twin];
+                continue;
+            }
+        }
+        seen.entry(prints[id]).or_insert(id);
         let child_figs: Vec<Figures> = tree
             .node(id)
             .kind

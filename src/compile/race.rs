@@ -861,11 +861,12 @@ fn sure_return(tree: &crate::tree::Tree, m: usize, f: usize, children: &[NodeId]
 /// ([`renewal_race`]).
 const REST_TAIL: f64 = 1e-13;
 
-/// `Parallel{1, 1}(process, R)` (either order) with a re-run process whose
-/// `C′` has a phase chain and an `R` that has none (a fixed wait inside
-/// it, a race of its own): the race of the process's law of first failure
-/// from its levels ([`renewal_curve::prepare_process`], no series over the
-/// re-runs) against R's law. Exact on `[0, horizon]`; `None` for the
+/// `Parallel{1, 1}(process, R)` (either order) with a re-run process and
+/// an `R` without a phase chain (a fixed wait inside it, a race of its
+/// own), or a `C′` without one: the race of the process's law of first
+/// failure — from its levels where `C′` has a phase chain
+/// ([`renewal_curve::prepare_process`]), else its composed law on
+/// `[0, horizon]` — against R's law, with no series over the re-runs. Exact on `[0, horizon]`; `None` for the
 /// horizon takes R's tail: twice the first doubling of `scale` where R is
 /// still running with probability below [`REST_TAIL`] — beyond it the
 /// process's Failure is held at its value, which changes the node's
@@ -916,26 +917,31 @@ pub(crate) fn renewal_race(
             }
         }
     };
-    let Some(prepared) =
-        renewal_curve::prepare_process(tree, parts.process, horizon, plan.max_states())?
-    else {
-        return Ok(None);
-    };
-    if prepared.instant_failure() > 0.0 {
-        return Ok(None);
-    }
-    let (d, t0) = prepared.period();
-    let mut levels = Vec::new();
-    prepared.run(|_, level| {
-        levels.push(level);
-        Ok(())
-    })?;
-    let process = Racer::Renewal(Box::new(RenewalLoop {
-        levels,
-        d,
-        t0,
-        horizon,
-    }));
+    let process =
+        match renewal_curve::prepare_process(tree, parts.process, horizon, plan.max_states())? {
+            Some(prepared) if prepared.instant_failure() > 0.0 => return Ok(None),
+            Some(prepared) => {
+                let (d, t0) = prepared.period();
+                let mut levels = Vec::new();
+                prepared.run(|_, level| {
+                    levels.push(level);
+                    Ok(())
+                })?;
+                Racer::Renewal(Box::new(RenewalLoop {
+                    levels,
+                    d,
+                    t0,
+                    horizon,
+                }))
+            }
+            // C′ without a phase chain (a shifted, fixed or hybrid time): the
+            // process's composed law on [0, horizon] only — R has returned by
+            // then, so the race's cost follows R's horizon, not the number of
+            // re-runs until the process fails
+            None => Racer::law(plan, parts.process, horizon, || {
+                unreachable!("a finite horizon needs no figures")
+            })?,
+        };
     let kids = if children.first() == Some(&parts.process) {
         vec![process, rest]
     } else {
@@ -1014,9 +1020,10 @@ pub(crate) fn curve(
             }
         }
     }
+    // the curve reads the race on [0, end] only
     let race = match race {
         Some(r) => r,
-        None => race_of(plan, id)?,
+        None => race_within(plan, id, end)?,
     };
     let rows = race.rows(times, false)?;
     Ok(times

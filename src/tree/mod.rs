@@ -637,6 +637,35 @@ impl Tree {
         id..end
     }
 
+    /// A hash of each node's subtree as [`Tree::same_subtree`] compares it
+    /// (kinds and parameters in place, names aside): copies have equal
+    /// fingerprints, so `same_subtree` need only confirm equal ones.
+    pub fn fingerprints(&self) -> Vec<u64> {
+        use std::hash::{Hash, Hasher};
+        let mut out = vec![0u64; self.nodes.len()];
+        for id in (0..self.nodes.len()).rev() {
+            let mut kind = self.nodes[id].kind.clone();
+            match &mut kind {
+                NodeKind::Sequence { children }
+                | NodeKind::Fallback { children }
+                | NodeKind::Pipeline { children }
+                | NodeKind::RoundRobin { children, .. }
+                | NodeKind::SequenceWithMemory { children, .. }
+                | NodeKind::Parallel { children, .. }
+                | NodeKind::Flow(Flow { children, .. }) => children.clear(),
+                NodeKind::Decorator { child, .. } => *child = 0,
+                NodeKind::Action(_) | NodeKind::Condition { .. } => {}
+            }
+            let mut h = std::collections::hash_map::DefaultHasher::new();
+            format!("{kind:?}").hash(&mut h);
+            for &c in self.nodes[id].kind.children() {
+                out[c].hash(&mut h);
+            }
+            out[id] = h.finish();
+        }
+        out
+    }
+
     /// Whether the subtrees of `a` and `b` are copies of each other (the
     /// same kinds and parameters in the same places; names aside), as the
     /// lowering of a RecoveryNode's retries makes them.

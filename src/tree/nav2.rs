@@ -47,7 +47,7 @@
 
 use std::collections::HashMap;
 
-use super::{Decorator, Duration, Flow, FlowNext, FlowState, NodeId, NodeKind, Tree};
+use super::{Decorator, Flow, FlowNext, FlowState, NodeId, NodeKind, Tree};
 
 /// What ticking a child again after it returned Success does, when its
 /// parent (a PipelineSequence) does not reset it.
@@ -654,17 +654,16 @@ fn long_series(tree: &Tree, rerun: NodeId, waits: bool) -> Option<f64> {
 
 /// Whether the race of a RateController's re-run process against the rest
 /// of the pipeline (`rest`: the later children) is exact without a series:
-/// the re-run lowers to a Markovian subtree (a phase chain) and neither it
-/// nor the rest holds a pipeline child that re-runs (nor does the rest
-/// itself, before its last child). A Markovian rest has the renewal method
-/// (`crate::compile::renewal`); any other the race of the re-run's law of
-/// first failure, from the renewal levels, with the rest's own law
-/// (`crate::compile::race::renewal_race`).
+/// neither the re-run nor the rest holds a pipeline child that re-runs (nor
+/// does the rest itself, before its last child). A Markovian re-run and
+/// rest have the renewal method (`crate::compile::renewal`); any other the
+/// race of the re-run's law of first failure — from the renewal levels
+/// where the re-run has a phase chain, else its composed law on the rest's
+/// horizon — with the rest's own law (`crate::compile::race::renewal_race`):
+/// its cost follows the rest's time scale over the wait, not the number of
+/// re-runs until the process fails.
 fn renewal_applies(tree: &Tree, rerun: NodeId, rest: &[NodeId]) -> bool {
-    markovian(tree, rerun)
-        && no_rerun(tree, rerun)
-        && rest.iter().all(|&c| no_rerun(tree, c))
-        && inert(tree, rest)
+    no_rerun(tree, rerun) && rest.iter().all(|&c| no_rerun(tree, c)) && inert(tree, rest)
 }
 
 /// Whether every child but the last of a pipeline changes nothing when
@@ -672,18 +671,6 @@ fn renewal_applies(tree: &Tree, rerun: NodeId, rest: &[NodeId]) -> bool {
 fn inert(tree: &Tree, kids: &[NodeId]) -> bool {
     kids.split_last()
         .is_none_or(|(_, e)| e.iter().all(|&c| retick(tree, c) == Retick::Inert))
-}
-
-/// Whether the leaves below `id` are Markovian (exponential or zero times:
-/// a phase chain).
-fn markovian(tree: &Tree, id: NodeId) -> bool {
-    tree.subtree(id).all(|n| match &tree.nodes[n].kind {
-        NodeKind::Action(a) => [a.success, a.failure].iter().flatten().all(|d| {
-            matches!(d, Duration::Exponential { .. })
-                || matches!(d, Duration::Fixed { time } if *time == 0.0)
-        }),
-        _ => true,
-    })
 }
 
 /// Whether no pipeline below `id` has a child that re-runs.
