@@ -630,3 +630,35 @@ fn recovery_with_round_robin_behind_a_condition() {
         "{e}"
     );
 }
+
+/// Issue 29's Nav2 case: the published default tree with fitted timings
+/// (`trees/nav2-fitted.params.yaml`: a shifted planner, an Erlang-3
+/// follower) was refused ("a series of about 2540 re-runs"). Now `report`
+/// and `curve` answer it; the curve tends to the report's ps (1e-9) and
+/// both agree with the simulated tick semantics (|z| < 5, 100,000 runs).
+#[test]
+fn nav2_default_with_fitted_timings_is_answered() {
+    let Some(root) = common::corpus() else {
+        println!("note: the corpus is absent; skipping");
+        return;
+    };
+    let dir = root.join("nav2");
+    let params =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("trees/nav2-fitted.params.yaml");
+    let tree = btrel::tree::xml::parse_xml_files(
+        &dir.join("navigate_to_pose_w_replanning_and_recovery.xml"),
+        &params,
+        &[dir.join("nav2_tree_nodes.xml")],
+    )
+    .expect("the published tree reads");
+    let f = analyze(&tree, &Options::default())
+        .expect("report answers")
+        .nodes[0];
+    let times = [10.0, 60.0, 120.0, 300.0];
+    let pts = curve(&tree, 0, &times, &CurveOptions::default()).expect("curve answers");
+    let late = curve(&tree, 0, &[5000.0], &CurveOptions::default()).expect("curve")[0];
+    assert!((late.success - f.ps).abs() < 1e-9, "{late:?} vs {f:?}");
+    assert!((late.failure - f.pf).abs() < 1e-9, "{late:?} vs {f:?}");
+    let sim = common::simulate_root(&tree, 100_000, &times);
+    common::assert_root_and_curve_within_z("nav2 fitted", f, &pts, &sim);
+}

@@ -893,28 +893,43 @@ pub(crate) fn renewal_race(
     };
     let name = tree.node(id).name.clone();
     let rest = Racer::build_within(plan, r, horizon.unwrap_or(f64::INFINITY))?;
-    let horizon = match horizon {
-        Some(h) => h,
+    // `horizon` for the levels; `tight`, where R is still running with
+    // probability at most REST_TAIL, for a composed law (whose cost grows
+    // with its horizon squared)
+    let (horizon, tight) = match horizon {
+        Some(h) => (h, h),
         None => {
+            let running = |t: f64| -> Option<f64> {
+                let [s, f, _, _] = rest.rows(&name, &[t], false).ok()?[0];
+                Some(1.0 - s - f)
+            };
             let mut t = scale.max(parts.wait).max(1.0);
             let mut tail = None;
             // an R that may never return keeps a running probability: stop
             // after 2^30 times the scale (or where R's own sampling gives up)
             for _ in 0..30 {
-                let Ok(rows) = rest.rows(&name, &[t], false) else {
+                let Some(r) = running(t) else {
                     return Ok(None);
                 };
-                let [s, f, _, _] = rows[0];
-                if 1.0 - s - f <= REST_TAIL {
-                    tail = Some(2.0 * t);
+                if r <= REST_TAIL {
+                    tail = Some(t);
                     break;
                 }
                 t *= 2.0;
             }
-            match tail {
-                Some(h) => h,
-                None => return Ok(None),
+            let Some(t) = tail else {
+                return Ok(None);
+            };
+            // the doubling overshoots by up to 2: back off in quarter octaves
+            let mut tight = t;
+            for _ in 0..3 {
+                let c = tight * 0.5f64.powf(0.25);
+                match running(c) {
+                    Some(r) if r <= REST_TAIL && c >= parts.wait => tight = c,
+                    _ => break,
+                }
             }
+            (2.0 * t, tight)
         }
     };
     let process =
@@ -938,8 +953,9 @@ pub(crate) fn renewal_race(
             // process's composed law on [0, horizon] only — R has returned by
             // then, so the race's cost follows R's horizon, not the number of
             // re-runs until the process fails
-            None => Racer::law(plan, parts.process, horizon, || {
-                unreachable!("a finite horizon needs no figures")
+            // (a finite horizon asks for no figures: the refusal is unused)
+            None => Racer::law(plan, parts.process, tight, || {
+                numerical(&tree.node(parts.process).name, "its figures are unknown")
             })?,
         };
     let kids = if children.first() == Some(&parts.process) {

@@ -397,18 +397,68 @@ impl Interpolant {
 
     /// `∫_0^t self(v) g(t − v) dv` (both functions taken as 0 outside their
     /// domains, which start at 0): exact for the polynomial pieces, up to
-    /// rounding.
+    /// rounding, but for the panels outside each function's
+    /// [`Self::support`].
     pub fn convolve_at(&self, g: &Interpolant, t: f64) -> f64 {
+        self.convolve_within(g, t, self.support(), g.support())
+    }
+
+    /// `[a, b]`: the span of the panels where the function exceeds
+    /// [`TRIM`] times its largest value (`None` when it is 0). Outside it
+    /// the function is below that, so leaving it out of a convolution
+    /// changes it by less than `TRIM` times the largest value times the
+    /// domain's width (relative 1e-30: far below the interpolation's
+    /// error) — and a convolution of a long law with a short one (a loop's
+    /// cycle) costs the short one's width per point, not the long one's.
+    pub fn support(&self) -> Option<(f64, f64)> {
+        let max = self.scale.iter().fold(0.0f64, |m, &x| m.max(x));
+        if max == 0.0 || !max.is_finite() {
+            return (max != 0.0).then(|| (self.edges[0], self.end()));
+        }
+        let floor = TRIM * max;
+        let first = self.scale.iter().position(|&x| x > floor)?;
+        let last = self.scale.iter().rposition(|&x| x > floor)?;
+        Some((self.edges[first], self.edges[last + 1]))
+    }
+
+    /// [`Self::convolve_at`] with both supports given (computed once for
+    /// many points).
+    fn convolve_within(
+        &self,
+        g: &Interpolant,
+        t: f64,
+        sf: Option<(f64, f64)>,
+        sg: Option<(f64, f64)>,
+    ) -> f64 {
+        let (Some(sf), Some(sg)) = (sf, sg) else {
+            return 0.0;
+        };
         if t <= 0.0 {
             return 0.0;
         }
+        // v in self's support, t − v in g's
+        let lo = sf.0.max(t - sg.1).max(0.0);
+        let hi = sf.1.min(t - sg.0).min(t).min(self.end());
+        if hi <= lo {
+            return 0.0;
+        }
         let rule = &basis().gauss;
-        // cuts: own edges and t − g's edges, inside (0, t)
-        let mut cuts: Vec<f64> = Vec::with_capacity(self.edges.len() + g.edges.len() + 2);
-        cuts.push(0.0);
-        cuts.extend(self.edges.iter().copied().filter(|&e| e > 0.0 && e < t));
-        cuts.extend(g.edges.iter().map(|&e| t - e).filter(|&e| e > 0.0 && e < t));
-        cuts.push(t.min(self.end()));
+        // cuts: own edges and t − g's edges, inside (lo, hi)
+        let own = {
+            let a = self.edges.partition_point(|&e| e <= lo);
+            let b = self.edges.partition_point(|&e| e < hi);
+            &self.edges[a..b.max(a)]
+        };
+        let theirs = {
+            let a = g.edges.partition_point(|&e| e <= t - hi);
+            let b = g.edges.partition_point(|&e| e < t - lo);
+            &g.edges[a..b.max(a)]
+        };
+        let mut cuts: Vec<f64> = Vec::with_capacity(own.len() + theirs.len() + 2);
+        cuts.push(lo);
+        cuts.extend_from_slice(own);
+        cuts.extend(theirs.iter().map(|&e| t - e).filter(|&e| e > lo && e < hi));
+        cuts.push(hi);
         cuts.sort_by(f64::total_cmp);
         let mut total = 0.0;
         for w in cuts.windows(2) {
@@ -436,13 +486,18 @@ impl Interpolant {
 
     /// [`Self::convolve_at`] at many times (in parallel).
     pub fn convolve_many(&self, g: &Interpolant, times: &[f64]) -> Vec<f64> {
+        let (sf, sg) = (self.support(), g.support());
         times
             .par_iter()
             .with_min_len(64)
-            .map(|&t| self.convolve_at(g, t))
+            .map(|&t| self.convolve_within(g, t, sf, sg))
             .collect()
     }
 }
+
+/// Values below this fraction of a function's largest value at either end
+/// of its domain are left out of its convolutions ([`Interpolant::support`]).
+pub const TRIM: f64 = 1e-30;
 
 /// Builds `k` interpolants on shared panels of `[0, end]`. `sample` gets a
 /// batch of points and returns `k` values per point (row-major). Panels
