@@ -165,6 +165,40 @@ fn with_extra(file: &str, published: &str, extra: &str) -> String {
     out
 }
 
+/// Reads corpus tree `row` as the corpus test does: its params file (with
+/// [`EXTRA_PARAMS`] joined in `scratch`), the files of its SubTrees and its
+/// project's node model.
+fn read(
+    root: &Path,
+    row: &Row,
+    scratch: &Path,
+) -> Result<btrel::tree::Tree, btrel::tree::TreeError> {
+    let xml = root.join(&row.file);
+    let dir = xml.parent().unwrap().to_path_buf();
+    let mut params = xml.with_extension("params.yaml");
+    if let Some((_, extra)) = EXTRA_PARAMS.iter().find(|(f, _)| *f == row.file) {
+        let published: String = std::fs::read_to_string(&params)
+            .unwrap_or_default()
+            .lines()
+            .filter(|l| !STALE.iter().any(|k| l.starts_with(k)))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        let joined = scratch.join(format!("{}.params.yaml", row.file.replace('/', "_")));
+        std::fs::write(&joined, with_extra(&row.file, &published, extra)).unwrap();
+        params = joined;
+    }
+    let mut includes: Vec<PathBuf> = row.needs.iter().map(|n| dir.join(n)).collect();
+    // the project's node model, shipped as a separate file
+    let folder = row.file.split('/').next().unwrap();
+    match folder {
+        "nav2" | "nav2_humble" => includes.push(dir.join("nav2_tree_nodes.xml")),
+        "roscon24" if row.file.contains("pyrobosim_btcpp") => includes
+            .push(dir.join("BehaviorTree.CPP__pyrobosim_btcpp__trees__pyrobosim_btcpp_model.xml")),
+        _ => {}
+    }
+    parse_xml_files(&xml, &params, &includes)
+}
+
 struct Row {
     file: String,
     kind: String,
@@ -236,31 +270,7 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
     let mut unsimulated = Vec::new();
     let scratch = tempfile::tempdir().unwrap();
     for row in &trees {
-        let xml = root.join(&row.file);
-        let dir = xml.parent().unwrap().to_path_buf();
-        let mut params = xml.with_extension("params.yaml");
-        if let Some((_, extra)) = EXTRA_PARAMS.iter().find(|(f, _)| *f == row.file) {
-            let published: String = std::fs::read_to_string(&params)
-                .unwrap_or_default()
-                .lines()
-                .filter(|l| !STALE.iter().any(|k| l.starts_with(k)))
-                .map(|l| format!("{l}\n"))
-                .collect();
-            let joined = scratch.path().join(format!("{}.params.yaml", parsed.len()));
-            std::fs::write(&joined, with_extra(&row.file, &published, extra)).unwrap();
-            params = joined;
-        }
-        let mut includes: Vec<PathBuf> = row.needs.iter().map(|n| dir.join(n)).collect();
-        // the project's node model, shipped as a separate file
-        let folder = row.file.split('/').next().unwrap();
-        match folder {
-            "nav2" | "nav2_humble" => includes.push(dir.join("nav2_tree_nodes.xml")),
-            "roscon24" if row.file.contains("pyrobosim_btcpp") => includes.push(
-                dir.join("BehaviorTree.CPP__pyrobosim_btcpp__trees__pyrobosim_btcpp_model.xml"),
-            ),
-            _ => {}
-        }
-        match parse_xml_files(&xml, &params, &includes) {
+        match read(&root, row, scratch.path()) {
             Ok(tree) => {
                 // the tree as read has a PipelineSequence iff INDEX.md's
                 // node types (of the tree and its needs) name one
@@ -556,4 +566,89 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
         );
     }
     assert!(semantic.len() <= 1, "{} refused", semantic.len());
+}
+
+/// The leaf `d` as `fit --timing auto` would write it for real durations
+/// of the same mean: a Success time `1/mu` as a shifted exponential (half
+/// the mean fixed, then Exp(2·mu)), a Failure time `1/nu` as an Erlang-2
+/// (rate 2·nu); other times as they are.
+fn fitted(d: Option<btrel::tree::Duration>, success: bool) -> Option<btrel::tree::Duration> {
+    use btrel::tree::{stages::Stages, Duration};
+    match d {
+        Some(Duration::Exponential { rate }) if success => Some(Duration::phase_type(
+            0.5 / rate,
+            Stages::erlang(1, 2.0 * rate).expect("a rate > 0"),
+        )),
+        Some(Duration::Exponential { rate }) => Some(Duration::phase_type(
+            0.0,
+            Stages::erlang(2, 2.0 * rate).expect("a rate > 0"),
+        )),
+        other => other,
+    }
+}
+
+/// Issue 29, deliverable 8: every corpus tree that is analysed as
+/// published, again with fitted timings (each `mu` a shifted exponential
+/// of the same mean, each `nu` an Erlang-2 of the same mean): `report` and
+/// the root's `curve` answer, and the root agrees with 4,000 simulated runs
+/// (|z| < 5). Lists the trees refused with the reason.
+#[test]
+fn published_trees_with_fitted_timings() {
+    let Some(root) = common::corpus() else {
+        println!("note: the corpus is absent; skipping");
+        return;
+    };
+    let index = std::fs::read_to_string(root.join("INDEX.md")).unwrap();
+    let scratch = tempfile::tempdir().unwrap();
+    let (mut answered, mut refused) = (Vec::new(), Vec::new());
+    for row in rows(&index).iter().filter(|r| r.kind == "tree") {
+        let Ok(mut tree) = read(&root, row, scratch.path()) else {
+            continue;
+        };
+        if analyze(&tree, &Options::default()).is_err() {
+            continue;
+        }
+        for n in &mut tree.nodes {
+            if let btrel::tree::NodeKind::Action(a) = &mut n.kind {
+                a.success = fitted(a.success, true);
+                a.failure = fitted(a.failure, false);
+            }
+        }
+        let start = std::time::Instant::now();
+        let times = [10.0, 100.0];
+        let result = analyze(&tree, &Options::default()).and_then(|a| {
+            btrel::curve::curve(&tree, 0, &times, &Default::default()).map(|c| (a.nodes[0], c))
+        });
+        let took = start.elapsed();
+        match result {
+            Ok((f, pts)) => {
+                let sim = common::simulate_root(&tree, 4000, &times);
+                common::assert_root_and_curve_within_z(&row.file, f, &pts, &sim);
+                answered.push((row.file.clone(), took));
+            }
+            Err(e) => refused.push((row.file.clone(), took, e.to_string())),
+        }
+    }
+    println!(
+        "{} trees analysed as published: {} answered with fitted timings, {} refused",
+        answered.len() + refused.len(),
+        answered.len(),
+        refused.len()
+    );
+    for (f, t) in &answered {
+        println!("  answered: {f} in {t:.2?}");
+    }
+    for (f, t, e) in &refused {
+        println!("  refused: {f} after {t:.2?}: {e}");
+    }
+    // Nav2's routing tree: its ComputeRoute re-runs back to back inside a
+    // rest that re-plans too (a series of about 612 re-runs)
+    let known: &[&str] = &["nav2/navigate_on_route_graph_w_recovery.xml"];
+    for (f, _, e) in &refused {
+        assert!(
+            known.contains(&f.as_str()),
+            "{f} refused with fitted timings: {e}"
+        );
+    }
+    assert!(answered.len() >= 99, "{} answered", answered.len());
 }

@@ -94,6 +94,13 @@ pub(crate) enum Racer {
 /// this, its mean times by this times the node's time scale).
 const LAW_TAIL: f64 = 1e-13;
 
+/// Most phases (over all components) of a shifted mixture that a race
+/// samples: every row of it is one transient pass per component, so a
+/// loop's mixture (one component per number of re-runs, each a chain of
+/// that many cycles) costs the square of its re-runs per row — its
+/// composed law ([`Racer::Law`]) is sampled at the cost of interpolation.
+const MAX_SHIFTED_PHASES: usize = 1024;
+
 /// Most doublings of a [`Racer::Law`]'s horizon.
 const LAW_DOUBLINGS: usize = 12;
 
@@ -180,6 +187,14 @@ impl Racer {
         // the shifted mixture where it holds the subtree within the budget,
         // else the subtree's composed law (any subtree)
         let shifted = || match shifted::shifted_law_within(tree, id, plan.max_states(), horizon) {
+            // a mixture whose rows cost more than its composed law (a loop's
+            // many re-run counts, each a chain of its own): the law
+            Ok(Some(law)) if law.phases() > MAX_SHIFTED_PHASES => {
+                Racer::law(plan, id, horizon, || AnalysisError::MixedTiming {
+                    node: node.name.clone(),
+                    leaf: plan.mixed_leaf(id),
+                })
+            }
             Ok(Some(law)) => Ok(Racer::Shifted(law)),
             Ok(None) => Racer::law(plan, id, horizon, || AnalysisError::MixedTiming {
                 node: node.name.clone(),

@@ -71,7 +71,7 @@ impl ShiftedLaw {
         self.success.iter().chain(&self.failure).map(|c| c.shift)
     }
 
-    fn phases(&self) -> usize {
+    pub(crate) fn phases(&self) -> usize {
         self.success
             .iter()
             .chain(&self.failure)
