@@ -641,8 +641,9 @@ fn published_trees_with_fitted_timings() {
     for (f, t, e) in &refused {
         println!("  refused: {f} after {t:.2?}: {e}");
     }
-    // Nav2's routing tree: its ComputeRoute re-runs back to back inside a
-    // rest that re-plans too (a series of about 612 re-runs)
+    // Nav2's routing tree: its pipeline child `ComputeRoute`, a RecoveryNode
+    // around a RateController, re-runs back to back (no wait: a series of
+    // about 612 re-runs with mixed timing)
     let known: &[&str] = &["nav2/navigate_on_route_graph_w_recovery.xml"];
     for (f, _, e) in &refused {
         assert!(
