@@ -75,3 +75,87 @@ fn a_mixed_timing_tree_too_large_for_its_shifted_mixture_is_answered_within_the_
     let csv = std::fs::read_to_string(&out).unwrap();
     assert_eq!(csv.lines().count(), 1001, "a header and 1,000 points");
 }
+
+/// Issue 29's 9-leaf tree: `report` grew past 24 GB until the kernel killed
+/// it (the mean times' quadrature halved panels whose gaps were rounding,
+/// doubling them each round). By hand: `c8` (ps 1) succeeds at 0, so `p5`
+/// (M = 1) and `p2` (M = 1) and the root (M = 1) succeed at 0 with
+/// probability 1: ps 1, MTTS 0. Run under a 2 GB address-space limit.
+#[test]
+fn a_parallel_that_surely_succeeds_at_once_is_reported_within_the_memory_limit() {
+    let yaml = "tree:
+  parallel:
+    name: p1
+    success_threshold: 1
+    children:
+      - parallel:
+          name: p2
+          success_threshold: 1
+          children:
+            - retry: {name: ret3, attempts: 1, child: {action: {name: a4, ps: 0.8, mu: 5, nu: 2}}}
+            - parallel:
+                name: p5
+                success_threshold: 1
+                failure_threshold: 3
+                children:
+                  - action: {name: a6, ps: 0.6, tau_s: 0.2, nu: 5}
+                  - condition: {name: c7, ps: 0.2}
+                  - condition: {name: c8, ps: 1}
+            - action: {name: a9, ps: 0.5, tau_s: 0.2, nu: 5}
+      - action: {name: a10, ps: 0.7, tau_s: 0.2, tau_f: 0.5}
+";
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("issue29.yaml");
+    std::fs::write(&file, yaml).unwrap();
+    let script = format!(
+        "ulimit -v 2000000; exec '{}' report '{}' --format json",
+        env!("CARGO_BIN_EXE_btrel"),
+        file.display()
+    );
+    let o = std::process::Command::new("sh")
+        .args(["-c", &script])
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let t = tree(yaml);
+    let f = root_figures(&t);
+    assert_eq!((f.ps, f.pf), (1.0, 0.0), "{f:?}");
+    assert_eq!(f.mtts, Some(0.0), "{f:?}");
+    let (s, fl) = root_curve_at(&t, 0.0);
+    assert_eq!((s, fl), (1.0, 0.0));
+}
+
+/// Issue 29: a Retry of a Parallel `{M = 2, F = 1}` over a deterministic, a
+/// stochastic and a hybrid action: `curve` refused. Answered, and agreeing
+/// with the simulated tick semantics; the curve tends to the report.
+#[test]
+fn a_retry_of_a_mixed_race_has_its_curve() {
+    let t = tree(
+        "tree:
+  retry:
+    name: r
+    attempts: 3
+    child:
+      parallel:
+        name: p
+        success_threshold: 2
+        failure_threshold: 1
+        children:
+          - action: {name: det, ps: 0.7, tau_s: 1, tau_f: 2}
+          - action: {name: sto, ps: 0.8, mu: 1, nu: 2}
+          - action: {name: hyb, ps: 0.6, tau_s: 0.5, nu: 1}
+",
+    );
+    let times = [0.75, 1.0, 2.0, 5.0];
+    let pts = btrel::curve::curve(&t, 0, &times, &Default::default()).expect("answered");
+    let f = root_figures(&t);
+    let late = root_curve_at(&t, 200.0);
+    assert!((late.0 - f.ps).abs() < 1e-9 && (late.1 - f.pf).abs() < 1e-9);
+    let sim = simulate_root(&t, 200_000, &times);
+    assert_root_and_curve_within_z("retry of a mixed race", f, &pts, &sim);
+}

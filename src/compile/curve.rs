@@ -427,6 +427,10 @@ const MEAN_QUADRATURE_TOLERANCE: f64 = 1e-13;
 /// Most rounds of panel refinement (each halves the panels not yet accepted).
 const MAX_REFINEMENTS: usize = 40;
 
+/// Most panels of one round of the mean times' quadrature (each samples
+/// every child's curve at 36 points).
+const MAX_MEAN_PANELS: usize = 1 << 16;
+
 /// A gap `P(S) − S(t)` below this fraction of the outcome probabilities is
 /// rounding of the children's curves: the tail stops there (what it drops
 /// is about this fraction of the mean times, below their tolerance).
@@ -516,7 +520,17 @@ pub(crate) fn parallel_times_by_quadrature(
         let scale = (total[0] + total[1] + sums.iter().map(|s| s[0] + s[1]).sum::<f64>())
             .max(f64::MIN_POSITIVE);
         for ((p, s), e) in pending.iter().zip(&sums).zip(&errors) {
-            if *e <= MEAN_QUADRATURE_TOLERANCE * scale || p.1 - p.0 <= 1e-12 * p.1.max(1.0) {
+            // a panel whose rules differ by no more than the rounding of the
+            // children's curves (TAIL_ROUNDING of the outcome probabilities
+            // per unit of time) is as good as it gets: halving it again only
+            // resolves that rounding (a Parallel that has surely returned at
+            // 0 has gaps of 1e-16 everywhere, and halving them for ever
+            // doubled the panels until memory ran out)
+            let rounding = TAIL_ROUNDING * (ps + pf) * (p.1 - p.0);
+            if *e <= MEAN_QUADRATURE_TOLERANCE * scale
+                || *e <= rounding
+                || p.1 - p.0 <= 1e-12 * p.1.max(1.0)
+            {
                 total[0] += s[0];
                 total[1] += s[1];
             } else {
@@ -539,7 +553,15 @@ pub(crate) fn parallel_times_by_quadrature(
             width *= 2.0;
         }
         if next.is_empty() {
-            return Ok(total);
+            // below the rounding of the curves over the children's time
+            // scale a mean is 0 (a Parallel that returns at once)
+            let floor = TAIL_ROUNDING * (ps + pf) * longest;
+            return Ok(total.map(|x| if x <= floor { 0.0 } else { x }));
+        }
+        // each panel is a batch of the children's curves: bounded before
+        // the next round allocates them
+        if next.len() > MAX_MEAN_PANELS {
+            break;
         }
         pending = next;
     }
