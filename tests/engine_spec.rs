@@ -85,6 +85,16 @@ fn random_trees_of_every_kind_and_timing_are_answered_and_agree_with_simulation(
                 let start = Instant::now();
                 let r = check(seed, &node);
                 let took = start.elapsed();
+                if survey.is_some() {
+                    // as they come, so that a survey cut short still tells
+                    eprintln!(
+                        "survey: seed {seed} {} in {took:.2?}",
+                        match &r {
+                            Ok(()) => "ok".to_string(),
+                            Err(e) => e.lines().next().unwrap_or("").to_string(),
+                        }
+                    );
+                }
                 results
                     .lock()
                     .expect("no worker panics")

@@ -325,3 +325,50 @@ fn restart_loop_warning_gives_the_zero_time_advice() {
     assert_eq!(code, 0, "{err}");
     assert!(err.contains("can run forever"), "{err}");
 }
+
+/// ForceSuccess / ForceFailure turn the runs of their child that return
+/// into one outcome; a child that may never return leaves that mass never
+/// returning (the report claimed ps 1 / pf 1: issue 29's survey, seed 113).
+/// By hand: `fb` = Fallback(a, loop) with `a` (ps 0.3, Exp(1) times) and a
+/// loop that never returns: `fb` succeeds with 0.3 at Exp(1) and otherwise
+/// never returns, so ForceFailure(fb) fails with 0.3, MTTF 1, and
+/// P(never) 0.7; ForceSuccess(fb) succeeds with 0.3, MTTS 1. The
+/// sensitivity of the root's ps to `a`'s ps is 1 (ForceSuccess).
+#[test]
+fn force_decorators_keep_the_never_returning_mass() {
+    use btrel::sensitivity::{sensitivity, Objective, Param};
+    for (force, outcome) in [("force_failure", false), ("force_success", true)] {
+        let t = common::tree(&format!(
+            "tree:
+  {force}:
+    name: f
+    child:
+      fallback:
+        name: fb
+        children:
+          - action: {{name: a, ps: 0.3, mu: 1, nu: 1}}
+          - until_success: {{name: loop, child: {{condition: {{name: c, ps: 0}}}}}}
+"
+        ));
+        let f = common::root_figures(&t);
+        let (p, q, m) = if outcome {
+            (f.ps, f.pf, f.mtts)
+        } else {
+            (f.pf, f.ps, f.mttf)
+        };
+        near(p, 0.3);
+        near(q, 0.0);
+        near(m.expect("a mean time"), 1.0);
+        let (s, fl) = common::root_curve_at(&t, 200.0);
+        near(s + fl, 0.3);
+        if outcome {
+            let sens = sensitivity(&t, Objective::Ps, &btrel::Options::default()).unwrap();
+            let r = sens
+                .rows
+                .iter()
+                .find(|r| t.nodes[r.leaf].name == "a" && r.param == Param::Ps)
+                .expect("a row for a's ps");
+            near(r.derivative, 1.0);
+        }
+    }
+}

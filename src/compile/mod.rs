@@ -557,18 +557,26 @@ pub fn decorator_figures(decorator: Decorator, child: Figures) -> Result<Figures
             mtts: child.mttf,
             mttf: child.mtts,
         },
-        Decorator::ForceSuccess => Figures {
-            ps: 1.0,
-            pf: 0.0,
-            mtts: Some(child.mean_time()),
-            mttf: None,
-        },
-        Decorator::ForceFailure => Figures {
-            ps: 0.0,
-            pf: 1.0,
-            mtts: None,
-            mttf: Some(child.mean_time()),
-        },
+        // the runs of the child that return, whatever their outcome (a
+        // child that may never return leaves that mass never returning)
+        Decorator::ForceSuccess => {
+            let returns = child.ps + child.pf;
+            Figures {
+                ps: returns,
+                pf: 0.0,
+                mtts: (returns > 0.0).then(|| child.mean_time() / returns),
+                mttf: None,
+            }
+        }
+        Decorator::ForceFailure => {
+            let returns = child.ps + child.pf;
+            Figures {
+                ps: 0.0,
+                pf: returns,
+                mtts: None,
+                mttf: (returns > 0.0).then(|| child.mean_time() / returns),
+            }
+        }
         Decorator::UntilFailure | Decorator::UntilSuccess => {
             return loop_figures(decorator, child, "loop")
                 .map_err(|e| e.to_string())?

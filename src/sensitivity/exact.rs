@@ -282,8 +282,9 @@ fn node_map(
             let c = children[0];
             match decorator.as_primitive() {
                 Decorator::Inverter => [c[1], c[0], c[3], c[2]],
-                Decorator::ForceSuccess => [D::ONE, D::ZERO, c[2].add(c[3]), D::ZERO],
-                Decorator::ForceFailure => [D::ZERO, D::ONE, D::ZERO, c[2].add(c[3])],
+                // the child's runs that return (a child may never return)
+                Decorator::ForceSuccess => [c[0].add(c[1]), D::ZERO, c[2].add(c[3]), D::ZERO],
+                Decorator::ForceFailure => [D::ZERO, c[0].add(c[1]), D::ZERO, c[2].add(c[3])],
                 // E[T] of the loop = (E[T·1S] + E[T·1F]) / p_end of the child
                 Decorator::UntilFailure => [D::ZERO, D::ONE, D::ZERO, c[2].add(c[3]).div(c[1])],
                 Decorator::UntilSuccess => [D::ONE, D::ZERO, c[2].add(c[3]).div(c[0]), D::ZERO],
