@@ -104,6 +104,20 @@ fn curves(c: &mut Criterion) {
         group.bench_function("nav2_default_published_1000_points", |b| {
             b.iter(|| curve(&whole, 0, &times, &CurveOptions::default()).expect("curve"))
         });
+        // the same with fitted timings (a shifted planner, an Erlang-3
+        // follower): report and curve, the goal is 1 s for both
+        let fitted = btrel::tree::xml::parse_xml_files(
+            &published.join("navigate_to_pose_w_replanning_and_recovery.xml"),
+            Path::new("trees/nav2-fitted.params.yaml"),
+            &[published.join("nav2_tree_nodes.xml")],
+        )
+        .expect("tree");
+        group.bench_function("nav2_fitted_report", |b| {
+            b.iter(|| btrel::analyze(&fitted, &btrel::Options::default()).expect("report"))
+        });
+        group.bench_function("nav2_fitted_1000_points", |b| {
+            b.iter(|| curve(&fitted, 0, &times, &CurveOptions::default()).expect("curve"))
+        });
     } else {
         eprintln!("nav2_default_published_1000_points skipped: ../shared/realworld is absent");
     }
