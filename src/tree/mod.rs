@@ -340,6 +340,21 @@ impl NodeKind {
             NodeKind::Action(_) | NodeKind::Condition { .. } => &[],
         }
     }
+
+    /// [`NodeKind::children`], to renumber them.
+    pub(crate) fn children_mut(&mut self) -> &mut [NodeId] {
+        match self {
+            NodeKind::Sequence { children }
+            | NodeKind::Fallback { children }
+            | NodeKind::Pipeline { children }
+            | NodeKind::RoundRobin { children, .. }
+            | NodeKind::SequenceWithMemory { children, .. }
+            | NodeKind::Parallel { children, .. }
+            | NodeKind::Flow(Flow { children, .. }) => children,
+            NodeKind::Decorator { child, .. } => std::slice::from_mut(child),
+            NodeKind::Action(_) | NodeKind::Condition { .. } => &mut [],
+        }
+    }
 }
 
 /// An action's outcome probabilities and the time each outcome takes.
@@ -644,18 +659,9 @@ impl Tree {
         use std::hash::{Hash, Hasher};
         let mut out = vec![0u64; self.nodes.len()];
         for id in (0..self.nodes.len()).rev() {
+            // the kind without its children's ids (their fingerprints below)
             let mut kind = self.nodes[id].kind.clone();
-            match &mut kind {
-                NodeKind::Sequence { children }
-                | NodeKind::Fallback { children }
-                | NodeKind::Pipeline { children }
-                | NodeKind::RoundRobin { children, .. }
-                | NodeKind::SequenceWithMemory { children, .. }
-                | NodeKind::Parallel { children, .. }
-                | NodeKind::Flow(Flow { children, .. }) => children.clear(),
-                NodeKind::Decorator { child, .. } => *child = 0,
-                NodeKind::Action(_) | NodeKind::Condition { .. } => {}
-            }
+            kind.children_mut().iter_mut().for_each(|c| *c = 0);
             let mut h = std::collections::hash_map::DefaultHasher::new();
             format!("{kind:?}").hash(&mut h);
             for &c in self.nodes[id].kind.children() {

@@ -696,19 +696,7 @@ fn extract(tree: &Tree, id: NodeId) -> Tree {
             } else {
                 n.parent.map(|p| p - id)
             };
-            match &mut n.kind {
-                NodeKind::Sequence { children }
-                | NodeKind::Fallback { children }
-                | NodeKind::Pipeline { children }
-                | NodeKind::RoundRobin { children, .. }
-                | NodeKind::SequenceWithMemory { children, .. }
-                | NodeKind::Parallel { children, .. }
-                | NodeKind::Flow(super::Flow { children, .. }) => {
-                    children.iter_mut().for_each(|c| *c -= id)
-                }
-                NodeKind::Decorator { child, .. } => *child -= id,
-                NodeKind::Action(_) | NodeKind::Condition { .. } => {}
-            }
+            n.kind.children_mut().iter_mut().for_each(|c| *c -= id);
             n
         })
         .collect();
