@@ -4,7 +4,8 @@
 //! with a Monte Carlo written in the test from the node semantics.
 //!
 //! `BTREL_SPEC_SURVEY=N` runs N trees and prints every refusal and slow
-//! tree instead of stopping at the first (a survey, for engine work);
+//! tree instead of stopping at the first (a survey, for engine work; each
+//! tree is printed as it starts and its verdict as it ends, on stderr);
 //! `BTREL_SPEC_FROM=K` starts at seed K.
 
 mod common;
@@ -86,6 +87,10 @@ fn random_trees_of_every_kind_and_timing_are_answered_and_agree_with_simulation(
                     break;
                 }
                 let node = random_tree(seed, 10);
+                if survey.is_some() {
+                    // the tree first, so that one that never ends is known
+                    eprintln!("survey: seed {seed} starts: {}", node.yaml().trim_end());
+                }
                 let start = Instant::now();
                 let r = check(seed, &node);
                 let took = start.elapsed();
