@@ -559,22 +559,23 @@ pub fn decorator_figures(decorator: Decorator, child: Figures) -> Result<Figures
         },
         // the runs of the child that return, whatever their outcome (a
         // child that may never return leaves that mass never returning)
-        Decorator::ForceSuccess => {
+        Decorator::ForceSuccess | Decorator::ForceFailure => {
             let returns = child.ps + child.pf;
-            Figures {
-                ps: returns,
-                pf: 0.0,
-                mtts: (returns > 0.0).then(|| child.mean_time() / returns),
-                mttf: None,
-            }
-        }
-        Decorator::ForceFailure => {
-            let returns = child.ps + child.pf;
-            Figures {
-                ps: 0.0,
-                pf: returns,
-                mtts: None,
-                mttf: (returns > 0.0).then(|| child.mean_time() / returns),
+            let mean = (returns > 0.0).then(|| child.mean_time() / returns);
+            if decorator == Decorator::ForceSuccess {
+                Figures {
+                    ps: returns,
+                    pf: 0.0,
+                    mtts: mean,
+                    mttf: None,
+                }
+            } else {
+                Figures {
+                    ps: 0.0,
+                    pf: returns,
+                    mtts: None,
+                    mttf: mean,
+                }
             }
         }
         Decorator::UntilFailure | Decorator::UntilSuccess => {

@@ -187,16 +187,10 @@ impl Racer {
         // the shifted mixture where it holds the subtree within the budget,
         // else the subtree's composed law (any subtree)
         let shifted = || match shifted::shifted_law_within(tree, id, plan.max_states(), horizon) {
-            // a mixture whose rows cost more than its composed law (a loop's
-            // many re-run counts, each a chain of its own): the law
-            Ok(Some(law)) if law.phases() > MAX_SHIFTED_PHASES => {
-                Racer::law(plan, id, horizon, || AnalysisError::MixedTiming {
-                    node: node.name.clone(),
-                    leaf: plan.mixed_leaf(id),
-                })
-            }
-            Ok(Some(law)) => Ok(Racer::Shifted(law)),
-            Ok(None) => Racer::law(plan, id, horizon, || AnalysisError::MixedTiming {
+            Ok(Some(law)) if law.phases() <= MAX_SHIFTED_PHASES => Ok(Racer::Shifted(law)),
+            // no mixture, or one whose rows cost more than its composed law
+            // (a loop's many re-run counts, each a chain of its own): the law
+            Ok(_) => Racer::law(plan, id, horizon, || AnalysisError::MixedTiming {
                 node: node.name.clone(),
                 leaf: plan.mixed_leaf(id),
             }),
@@ -881,10 +875,13 @@ const REST_TAIL: f64 = 1e-13;
 /// own), or a `C′` without one: the race of the process's law of first
 /// failure — from its levels where `C′` has a phase chain
 /// ([`renewal_curve::prepare_process`]), else its composed law on
-/// `[0, horizon]` — against R's law, with no series over the re-runs. Exact on `[0, horizon]`; `None` for the
-/// horizon takes R's tail: twice the first doubling of `scale` where R is
-/// still running with probability below [`REST_TAIL`] — beyond it the
-/// process's Failure is held at its value, which changes the node's
+/// `[0, horizon]` — against R's law, with no series over the re-runs.
+/// Exact on `[0, horizon]`; `None` for the horizon takes R's tail: for
+/// the levels, twice the first doubling of `scale` where R is still
+/// running with probability below [`REST_TAIL`]; for a composed law (its
+/// cost grows with its horizon), that doubling backed off by quarter
+/// octaves while R's running probability stays below it. Beyond the
+/// horizon the process's Failure is held at its value, which changes the node's
 /// probabilities by less than R's running probability at the horizon
 /// (below 1e-13 at half of it; R's phase-type tail decays exponentially)
 /// and its mean times by less than the integral of it beyond. `Ok(None)` when
