@@ -37,7 +37,7 @@ use std::fmt;
 
 use crate::compile::{analyze, AnalysisError, Options};
 use crate::curve::CurveOptions;
-use crate::report::number::significant;
+use crate::number::significant;
 use crate::sim::sequential::{
     chow_robbins_stops, chunk_seed, normal_quantile, run_until, Acc, Chunking, Decision, Sprt,
     TEST_CHUNK,

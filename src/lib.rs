@@ -62,6 +62,7 @@ pub mod gate;
 pub mod generate;
 pub mod logs;
 mod model;
+pub mod number;
 pub mod output;
 pub mod plot;
 pub mod report;

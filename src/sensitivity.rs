@@ -39,6 +39,7 @@
 //! tolerance of π(t)), so the error is dominated by the extrapolation.
 
 mod chain;
+mod dual;
 mod exact;
 
 use crate::compile::{analyze, primitive_view, Analysis, AnalysisError, Options, Plan};
@@ -77,7 +78,7 @@ impl Objective {
             Objective::Mttf => "the root's MTTF".into(),
             Objective::MeanTime => "the root's mean time E[T]".into(),
             Objective::SuccessBy(t) => {
-                format!("P(success by {} s)", crate::report::number::full(*t))
+                format!("P(success by {} s)", crate::number::full(*t))
             }
         }
     }
@@ -596,7 +597,7 @@ pub fn sentence(
     row: &Row,
     options: &Options,
 ) -> Result<String, SensitivityError> {
-    use crate::report::number::significant;
+    use crate::number::significant;
     let to = step_for(row);
     let mut changed = with_param(tree, row.leaf, row.param, to);
     if !in_domain(&tree.nodes[row.leaf].kind, row.param, to) {

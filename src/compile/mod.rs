@@ -268,7 +268,8 @@ pub struct Analysis {
 /// The tree with its Nav2 nodes lowered to exactly equivalent primitives
 /// (`None`: the tree has none), or the refusal naming the node.
 pub fn primitive_view(tree: &Tree) -> Result<Option<View>, AnalysisError> {
-    located(tree, crate::tree::nav2::primitive_view(tree))
+    let ps = |sub: &Tree| Some(analyze(sub, &Options::default()).ok()?.nodes[0].ps);
+    located(tree, crate::tree::nav2::primitive_view(tree, &ps))
 }
 
 fn located(

@@ -46,6 +46,7 @@
 use std::path::{Path, PathBuf};
 
 use super::btlog::Status;
+pub use super::rosbag_map::Change;
 use super::rosbag_map::{BagTree, Replay};
 use super::{cannot_read, checked_len, Log, LogError};
 
@@ -55,17 +56,6 @@ pub const MESSAGE_TYPE: &str = "nav2_msgs/msg/BehaviorTreeLog";
 pub const TOPIC: &str = "behavior_tree_log";
 /// The first 8 bytes of an MCAP file.
 pub const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
-
-/// One status change of a `BehaviorTreeLog` message.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Change {
-    /// The change's own timestamp, ns since the epoch.
-    pub t_ns: i64,
-    pub name: String,
-    pub uid: Option<u16>,
-    pub(super) prev: Status,
-    pub(super) cur: Status,
-}
 
 /// Which `BehaviorTreeStatusChange` layout the bag holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

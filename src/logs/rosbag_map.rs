@@ -46,9 +46,19 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use super::btlog::{step, Node, Status, BUILTIN_LEAVES, MAX_STEP_BACK_US};
-use super::rosbag::Change;
 use super::{Declared, End, Episode, LeafLog, Log, LogError};
 use crate::tree::xml::{scan_elements, XmlElement};
+
+/// One status change of a `BehaviorTreeLog` message.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Change {
+    /// The change's own timestamp, ns since the epoch.
+    pub t_ns: i64,
+    pub name: String,
+    pub uid: Option<u16>,
+    pub(super) prev: Status,
+    pub(super) cur: Status,
+}
 
 /// A node of the tree, with its replay state.
 struct TNode {

@@ -3,8 +3,8 @@
 
 use std::io::{self, Write};
 
-use super::number::full;
 use super::{Exporter, Report};
+use crate::number::full;
 
 /// Header `name,path,kind,depth,ps,pf,mtts,mttf,mu,nu`.
 #[derive(Debug, Clone, Copy, Default)]

@@ -6,9 +6,9 @@ use std::io::{self, Write};
 use serde_json::{json, Value};
 
 use super::csv::io_error;
-use super::number::{full, significant, significant_or_dash};
 use super::table::write_aligned;
 use super::Report;
+use crate::number::{full, significant, significant_or_dash};
 use crate::uncertainty::METHOD;
 
 /// An interval, `None` where the figure is undefined in every draw.

@@ -7,7 +7,7 @@
 pub mod csv;
 pub mod intervals;
 pub mod json;
-pub mod number;
+pub use crate::number;
 pub mod ranking;
 pub mod sensitivity;
 pub mod sequential;

@@ -4,8 +4,8 @@ use std::io::{self, Write};
 
 use serde_json::{json, Map, Value};
 
-use super::number::{full, significant, significant_or_dash};
 use crate::compare::{Candidate, Comparison, Objective, Search};
+use crate::number::{full, significant, significant_or_dash};
 use crate::tree::Tree;
 
 fn order_label(tree: &Tree, order: &[usize]) -> String {

@@ -5,8 +5,8 @@ use std::io::{self, Write};
 use serde_json::json;
 
 use super::csv::io_error;
-use super::number::{full, significant};
 use super::table::write_aligned;
+use crate::number::{full, significant};
 use crate::sensitivity::{Objective, Sensitivity};
 use crate::tree::Tree;
 

@@ -5,7 +5,7 @@ use std::io::{self, Write};
 
 use serde_json::{json, Map, Value};
 
-use super::number::{full, significant};
+use crate::number::{full, significant};
 use crate::sim::sequential::{Interval, PrecisionResult};
 use crate::sim::Estimate;
 use crate::tree::Tree;

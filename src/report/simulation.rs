@@ -4,8 +4,8 @@ use std::io::{self, Write};
 
 use serde_json::{json, Map, Value};
 
-use super::number::{full, significant, significant_or_dash};
 use super::Report;
+use crate::number::{full, significant, significant_or_dash};
 use crate::sim::{CurvePoint, Estimate, NodeEstimate, SimResult};
 use crate::tree::Tree;
 

@@ -4,8 +4,8 @@ use std::io::{self, Write};
 
 use rayon::prelude::*;
 
-use super::number::significant_or_dash;
 use super::{Exporter, Report};
+use crate::number::significant_or_dash;
 
 /// Significant digits in the table.
 pub const DIGITS: usize = 5;

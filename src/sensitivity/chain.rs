@@ -28,7 +28,7 @@
 //!   window drops mass ≤ 1e-14; `|ds_k| ≤ |dα|₁ + k‖dP‖`, so the dropped
 //!   part of the derivative is below 1e-14·(|dα|₁ + k_max‖dP‖).
 
-use super::exact::D;
+use super::dual::D;
 use super::Param;
 use crate::compile::counts::pending_by_counts;
 use crate::compile::mrg::{Policy, Status};

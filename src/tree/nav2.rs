@@ -214,7 +214,16 @@ pub struct View {
 ///   child once (`repeat` 1, the identity).
 ///
 /// Anything else is refused, naming the node.
-pub fn primitive_view(tree: &Tree) -> Result<Option<View>, NotPrimitive> {
+///
+/// `success_probability` gives the probability that a tree (a re-run's
+/// subtree on its own) returns Success, or `None` if unknown: the caller's
+/// analysis (the lowering refuses a re-run loop whose series would be too
+/// long to compute, and the length follows from that probability). Passed
+/// in, so that the tree layer does not depend on the analysis.
+pub fn primitive_view(
+    tree: &Tree,
+    success_probability: &dyn Fn(&Tree) -> Option<f64>,
+) -> Result<Option<View>, NotPrimitive> {
     let nav2 = |k: &NodeKind| {
         matches!(
             k,
@@ -237,6 +246,7 @@ pub fn primitive_view(tree: &Tree) -> Result<Option<View>, NotPrimitive> {
         image: vec![usize::MAX; tree.nodes.len()],
         copied: vec![false; tree.nodes.len()],
         roots,
+        success_probability,
     };
     lower.node(Tree::ROOT, None, 0, None)?;
     Ok(Some(View {
@@ -260,6 +270,8 @@ struct Lowering<'a> {
     /// The nodes that become one flow over a RoundRobin's index
     /// ([`index_roots`]), each with the RoundRobin slot.
     roots: HashMap<NodeId, usize>,
+    /// See [`primitive_view`].
+    success_probability: &'a dyn Fn(&Tree) -> Option<f64>,
 }
 
 impl Lowering<'_> {
@@ -477,7 +489,9 @@ impl Lowering<'_> {
             // `crate::compile::renewal_curve`, else the race's law — its own
             // time starts with the first wait — composed with theirs)
             let renewal = wait.is_some() && renewal_applies(tree, rerun, &children[k + 1..]);
-            if let Some(terms) = long_series(tree, rerun, wait.is_some()).filter(|_| !renewal) {
+            if let Some(terms) = long_series(tree, rerun, wait.is_some(), self.success_probability)
+                .filter(|_| !renewal)
+            {
                 return Err(NotPrimitive {
                     node: pipe,
                     reason: format!(
@@ -634,7 +648,12 @@ pub const MAX_RERUN_TERMS: usize = 100;
 /// [`MAX_RERUN_TERMS`]; `None` when the process is fast to analyse (all
 /// exponential without a wait: one phase chain) or its ps is unknown (the
 /// analysis then reports its own error).
-fn long_series(tree: &Tree, rerun: NodeId, waits: bool) -> Option<f64> {
+fn long_series(
+    tree: &Tree,
+    rerun: NodeId,
+    waits: bool,
+    success_probability: &dyn Fn(&Tree) -> Option<f64>,
+) -> Option<f64> {
     let markovian = tree.subtree(rerun).all(|n| match &tree.nodes[n].kind {
         NodeKind::Action(a) => a.is_markovian(),
         _ => true,
@@ -642,9 +661,7 @@ fn long_series(tree: &Tree, rerun: NodeId, waits: bool) -> Option<f64> {
     if markovian && !waits {
         return None;
     }
-    let sub = extract(tree, rerun);
-    let f = crate::compile::analyze(&sub, &crate::compile::Options::default()).ok()?;
-    let ps = f.nodes[0].ps;
+    let ps = success_probability(&extract(tree, rerun))?;
     if ps <= 0.0 {
         return None;
     }

@@ -46,9 +46,6 @@ impl Default for ParseLimits {
     }
 }
 
-/// Tolerance on `ps + pf = 1`.
-pub const PROBABILITY_SUM_TOLERANCE: f64 = 1e-9;
-
 const NODE_KINDS: &[&str] = &[
     "sequence",
     "fallback",

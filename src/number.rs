@@ -1,4 +1,4 @@
-//! Number formatting shared by the exporters.
+//! Number formatting shared by the reports, the exporters and the library's sentences.
 
 /// Formats `x` with `digits` significant digits: fixed notation for
 /// magnitudes in [1e-4, 1e6), scientific otherwise; trailing zeros kept so
