@@ -190,3 +190,90 @@ pub(super) fn write_error(path: &Path, e: &io::Error) -> String {
     };
     format!("cannot write {}: {e}; {advice}", path.display())
 }
+
+/// A log that cannot be read, with the remedy in this command's options.
+pub(super) fn log_failure(mut e: btrel::logs::LogError) -> Failure {
+    use btrel::logs::LogHint;
+    let hint = match e.hint {
+        None => "",
+        Some(LogHint::ChooseTopic) => ", or choose a topic with --topic",
+        Some(LogHint::ChooseOneTopic) => "; choose one with --topic",
+        Some(LogHint::DefineSubTree) => ": add the file that defines it with --include",
+        Some(LogHint::WrongTree) => " (wrong --tree, or a mixed-up bag?)",
+        Some(LogHint::NotABag) => ": give it to btrel fit without a bag",
+        Some(LogHint::NeedsTree) => "; give the tree that ran with --tree TREE.xml",
+    };
+    e.message.push_str(hint);
+    Failure::input(e)
+}
+
+/// A requirement that cannot be parsed, as `--require` names it.
+pub(super) fn requirement_failure(mut e: btrel::gate::ExprError) -> Failure {
+    if e.nodes_unlisted {
+        if let Some(h) = &mut e.help {
+            h.push_str(" (`btrel report --format csv` lists both)");
+        }
+    }
+    let text = e.to_string();
+    Failure::input(format!(
+        "--require{}",
+        text.strip_prefix("requirement").unwrap_or(&text)
+    ))
+}
+
+/// A requirement `--mc` cannot test, with the options that would.
+pub(super) fn test_failure(e: btrel::gate::TestError) -> Failure {
+    use btrel::gate::TestError;
+    let help = match e {
+        TestError::Region { .. } => {
+            "\n  help: a smaller --indifference, or decide it exactly (without --mc)"
+        }
+        _ => "",
+    };
+    Failure::input(format!("{e}{help}"))
+}
+
+/// The warnings of a fitted leaf, with what they mean for `--ci`.
+pub(super) fn fit_warnings(leaf: &btrel::fit::LeafFit) -> Vec<String> {
+    let mut warnings = leaf.warnings.clone();
+    if let Some(w) = leaf.no_covariance.and_then(|i| warnings.get_mut(i)) {
+        w.push_str(", so `--ci` holds its fitted times");
+    }
+    warnings
+}
+
+/// Logs that cannot be keyed by name.
+pub(super) fn fit_failure(e: impl std::fmt::Display) -> Failure {
+    Failure::input(format!("{e}; key by ID instead with --by id"))
+}
+
+/// A figure the sensitivity cannot differentiate.
+pub(super) fn undefined_objective(m: impl std::fmt::Display) -> Failure {
+    Failure::analysis(format!("{m}: choose another objective with --of"))
+}
+
+/// Restates the comparison's note on its budget with `--max-candidates`
+/// when the limit was given.
+pub(super) fn restate_budget(cmp: &mut btrel::compare::Comparison) {
+    if !cmp.budget.explicit {
+        return;
+    }
+    if let Some(note) = cmp.over_budget.and_then(|i| cmp.notes.get_mut(i)) {
+        *note = format!(
+            "{} orderings exceed --max-candidates {}",
+            btrel::compare::count_text(cmp.space),
+            cmp.budget.limit
+        );
+    }
+}
+
+/// The note after a comparison that did not enumerate every ordering: the
+/// option that would.
+pub(super) fn enumerate_all(cmp: &btrel::compare::Comparison) -> String {
+    format!(
+        "note: `--max-candidates {}` enumerates all {} orderings (estimated {})",
+        cmp.space as u64,
+        btrel::compare::count_text(cmp.space),
+        btrel::compare::duration_text(cmp.budget.estimate(cmp.space))
+    )
+}

@@ -2,7 +2,7 @@
 
 use btrel::compile::{Method, Options};
 
-use super::advice::{analysis_failure, Cmd};
+use super::advice::{self, analysis_failure, Cmd};
 use super::args::{CheckArgs, CiArgs};
 use super::ci::{ci_notes, ci_sampler};
 use super::input::{display_path, plural, warn_endless, InputOptions};
@@ -90,24 +90,10 @@ fn check_requirements(args: CheckArgs, input: &InputOptions) -> Result<(), Failu
         .iter()
         .map(|text| gate::parse(text, &tree))
         .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| {
-            let text = e.to_string();
-            Failure::input(format!(
-                "--require{}",
-                text.strip_prefix("requirement").unwrap_or(&text)
-            ))
-        })?;
+        .map_err(advice::requirement_failure)?;
     if let Some(s) = &mc_settings {
         for r in &reqs {
-            s.validate(r).map_err(|e| {
-                let help = match e {
-                    gate::TestError::Region { .. } => {
-                        "\n  help: a smaller --indifference, or decide it exactly (without --mc)"
-                    }
-                    _ => "",
-                };
-                Failure::input(format!("{e}{help}"))
-            })?;
+            s.validate(r).map_err(advice::test_failure)?;
         }
     }
     let options = Options {

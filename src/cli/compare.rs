@@ -5,7 +5,7 @@ use std::io;
 use btrel::curve::{CurveOptions, Timing};
 use btrel::tree::Tree;
 
-use super::advice::{analysis_failure, compare_failure, write_error, Cmd};
+use super::advice::{self, analysis_failure, compare_failure, write_error, Cmd};
 use super::args::{CompareArgs, FormatArg, ObjectiveArg};
 use super::input::{find_nodes, InputOptions};
 use super::options::{method, optional_time};
@@ -63,18 +63,14 @@ pub(super) fn run(args: CompareArgs, input: &InputOptions) -> Result<(), Failure
     if let Some(b) = &bar {
         b.finish_and_clear();
     }
-    let cmp = result.map_err(compare_failure(Cmd::Compare, options.method))?;
+    let mut cmp = result.map_err(compare_failure(Cmd::Compare, options.method))?;
+    advice::restate_budget(&mut cmp);
     if matches!(
         cmp.search,
         btrel::compare::Search::OrderingRule | btrel::compare::Search::LocalSearch
     ) && cmp.space < 1e15
     {
-        eprintln!(
-            "note: `--max-candidates {}` enumerates all {} orderings (estimated {})",
-            cmp.space as u64,
-            btrel::compare::count_text(cmp.space),
-            btrel::compare::duration_text(cmp.budget.estimate(cmp.space))
-        );
+        eprintln!("{}", advice::enumerate_all(&cmp));
     }
     if let Some(path) = &args.curves {
         let top: Vec<_> = cmp.candidates.iter().take(args.top).collect();

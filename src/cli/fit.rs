@@ -2,6 +2,7 @@
 
 use std::path::Path;
 
+use super::advice;
 use super::args::{FitArgs, FitBy, FitTiming};
 use super::input::{plural, InputOptions};
 use super::output::emit;
@@ -28,7 +29,7 @@ pub(super) fn run(args: FitArgs, input: &InputOptions) -> Result<(), Failure> {
     let mut bags = 0;
     for path in &args.logs {
         if !btrel::logs::rosbag::is_rosbag(path) {
-            logs.extend(btrel::logs::read_logs(path).map_err(Failure::input)?);
+            logs.extend(btrel::logs::read_logs(path).map_err(advice::log_failure)?);
             continue;
         }
         let Some(tree) = &args.tree else {
@@ -39,7 +40,7 @@ pub(super) fn run(args: FitArgs, input: &InputOptions) -> Result<(), Failure> {
             )));
         };
         let bag = btrel::logs::rosbag::read(path, tree, &include, args.topic.as_deref())
-            .map_err(Failure::input)?;
+            .map_err(advice::log_failure)?;
         bags += 1;
         eprintln!(
             "note: {}: {} messages of {}, {} status changes{}",
@@ -79,10 +80,9 @@ pub(super) fn run(args: FitArgs, input: &InputOptions) -> Result<(), Failure> {
         FitTiming::Exponential => btrel::fit::TimingMode::Exponential,
         FitTiming::Auto => btrel::fit::TimingMode::Auto,
     };
-    let fitted = btrel::fit::fit_logs_with(&logs, by, mode)
-        .map_err(|e| Failure::input(format!("{e}; key by ID instead with --by id")))?;
+    let fitted = btrel::fit::fit_logs_with(&logs, by, mode).map_err(advice::fit_failure)?;
     for l in &fitted.leaves {
-        for w in &l.warnings {
+        for w in advice::fit_warnings(l) {
             eprintln!("warning: {}: {w}", l.key);
         }
     }

@@ -6,7 +6,7 @@ use btrel::curve::{CurveOptions, Timing};
 use btrel::report::number::full;
 use btrel::tree::Tree;
 
-use super::advice::{analysis_failure, compare_failure, Cmd};
+use super::advice::{self, analysis_failure, compare_failure, Cmd};
 use super::args::{ImageFormatArg, PlotArgs, PlotTiming};
 use super::input::{find_nodes, warn_endless, InputOptions};
 use super::options::{method, optional_count, optional_time, sim_options};
@@ -106,7 +106,7 @@ pub(super) fn run(args: PlotArgs, input: &InputOptions) -> Result<(), Failure> {
     let mut drawn: Vec<(String, Tree, usize, Style, Timing)> = Vec::new();
     if let Some(name) = &args.compare {
         let node = find_nodes(&tree, std::slice::from_ref(name), &args.tree)?[0];
-        let cmp = btrel::compare::compare(
+        let mut cmp = btrel::compare::compare(
             &tree,
             &btrel::compare::CompareOptions {
                 nodes: vec![node],
@@ -118,6 +118,7 @@ pub(super) fn run(args: PlotArgs, input: &InputOptions) -> Result<(), Failure> {
             },
         )
         .map_err(compare_failure(Cmd::Plot, base.method))?;
+        advice::restate_budget(&mut cmp);
         for n in &cmp.notes {
             eprintln!("note: {n}");
         }

@@ -2,7 +2,7 @@
 
 use btrel::compile::Options;
 
-use super::advice::{analysis_failure, Cmd};
+use super::advice::{self, analysis_failure, Cmd};
 use super::args::{FormatArg, OfArg, SensitivityArgs};
 use super::input::InputOptions;
 use super::options::{method, optional_time};
@@ -34,9 +34,7 @@ pub(super) fn run(args: SensitivityArgs, input: &InputOptions) -> Result<(), Fai
     };
     let fail = |e: SensitivityError| match e {
         SensitivityError::Analysis(e) => analysis_failure(Cmd::Report, options.method)(e),
-        SensitivityError::Undefined(m) => {
-            Failure::analysis(format!("{m}: choose another objective with --of"))
-        }
+        SensitivityError::Undefined(m) => advice::undefined_objective(m),
     };
     let s = btrel::sensitivity::sensitivity(&tree, objective, &options).map_err(fail)?;
     // the laws whose parameters have no rows: say so
