@@ -39,7 +39,7 @@ pub(super) fn run(args: FitArgs, input: &InputOptions) -> Result<(), Failure> {
                 path.display()
             )));
         };
-        let bag = btrel::logs::rosbag::read(path, tree, &include, args.topic.as_deref())
+        let bag = btrel::logs::rosbag::read(path, tree, include, args.topic.as_deref())
             .map_err(advice::log_failure)?;
         bags += 1;
         eprintln!(
@@ -111,7 +111,7 @@ pub(super) fn run(args: FitArgs, input: &InputOptions) -> Result<(), Failure> {
             let r = std::fs::write(&dir, &text)
                 .map_err(|e| Failure::analysis(format!("cannot write a temporary file: {e}")))
                 .map(|()| {
-                    btrel::tree::xml::parse_xml_files(tree, &dir, &include).map_err(|mut e| {
+                    btrel::tree::xml::parse_xml_files(tree, &dir, include).map_err(|mut e| {
                         e.message = e.message.replace(&dir.display().to_string(), &params_name);
                         e
                     })
