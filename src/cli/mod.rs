@@ -35,9 +35,9 @@ use args::{Cli, Command};
 use input::InputOptions;
 
 /// An error with its exit code.
-pub(super) struct Failure {
-    pub(super) code: u8,
-    pub(super) message: String,
+struct Failure {
+    code: u8,
+    message: String,
 }
 
 impl Failure {
