@@ -210,6 +210,10 @@ pub struct Comparison {
     pub candidates: Vec<Candidate>,
     /// Remarks (e.g. Parallel nodes skipped, why the search was chosen).
     pub notes: Vec<String>,
+    /// The index in `notes` of the one saying that the orderings exceed the
+    /// budget's limit (then not enumerated): a front end may restate it in
+    /// terms of its own option for the limit.
+    pub over_budget: Option<usize>,
 }
 
 /// Errors of a comparison.
@@ -476,6 +480,7 @@ pub fn compare_with_progress(
         (None, None) => Objective::MeanTime,
     };
     let mut notes = Vec::new();
+    let mut over_budget = None;
     let mut nodes = Vec::new();
     let requested: Vec<NodeId> = if options.nodes.is_empty() {
         (0..tree.nodes.len())
@@ -596,6 +601,7 @@ pub fn compare_with_progress(
             },
             candidates: vec![given],
             notes,
+            over_budget: None,
         });
     }
     let sizes: Vec<usize> = nodes
@@ -663,7 +669,13 @@ pub fn compare_with_progress(
         (Search::Exhaustive, true, total, kept)
     } else {
         let (reason, advice) = if budget.explicit {
-            (format!("--max-candidates {}", budget.limit), String::new())
+            (
+                format!(
+                    "the given limit of {} orderings",
+                    count_text(budget.limit as f64)
+                ),
+                String::new(),
+            )
         } else {
             (
                 format!(
@@ -677,6 +689,7 @@ pub fn compare_with_progress(
                 ),
             )
         };
+        over_budget = Some(notes.len());
         notes.push(format!(
             "{} orderings exceed {reason}{advice}",
             count_text(space)
@@ -831,6 +844,7 @@ pub fn compare_with_progress(
         budget,
         candidates,
         notes,
+        over_budget,
     })
 }
 

@@ -367,6 +367,10 @@ pub struct LeafFit {
     pub timing: Timing,
     /// Warnings about this leaf (few episodes, instants mixed with timed ones).
     pub warnings: Vec<String>,
+    /// The index in `warnings` of the one saying that no `cov_theta` was
+    /// written (the likelihood has no strict maximum): the leaf's times are
+    /// then held fixed by the intervals drawn from the file.
+    pub no_covariance: Option<usize>,
 }
 
 fn near_constant(d: &[f64]) -> Option<f64> {
@@ -431,7 +435,11 @@ fn log_mix(p: f64, a: f64, b: f64) -> f64 {
 
 /// `--timing auto` for a leaf whose episodes are not all instants: the
 /// families by BIC, then the joint EM ([`timing`] module docs).
-fn fit_families(counts: &Counts, warnings: &mut Vec<String>) -> Option<(Estimate, Timing)> {
+fn fit_families(
+    counts: &Counts,
+    warnings: &mut Vec<String>,
+    no_covariance: &mut Option<usize>,
+) -> Option<(Estimate, Timing)> {
     use timing::{choose, refit, Side};
     let m = mle_exponential(counts)?;
     let n = counts.episodes() as f64;
@@ -575,9 +583,10 @@ fn fit_families(counts: &Counts, warnings: &mut Vec<String>) -> Option<(Estimate
     let ll = laws.log_likelihood(counts);
     let cov = information::covariance(counts, &laws);
     if cov.is_none() && !laws.params().is_empty() {
+        *no_covariance = Some(warnings.len());
         warnings.push(
             "its likelihood has no strict maximum here (the observed information is not positive \
-             definite): no `cov_theta` written, so `--ci` holds its fitted times"
+             definite): no `cov_theta` written"
                 .to_string(),
         );
     }
@@ -631,6 +640,7 @@ pub fn fit_leaf_with(
         return None;
     }
     let mut warnings = Vec::new();
+    let mut no_covariance = None;
     let completed = counts.successes + counts.failures;
     let all_instant = counts.instants == completed && counts.halted == 0;
     let (ps, timing) = if all_instant && declared != Declared::Action {
@@ -644,7 +654,7 @@ pub fn fit_leaf_with(
             },
         )
     } else if mode == TimingMode::Auto {
-        fit_families(&counts, &mut warnings)?
+        fit_families(&counts, &mut warnings, &mut no_covariance)?
     } else {
         let ds = near_constant(&counts.success_durations);
         let df = near_constant(&counts.failure_durations);
@@ -704,6 +714,7 @@ pub fn fit_leaf_with(
         ps,
         timing,
         warnings,
+        no_covariance,
     })
 }
 

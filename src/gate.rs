@@ -146,6 +146,9 @@ pub struct ExprError {
     pub width: usize,
     /// A suggestion.
     pub help: Option<String>,
+    /// An unknown node in a tree with too many nodes for the help to list
+    /// them: a front end may say how to list them.
+    pub nodes_unlisted: bool,
 }
 
 impl fmt::Display for ExprError {
@@ -190,6 +193,7 @@ pub fn parse(text: &str, tree: &Tree) -> Result<Requirement, ExprError> {
         column: start + 1,
         width: end.saturating_sub(start).max(1),
         help,
+        nodes_unlisted: false,
     };
     if chars.is_empty() {
         return Err(err(
@@ -267,6 +271,7 @@ pub fn parse(text: &str, tree: &Tree) -> Result<Requirement, ExprError> {
                 column: start + 1,
                 width: end - start,
                 help: Some("e.g. 0.95 for a probability, 90 for a mean time in seconds".into()),
+                nodes_unlisted: false,
             });
         }
     };
@@ -414,7 +419,9 @@ pub fn parse(text: &str, tree: &Tree) -> Result<Requirement, ExprError> {
             Some(id) => id,
             None => {
                 let all: Vec<&str> = tree.nodes.iter().map(|x| x.name.as_str()).collect();
-                let help = match crate::tree::error::nearest(&inner, &all) {
+                let near = crate::tree::error::nearest(&inner, &all);
+                let nodes_unlisted = near.is_none() && all.len() > 12;
+                let help = match near {
                     Some(near) => format!("did you mean '{near}'?"),
                     None if all.len() <= 12 => {
                         format!(
@@ -422,16 +429,16 @@ pub fn parse(text: &str, tree: &Tree) -> Result<Requirement, ExprError> {
                             all.join(", ")
                         )
                     }
-                    None => "give a node's name or its path such as 0.1 (`btrel report --format \
-                             csv` lists both)"
-                        .to_string(),
+                    None => "give a node's name or its path such as 0.1".to_string(),
                 };
-                return Err(err(
+                let mut e = err(
                     format!("no node named '{inner}'"),
                     node_start,
                     node_end,
                     Some(help),
-                ));
+                );
+                e.nodes_unlisted = nodes_unlisted;
+                return Err(e);
             }
         }
     };
@@ -571,7 +578,9 @@ pub struct TestOutcome {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum TestError {
     /// α or β outside (0, 1), or α + β ≥ 1.
-    #[error("--alpha and --beta must be in (0, 1) with alpha + beta < 1 (got {0} and {1})")]
+    #[error(
+        "the error bounds alpha and beta must be in (0, 1) with alpha + beta < 1 (got {0} and {1})"
+    )]
     Errors(f64, f64),
     /// The indifference region leaves (0, 1).
     #[error(

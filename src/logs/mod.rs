@@ -91,6 +91,29 @@ pub struct LogError {
     /// Where: e.g. `record 12 (byte offset 8301)` or `line 4`.
     pub at: Option<String>,
     pub message: String,
+    /// What the reader could change to get past the error, when the library
+    /// knows (typed: a front end phrases it with its own options).
+    pub hint: Option<LogHint>,
+}
+
+/// The remedy a [`LogError`] points to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LogHint {
+    /// A bag without a topic of Nav2's log type: another topic may hold it.
+    ChooseTopic,
+    /// A bag with several topics of Nav2's log type: one must be chosen.
+    ChooseOneTopic,
+    /// A SubTree defined in none of the XML files read: the file that
+    /// defines it must be read too.
+    DefineSubTree,
+    /// Status changes that do not fit the tree: the tree read may not be
+    /// the one that ran, or the bag mixes runs.
+    WrongTree,
+    /// A BT.CPP SqliteLogger file given where a rosbag2 file was expected:
+    /// it is read as a log on its own.
+    NotABag,
+    /// A rosbag2 recording read without the tree that ran.
+    NeedsTree,
 }
 
 impl LogError {
@@ -99,7 +122,14 @@ impl LogError {
             file: file.to_string(),
             at,
             message: message.into(),
+            hint: None,
         }
+    }
+
+    /// The same error with its remedy.
+    pub(crate) fn with_hint(mut self, hint: LogHint) -> LogError {
+        self.hint = Some(hint);
+        self
     }
 }
 
@@ -155,8 +185,9 @@ pub fn read_logs(path: &Path) -> Result<Vec<Log>, LogError> {
             &file,
             None,
             "a rosbag2 recording: its behavior_tree_log carries no tree, so it is read with \
-             the tree that ran (`btrel fit BAG --tree TREE.xml`, rosbag::read)",
-        ));
+             the tree that ran (rosbag::read)",
+        )
+        .with_hint(LogHint::NeedsTree));
     }
     let len = checked_len(path, &file)?;
     let mut head = Vec::with_capacity(sqlite::MAGIC.len());

@@ -48,7 +48,7 @@ use std::path::{Path, PathBuf};
 use super::btlog::Status;
 pub use super::rosbag_map::Change;
 use super::rosbag_map::{BagTree, Replay};
-use super::{cannot_read, checked_len, Log, LogError};
+use super::{cannot_read, checked_len, Log, LogError, LogHint};
 
 /// The message type of Nav2's behavior tree log.
 pub const MESSAGE_TYPE: &str = "nav2_msgs/msg/BehaviorTreeLog";
@@ -195,24 +195,26 @@ pub fn read(
                 None,
                 format!(
                     "no topic of type {MESSAGE_TYPE} (Nav2's /{TOPIC}) in the bag: {}; \
-                     record it with `ros2 bag record /{TOPIC}`, or choose a topic with --topic",
+                     record it with `ros2 bag record /{TOPIC}`",
                     listing()
                 ),
-            ))
+            )
+            .with_hint(LogHint::ChooseTopic))
         }
         (many, _) => {
             return Err(LogError::new(
                 &bag,
                 None,
                 format!(
-                    "{} topics of type {MESSAGE_TYPE}: {}; choose one with --topic",
+                    "{} topics of type {MESSAGE_TYPE}: {}",
                     many.len(),
                     many.iter()
                         .map(|t| t.name.as_str())
                         .collect::<Vec<_>>()
                         .join(", ")
                 ),
-            ))
+            )
+            .with_hint(LogHint::ChooseOneTopic))
         }
     };
     if chosen.type_ != MESSAGE_TYPE {
@@ -748,18 +750,23 @@ fn read_db3(
     for t in ["topics", "messages"] {
         if !tables.iter().any(|x| x == t) {
             let btcpp = tables.iter().any(|x| x == "Transitions");
-            return Err(LogError::new(
+            let e = LogError::new(
                 file,
                 Some("the schema".into()),
                 format!(
                     "there is no table `{t}`: not a rosbag2 SQLite file{}",
                     if btcpp {
-                        " (it is a BT.CPP SqliteLogger file: give it to btrel fit without a bag)"
+                        " (it is a BT.CPP SqliteLogger file)"
                     } else {
                         ""
                     }
                 ),
-            ));
+            );
+            return Err(if btcpp {
+                e.with_hint(LogHint::NotABag)
+            } else {
+                e
+            });
         }
     }
     let mut defs: Vec<(String, String)> = Vec::new();

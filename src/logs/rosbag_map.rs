@@ -46,7 +46,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use super::btlog::{step, Node, Status, BUILTIN_LEAVES, MAX_STEP_BACK_US};
-use super::{Declared, End, Episode, LeafLog, Log, LogError};
+use super::{Declared, End, Episode, LeafLog, Log, LogError, LogHint};
 use crate::tree::xml::{scan_elements, XmlElement};
 
 /// One status change of a `BehaviorTreeLog` message.
@@ -271,15 +271,15 @@ impl BagTree {
                     f,
                     Some(format!("line {} column {}", e.line, e.column)),
                     format!(
-                        "SubTree `{id}` is not defined in the tree file{}: add the file that \
-                         defines it with --include",
+                        "SubTree `{id}` is not defined in the tree file{}",
                         if docs.len() > 1 {
-                            " nor in the --include files"
+                            " nor in the included files"
                         } else {
                             ""
                         }
                     ),
-                ));
+                )
+                .with_hint(LogHint::DefineSubTree));
             };
             if stack.contains(&id) {
                 return Err(LogError::new(
@@ -396,25 +396,26 @@ impl Replay {
             .filter_map(|&i| rank(&nodes[i], c.prev).map(|r| (i, r)))
             .collect();
         let Some(best) = ranked.iter().map(|&(_, r)| r).min() else {
-            return Err(self.err(
-                at,
-                format!(
-                    "`{}` goes from {} to {}, but no node of that name can: {} \
-                     (wrong --tree, or a mixed-up bag?)",
-                    c.name,
-                    text(c.prev),
-                    text(c.cur),
-                    named
-                        .iter()
-                        .map(|&i| format!(
-                            "{} is {}",
-                            nodes[i].node.label,
-                            text(nodes[i].node.status)
-                        ))
-                        .collect::<Vec<_>>()
-                        .join("; ")
-                ),
-            ));
+            return Err(self
+                .err(
+                    at,
+                    format!(
+                        "`{}` goes from {} to {}, but no node of that name can: {}",
+                        c.name,
+                        text(c.prev),
+                        text(c.cur),
+                        named
+                            .iter()
+                            .map(|&i| format!(
+                                "{} is {}",
+                                nodes[i].node.label,
+                                text(nodes[i].node.status)
+                            ))
+                            .collect::<Vec<_>>()
+                            .join("; ")
+                    ),
+                )
+                .with_hint(LogHint::WrongTree));
         };
         let mut cands: Vec<usize> = ranked
             .iter()
@@ -591,17 +592,18 @@ impl Replay {
             }
             None => {
                 let n = &self.tree.nodes[idx];
-                return Err(self.err(
-                    at,
-                    format!(
-                        "{} goes from {} to {}, but the earlier changes left it {} \
-                         (wrong --tree, or a mixed-up bag?)",
-                        n.node.label,
-                        text(c.prev),
-                        text(c.cur),
-                        text(n.node.status)
-                    ),
-                ));
+                return Err(self
+                    .err(
+                        at,
+                        format!(
+                            "{} goes from {} to {}, but the earlier changes left it {}",
+                            n.node.label,
+                            text(c.prev),
+                            text(c.cur),
+                            text(n.node.status)
+                        ),
+                    )
+                    .with_hint(LogHint::WrongTree));
             }
         }
         let was = self.tree.nodes[idx].node.status;
