@@ -134,7 +134,7 @@ use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::Path;
 
 use super::action::{sloc, validate_action, ActionParams, At, Loc, TimeDef};
-use super::error::{nearest, TreeError};
+use super::error::{nearest, TreeError, TreeErrorKind as Kind};
 use super::{Decorator, Flow, FlowNext, FlowState, Node, NodeKind, Tree};
 
 mod controllers;
@@ -195,8 +195,8 @@ impl<'a> Reader<'a> {
         (self.line, self.col)
     }
 
-    fn err(&self, at: Loc, msg: impl Into<String>) -> TreeError {
-        TreeError::at(self.file, self.src, at, msg)
+    fn err(&self, kind: Kind, at: Loc, msg: impl Into<String>) -> TreeError {
+        TreeError::at(kind, self.file, self.src, at, msg)
     }
 
     fn rest(&self) -> &'a str {
@@ -255,7 +255,7 @@ impl<'a> Reader<'a> {
                 Ok(())
             }
             None => Err(self
-                .err(start, format!("unterminated {what}"))
+                .err(Kind::Syntax, start, format!("unterminated {what}"))
                 .with_help(format!("close it with `{end}`"))),
         }
     }
@@ -266,10 +266,16 @@ impl<'a> Reader<'a> {
             Some(c) if c.is_alphabetic() || c == '_' || c == ':' => {}
             Some(c) => {
                 return Err(self
-                    .err(at, format!("expected {what}, found {c:?}"))
+                    .err(Kind::Syntax, at, format!("expected {what}, found {c:?}"))
                     .with_help("XML names start with a letter or `_`"))
             }
-            None => return Err(self.err(at, format!("expected {what}, found the end of the file"))),
+            None => {
+                return Err(self.err(
+                    Kind::Syntax,
+                    at,
+                    format!("expected {what}, found the end of the file"),
+                ))
+            }
         }
         let start = self.pos;
         while let Some(c) = self.peek() {
@@ -295,15 +301,23 @@ impl<'a> Reader<'a> {
                 self.skip_past("-->", at, "comment")?;
             } else if self.starts_with("<![CDATA[") {
                 return Err(self
-                    .err(at, "CDATA sections are not supported")
+                    .err(Kind::Syntax, at, "CDATA sections are not supported")
                     .with_help("a behavior tree needs no text content; remove the CDATA section"));
             } else if self.starts_with("<!") {
                 return Err(self
-                    .err(at, "DOCTYPE and other declarations are not supported")
+                    .err(
+                        Kind::Syntax,
+                        at,
+                        "DOCTYPE and other declarations are not supported",
+                    )
                     .with_help("remove the declaration; BT.CPP files do not need it"));
             } else if self.starts_with("<?") {
                 return Err(self
-                    .err(at, "processing instructions are not supported")
+                    .err(
+                        Kind::Syntax,
+                        at,
+                        "processing instructions are not supported",
+                    )
                     .with_help("only `<?xml ...?>` at the very start of the file is accepted"));
             } else {
                 return Ok(());
@@ -369,7 +383,7 @@ impl<'a> Reader<'a> {
             Some(q @ ('"' | '\'')) => q,
             _ => {
                 return Err(self
-                    .err(at, "expected a quoted attribute value")
+                    .err(Kind::Syntax, at, "expected a quoted attribute value")
                     .with_help("write attributes as name=\"value\" or name='value'"))
             }
         };
@@ -379,12 +393,12 @@ impl<'a> Reader<'a> {
             match self.peek() {
                 None => {
                     return Err(self
-                        .err(at, "unterminated attribute value")
+                        .err(Kind::Syntax, at, "unterminated attribute value")
                         .with_help(format!("close the value with {quote}")))
                 }
                 Some('<') => {
                     return Err(self
-                        .err(self.loc(), "`<` inside an attribute value")
+                        .err(Kind::Syntax, self.loc(), "`<` inside an attribute value")
                         .with_help("write it as &lt;"))
                 }
                 Some(c) if c == quote => break,
@@ -427,6 +441,7 @@ impl<'a> Reader<'a> {
             let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
             return Err(self
                 .err(
+                    Kind::Syntax,
                     (line, col),
                     format!("character U+{:04X} is not allowed in XML", c as u32),
                 )
@@ -440,7 +455,7 @@ impl<'a> Reader<'a> {
         self.misc_and_text()?;
         if self.peek().is_none() {
             return Err(self
-                .err((1, 1), "the file has no root element")
+                .err(Kind::Syntax, (1, 1), "the file has no root element")
                 .with_help("is this really a BehaviorTree.CPP XML file? It is `<root BTCPP_format=\"4\"> <BehaviorTree ID=\"Main\"> ... </BehaviorTree> </root>`"));
         }
         let mut elems: Vec<Elem> = Vec::new();
@@ -451,10 +466,14 @@ impl<'a> Reader<'a> {
             let at = self.loc();
             if self.peek().is_none() {
                 let Some(e) = stack.last().map(|&open| &elems[open]) else {
-                    return Err(self.err(at, "unexpected end of the file"));
+                    return Err(self.err(Kind::Syntax, at, "unexpected end of the file"));
                 };
                 return Err(self
-                    .err(e.loc, format!("element <{}> is never closed", e.name))
+                    .err(
+                        Kind::Syntax,
+                        e.loc,
+                        format!("element <{}> is never closed", e.name),
+                    )
                     .with_help(format!("add </{}>", e.name)));
             }
             if self.starts_with("</") {
@@ -462,17 +481,27 @@ impl<'a> Reader<'a> {
                 let name = self.name("an element name")?;
                 self.skip_ws();
                 if !self.eat(">") {
-                    return Err(self.err(self.loc(), "expected `>` to end the closing tag"));
+                    return Err(self.err(
+                        Kind::Syntax,
+                        self.loc(),
+                        "expected `>` to end the closing tag",
+                    ));
                 }
                 let Some(&open) = stack.last() else {
-                    return Err(
-                        self.err(at, format!("closing tag </{name}> without an opening tag"))
-                    );
+                    return Err(self.err(
+                        Kind::Syntax,
+                        at,
+                        format!("closing tag </{name}> without an opening tag"),
+                    ));
                 };
                 if elems[open].name != name {
                     let e = &elems[open];
                     return Err(self
-                        .err(at, format!("</{name}> does not close <{}>", e.name))
+                        .err(
+                            Kind::Syntax,
+                            at,
+                            format!("</{name}> does not close <{}>", e.name),
+                        )
                         .with_help(format!(
                             "<{}> opened at line {}, column {} must be closed first",
                             e.name, e.loc.0, e.loc.1
@@ -499,12 +528,12 @@ impl<'a> Reader<'a> {
                     let aloc = self.loc();
                     if self.peek().is_none() {
                         return Err(self
-                            .err(at, format!("unterminated tag <{name}"))
+                            .err(Kind::Syntax, at, format!("unterminated tag <{name}"))
                             .with_help("end it with `>` or `/>`"));
                     }
                     if !ws {
                         return Err(self
-                            .err(aloc, "expected white space, `>` or `/>`")
+                            .err(Kind::Syntax, aloc, "expected white space, `>` or `/>`")
                             .with_help("separate attributes with spaces"));
                     }
                     let aname = self.name("an attribute name or `>`")?;
@@ -512,6 +541,7 @@ impl<'a> Reader<'a> {
                     if !self.eat("=") {
                         return Err(self
                             .err(
+                                Kind::Syntax,
                                 self.loc(),
                                 format!("expected `=` after attribute `{aname}`"),
                             )
@@ -521,7 +551,7 @@ impl<'a> Reader<'a> {
                     let value = self.attr_value()?;
                     if let Some(prev) = attrs.iter().find(|a| a.name == aname) {
                         return Err(self
-                            .err(aloc, format!("duplicate attribute `{aname}`"))
+                            .err(Kind::Syntax, aloc, format!("duplicate attribute `{aname}`"))
                             .with_help(format!(
                                 "`{aname}` is already given at line {}, column {}",
                                 prev.loc.0, prev.loc.1
@@ -551,9 +581,11 @@ impl<'a> Reader<'a> {
                     }
                 } else {
                     if stack.len() >= MAX_XML_DEPTH {
-                        return Err(self.err(at, "the XML is nested too deeply").with_help(
-                            format!("btrel accepts trees up to {MAX_DEPTH} levels deep"),
-                        ));
+                        return Err(self
+                            .err(Kind::Budget, at, "the XML is nested too deeply")
+                            .with_help(format!(
+                                "btrel accepts trees up to {MAX_DEPTH} levels deep"
+                            )));
                     }
                     stack.push(id);
                 }
@@ -577,7 +609,7 @@ impl<'a> Reader<'a> {
         self.misc_and_text()?;
         if self.peek().is_some() {
             return Err(self
-                .err(self.loc(), "content after the root element")
+                .err(Kind::Syntax, self.loc(), "content after the root element")
                 .with_help("an XML file has exactly one root element"));
         }
         Ok(elems)
@@ -715,6 +747,7 @@ fn parse_params(src: &str, file: &str) -> Result<ParamsTable, TreeError> {
                 .next();
             let Some(v) = p.value else {
                 return Err(TreeError::at(
+                    Kind::Structure,
                     file,
                     src,
                     at(e.line, e.column),
@@ -733,6 +766,7 @@ fn parse_params(src: &str, file: &str) -> Result<ParamsTable, TreeError> {
                     "blackboard entry"
                 };
                 return Err(TreeError::at(
+                    Kind::Structure,
                     file,
                     src,
                     at(line, column),
@@ -751,6 +785,7 @@ fn parse_params(src: &str, file: &str) -> Result<ParamsTable, TreeError> {
         }
         if let Some(v) = p.value {
             return Err(TreeError::at(
+                Kind::Structure,
                 file,
                 src,
                 at(v.line, v.column),
@@ -820,7 +855,7 @@ fn parse_params_entries(
             Some(i) => text[..i].to_string(),
             None => text,
         };
-        TreeError::at(file, src, at, format!("invalid params file: {text}")).with_help(
+        TreeError::at(Kind::Syntax, file, src, at, format!("invalid params file: {text}")).with_help(
             "the params file maps a node's name or ID to its parameters, e.g. \
              `grasp: {ps: 0.5, mu: 0.1, nu: 0.2}`; accepted keys: ps, pf, mu, nu, tau_s, tau_f, \
              success_time, failure_time (and `fit`, the statistics `btrel fit` writes, which the analysis ignores)",
@@ -909,7 +944,7 @@ pub const UNSUPPORTED: &str = "btrel has no stochastic meaning yet for";
 /// pre-condition attributes) that btrel has no stochastic meaning for yet,
 /// as opposed to invalid or incomplete input.
 pub fn is_unsupported(e: &TreeError) -> bool {
-    e.message.starts_with(UNSUPPORTED)
+    e.kind == Kind::NoMeaning
 }
 
 /// Known node types of BehaviorTree.CPP v3/v4, Nav2 and MoveIt Pro that
@@ -1070,13 +1105,13 @@ struct Builder<'a> {
 }
 
 impl<'a> Builder<'a> {
-    fn err_in(&self, doc: usize, at: Loc, msg: impl Into<String>) -> TreeError {
+    fn err_in(&self, kind: Kind, doc: usize, at: Loc, msg: impl Into<String>) -> TreeError {
         let s = &self.sources[doc];
-        TreeError::at(&s.name, &s.text, at, msg)
+        TreeError::at(kind, &s.name, &s.text, at, msg)
     }
 
-    fn err(&self, at: Loc, msg: impl Into<String>) -> TreeError {
-        self.err_in(self.cur.get(), at, msg)
+    fn err(&self, kind: Kind, at: Loc, msg: impl Into<String>) -> TreeError {
+        self.err_in(kind, self.cur.get(), at, msg)
     }
 
     fn elem(&self, i: usize) -> &'a Elem {
@@ -1148,6 +1183,7 @@ impl<'a> Builder<'a> {
             };
             return Err(self
                 .err_in(
+                    Kind::Structure,
                     e.doc,
                     a.loc,
                     format!("unknown attribute `{}` on <{}>", a.name, e.name),
@@ -1169,10 +1205,18 @@ impl<'a> Builder<'a> {
         match self.int_attr(e, key)? {
             Some((n, _)) if n >= 0 => Ok(Some(n as f64 / 1000.0)),
             Some((n, at)) => Err(self
-                .err(at, format!("{key} = {n} is not a valid duration"))
+                .err(
+                    Kind::InvalidValue,
+                    at,
+                    format!("{key} = {n} is not a valid duration"),
+                )
                 .with_help(format!("{key} is a whole number of milliseconds >= 0"))),
             None => Err(self
-                .err(e.loc, format!("<{}> needs `{key}`", e.name))
+                .err(
+                    Kind::Structure,
+                    e.loc,
+                    format!("<{}> needs `{key}`", e.name),
+                )
                 .with_help(format!("write {key}=\"N\", N in milliseconds"))),
         }
     }
@@ -1194,7 +1238,11 @@ impl<'a> Builder<'a> {
         match given.map_or_else(|| v.parse::<f64>().ok(), Some) {
             Some(hz) if hz.is_finite() && hz > 0.0 && (1.0 / hz).is_finite() => Ok(Some(1.0 / hz)),
             _ => Err(self
-                .err(a.loc, format!("hz = \"{v}\" is not a valid rate"))
+                .err(
+                    Kind::InvalidValue,
+                    a.loc,
+                    format!("hz = \"{v}\" is not a valid rate"),
+                )
                 .with_help("hz is a number of re-runs per second, > 0 (e.g. 1.0 or 0.5)")),
         }
     }
@@ -1221,7 +1269,11 @@ impl<'a> Builder<'a> {
             "true" | "True" | "TRUE" | "1" => Ok(Some(true)),
             "false" | "False" | "FALSE" | "0" => Ok(Some(false)),
             _ => Err(self
-                .err(a.loc, format!("wrap_around = \"{v}\" is not a boolean"))
+                .err(
+                    Kind::InvalidValue,
+                    a.loc,
+                    format!("wrap_around = \"{v}\" is not a boolean"),
+                )
                 .with_help("write wrap_around=\"true\" or \"false\"")),
         }
     }
@@ -1269,6 +1321,7 @@ impl<'a> Builder<'a> {
             if n.fract() != 0.0 || !n.is_finite() || n.abs() > 1e15 {
                 return Err(self
                     .err(
+                        Kind::InvalidValue,
                         a.loc,
                         format!(
                             "{key} = \"{v}\" reads {n} from the params file, not a whole number"
@@ -1280,7 +1333,11 @@ impl<'a> Builder<'a> {
         }
         if v.starts_with('{') {
             return Err(self
-                .err(a.loc, format!("{key} = \"{v}\" is a blackboard reference"))
+                .err(
+                    Kind::MissingParameter,
+                    a.loc,
+                    format!("{key} = \"{v}\" is a blackboard reference"),
+                )
                 .with_help(format!(
                     "btrel needs a literal whole number for {key}, or the reference's value in the \
                      params file: `\"{v}\": {{value: N}}`"
@@ -1295,7 +1352,11 @@ impl<'a> Builder<'a> {
         match v.parse::<i64>() {
             Ok(n) if ok => Ok(Some((n, a.loc))),
             _ => Err(self
-                .err(a.loc, format!("{key} = \"{v}\" is not a whole number"))
+                .err(
+                    Kind::InvalidValue,
+                    a.loc,
+                    format!("{key} = \"{v}\" is not a whole number"),
+                )
                 .with_help(format!("write {key} as a whole number such as 3"))),
         }
     }
@@ -1303,7 +1364,12 @@ impl<'a> Builder<'a> {
     fn name_attr(&self, e: &Elem) -> Result<Option<String>, TreeError> {
         match e.attr("name") {
             Some(a) if a.value.trim().is_empty() => Err(self
-                .err_in(e.doc, a.loc, "a node name must not be empty")
+                .err_in(
+                    Kind::InvalidValue,
+                    e.doc,
+                    a.loc,
+                    "a node name must not be empty",
+                )
                 .with_help("omit `name` to name the node by its ID")),
             Some(a) => Ok(Some(a.value.clone())),
             None => Ok(None),
@@ -1313,9 +1379,19 @@ impl<'a> Builder<'a> {
     fn id_attr(&self, e: &'a Elem) -> Result<&'a str, TreeError> {
         match e.attr("ID") {
             Some(a) if !a.value.trim().is_empty() => Ok(a.value.as_str()),
-            Some(a) => Err(self.err_in(e.doc, a.loc, format!("<{}> has an empty ID", e.name))),
+            Some(a) => Err(self.err_in(
+                Kind::Structure,
+                e.doc,
+                a.loc,
+                format!("<{}> has an empty ID", e.name),
+            )),
             None => Err(self
-                .err_in(e.doc, e.loc, format!("<{}> needs an ID attribute", e.name))
+                .err_in(
+                    Kind::Structure,
+                    e.doc,
+                    e.loc,
+                    format!("<{}> needs an ID attribute", e.name),
+                )
                 .with_help(format!("write <{} ID=\"...\"/>", e.name))),
         }
     }
@@ -1331,7 +1407,7 @@ impl<'a> Builder<'a> {
         self.name_bytes += name.len();
         if self.name_bytes > MAX_NAME_BYTES {
             return Err(self
-                .err(at, "the node names after SubTree expansion are too long")
+                .err(Kind::Budget, at, "the node names after SubTree expansion are too long")
                 .with_help(format!(
                     "btrel accepts at most {MAX_NAME_BYTES} bytes of node names; shorten names or nest fewer SubTrees"
                 )));
@@ -1353,12 +1429,16 @@ impl<'a> Builder<'a> {
     ) -> Result<usize, TreeError> {
         if self.nodes.len() >= MAX_NODES {
             return Err(self
-                .err(e.loc, "the tree has too many nodes after SubTree expansion")
+                .err(
+                    Kind::Budget,
+                    e.loc,
+                    "the tree has too many nodes after SubTree expansion",
+                )
                 .with_help(format!("btrel accepts at most {MAX_NODES} nodes")));
         }
         if depth >= MAX_DEPTH {
             return Err(self
-                .err(e.loc, "the tree is nested too deeply")
+                .err(Kind::Budget, e.loc, "the tree is nested too deeply")
                 .with_help(format!("btrel accepts trees up to {MAX_DEPTH} levels deep")));
         }
         let name = self.unique(format!("{prefix}{base}"), e.loc)?;
@@ -1430,7 +1510,11 @@ impl<'a> Builder<'a> {
         let k = s.children.len();
         if k == 0 {
             return Err(self
-                .err(s.loc, format!("<{}> has no children", s.name))
+                .err(
+                    Kind::Structure,
+                    s.loc,
+                    format!("<{}> has no children", s.name),
+                )
                 .with_help("a control node needs at least one child"));
         }
         if attempts.saturating_mul(k) > MAX_FLOW_STATES {
@@ -1545,7 +1629,7 @@ impl<'a> Builder<'a> {
         let e = self.elem(ei);
         if depth >= MAX_DEPTH {
             return Err(self
-                .err(e.loc, "the tree is nested too deeply")
+                .err(Kind::Budget, e.loc, "the tree is nested too deeply")
                 .with_help(format!("btrel accepts trees up to {MAX_DEPTH} levels deep")));
         }
         if matches!(e.name.as_str(), "SubTree" | "SubTreePlus") {
@@ -1579,7 +1663,7 @@ impl<'a> Builder<'a> {
                 self.check_attrs(e, &attrs(keys), false)?;
                 if e.children.is_empty() {
                     return Err(self
-                        .err(e.loc, format!("<{ty}> has no children"))
+                        .err(Kind::Structure, e.loc, format!("<{ty}> has no children"))
                         .with_help("a control node needs at least one child"));
                 }
                 let base = self.name_attr(e)?.unwrap_or_else(default_name);
@@ -1689,7 +1773,7 @@ impl<'a> Builder<'a> {
                 self.check_attrs(e, &attrs(keys), false)?;
                 if e.children.is_empty() {
                     return Err(self
-                        .err(e.loc, format!("<{ty}> has no children"))
+                        .err(Kind::Structure, e.loc, format!("<{ty}> has no children"))
                         .with_help("a control node needs at least one child"));
                 }
                 let base = self.name_attr(e)?.unwrap_or_else(default_name);
@@ -1745,7 +1829,11 @@ impl<'a> Builder<'a> {
                 self.check_attrs(e, &attrs(&[]), false)?;
                 if !(2..=3).contains(&e.children.len()) {
                     return Err(self
-                        .err(e.loc, format!("<{ty}> has {} children", e.children.len()))
+                        .err(
+                            Kind::Structure,
+                            e.loc,
+                            format!("<{ty}> has {} children", e.children.len()),
+                        )
                         .with_help(format!(
                             "<{ty}> takes 2 or 3 children: the condition, the branch run on its \
                              Success, and (optionally) the one run on its Failure"
@@ -2112,6 +2200,7 @@ impl<'a> Builder<'a> {
         if e.children.len() != 2 {
             return Err(self
                 .err(
+                    Kind::Structure,
                     e.loc,
                     format!(
                         "<{ty}> needs exactly two children (the main branch and the recovery), found {}",
@@ -2134,7 +2223,7 @@ impl<'a> Builder<'a> {
             Some((n, at)) => {
                 if !(0..=MAX_RECOVERY_RETRIES as i64).contains(&n) {
                     return Err(self
-                        .err(at, format!("number_of_retries = {n} is not a valid count"))
+                        .err(Kind::InvalidValue, at, format!("number_of_retries = {n} is not a valid count"))
                         .with_help(format!(
                             "number_of_retries must be a whole number from 0 to {MAX_RECOVERY_RETRIES}"
                         )));
@@ -2271,6 +2360,7 @@ impl<'a> Builder<'a> {
         if e.children.len() != 1 {
             return Err(self
                 .err(
+                    Kind::Structure,
                     e.loc,
                     format!("<{ty}> needs exactly one child, found {}", e.children.len()),
                 )
@@ -2283,6 +2373,7 @@ impl<'a> Builder<'a> {
         if let Some(&c) = e.children.first() {
             return Err(self
                 .err(
+                    Kind::Structure,
                     self.elem(c).loc,
                     format!("<{}> is a leaf and takes no children", e.name),
                 )
@@ -2341,6 +2432,7 @@ impl<'a> Builder<'a> {
                 .collect();
             return Err(self
                 .err(
+                    Kind::Structure,
                     at,
                     format!("BehaviorTree `{id}` is defined in several included files"),
                 )
@@ -2415,12 +2507,16 @@ impl<'a> Builder<'a> {
                 .chain(std::iter::once(id))
                 .collect();
             return Err(self
-                .err(e.loc, format!("recursive SubTree: {}", cycle.join(" -> ")))
+                .err(
+                    Kind::Structure,
+                    e.loc,
+                    format!("recursive SubTree: {}", cycle.join(" -> ")),
+                )
                 .with_help("a tree cannot contain itself; break the cycle"));
         }
         if self.expanding.len() > MAX_DEPTH {
             return Err(self
-                .err(e.loc, "SubTrees are nested too deeply")
+                .err(Kind::Budget, e.loc, "SubTrees are nested too deeply")
                 .with_help(format!("btrel expands at most {MAX_DEPTH} nested SubTrees")));
         }
         let inner = format!("{prefix}{instance}/");
@@ -2459,14 +2555,22 @@ impl<'a> Builder<'a> {
         }
         let Some((n, at)) = self.int_attr(e, key)? else {
             return Err(self
-                .err(e.loc, format!("<{}> needs `{key}`", e.name))
+                .err(
+                    Kind::Structure,
+                    e.loc,
+                    format!("<{}> needs `{key}`", e.name),
+                )
                 .with_help(format!(
                     "write {key}=\"N\" with N a whole number from 1 to 1000000"
                 )));
         };
         if !(1..=1_000_000).contains(&n) {
             return Err(self
-                .err(at, format!("{key} = {n} is not a valid count"))
+                .err(
+                    Kind::InvalidValue,
+                    at,
+                    format!("{key} = {n} is not a valid count"),
+                )
                 .with_help(format!("{key} must be a whole number from 1 to 1000000")));
         }
         Ok(Some(n as usize))
@@ -2485,7 +2589,7 @@ impl<'a> Builder<'a> {
                 (None, Some(d)) => (d, e.loc),
                 (None, None) => {
                     return Err(self
-                        .err(e.loc, format!("<{}> needs `{key}` (BT.CPP v3)", e.name))
+                        .err(Kind::Structure, e.loc, format!("<{}> needs `{key}` (BT.CPP v3)", e.name))
                         .with_help(format!(
                             "BT.CPP v3 has no default for {key}; write {key}=\"M\" (M from 1 to {n}, or -1 for all children)"
                         )))
@@ -2494,7 +2598,7 @@ impl<'a> Builder<'a> {
             let v = if k < 0 { n as i64 + k + 1 } else { k };
             if v < 1 || v > n as i64 {
                 return Err(self
-                    .err(at, format!("{key} = {k} is not valid for {n} children"))
+                    .err(Kind::InvalidValue, at, format!("{key} = {k} is not valid for {n} children"))
                     .with_help(format!(
                         "{key} must be from 1 to {n}, or negative (-1 = all children, -2 = all but one, ...): {meaning}"
                     )));
@@ -2546,11 +2650,16 @@ impl Files {
     /// refused).
     fn add(&mut self, name: String, text: String, dir: Option<&Path>) -> Result<(), TreeError> {
         if self.sources.len() >= MAX_FILES {
-            return Err(plain(&name, format!("more than {MAX_FILES} XML files")));
+            return Err(TreeError::file(
+                Kind::Budget,
+                &name,
+                format!("more than {MAX_FILES} XML files"),
+            ));
         }
         self.bytes = self.bytes.saturating_add(text.len());
         if self.bytes > MAX_BYTES {
-            return Err(plain(
+            return Err(TreeError::file(
+                Kind::Budget,
                 &name,
                 format!("the XML files are more than {MAX_BYTES} bytes together"),
             ));
@@ -2574,17 +2683,19 @@ impl Files {
             e
         }));
         let root = &self.elems[base];
-        let err = |at: Loc, msg: String| TreeError::at(&name, &text, at, msg);
+        let err = |kind: Kind, at: Loc, msg: String| TreeError::at(kind, &name, &text, at, msg);
         let format = match root.attr("BTCPP_format") {
             None => Format::Unspecified,
             Some(a) => match a.value.trim() {
                 "4" => Format::V4,
                 "3" => Format::V3,
                 v => {
-                    return Err(
-                        err(a.loc, format!("BTCPP_format = \"{v}\" is not supported"))
-                            .with_help("btrel reads the BehaviorTree.CPP formats 3 and 4"),
+                    return Err(err(
+                        Kind::InvalidValue,
+                        a.loc,
+                        format!("BTCPP_format = \"{v}\" is not supported"),
                     )
+                    .with_help("btrel reads the BehaviorTree.CPP formats 3 and 4"))
                 }
             },
         };
@@ -2596,6 +2707,7 @@ impl Files {
             }
             if let Some(a) = e.attr("ros_pkg") {
                 return Err(err(
+                    Kind::Structure,
                     a.loc,
                     "<include ros_pkg=...> is not supported: btrel cannot locate ROS packages"
                         .into(),
@@ -2603,13 +2715,18 @@ impl Files {
                 .with_help("include the file by its path instead"));
             }
             let Some(p) = e.attr("path") else {
-                return Err(err(e.loc, "<include> needs a `path` attribute".into())
-                    .with_help("write <include path=\"other_file.xml\"/>"));
+                return Err(err(
+                    Kind::Structure,
+                    e.loc,
+                    "<include> needs a `path` attribute".into(),
+                )
+                .with_help("write <include path=\"other_file.xml\"/>"));
             };
             includes.push((e.loc, p.value.clone()));
         }
         if !includes.is_empty() && dir.is_none() {
             return Err(err(
+                Kind::Structure,
                 includes[0].0,
                 "<include> cannot be resolved: the tree was not read from a file".into(),
             )
@@ -2622,6 +2739,7 @@ impl Files {
                 let src = &self.sources[doc];
                 if !path.is_file() {
                     return Err(TreeError::at(
+                        Kind::Io,
                         &src.name,
                         &src.text,
                         at,
@@ -2654,7 +2772,7 @@ impl Files {
         let name = path.display().to_string();
         if path.is_dir() {
             let rd = std::fs::read_dir(path).map_err(|e| {
-                plain(&name, format!("cannot read the folder: {e}"))
+                TreeError::file(Kind::Io, &name, format!("cannot read the folder: {e}"))
                     .with_help(super::parse::read_help(&e))
             })?;
             let mut files: Vec<std::path::PathBuf> = rd
@@ -2780,28 +2898,28 @@ where
             .name("btrel-xml".into())
             .stack_size(64 << 20)
             .spawn_scoped(s, f)
-            .map_err(|e| plain(file, format!("cannot start the parser thread: {e}")))?
+            .map_err(|e| {
+                TreeError::file(
+                    Kind::Internal,
+                    file,
+                    format!("cannot start the parser thread: {e}"),
+                )
+            })?
             .join()
             .unwrap_or_else(|_| {
-                Err(plain(file, "internal error: the XML parser panicked")
-                    .with_help("please report this file as a bug"))
+                Err(TreeError::file(
+                    Kind::Internal,
+                    file,
+                    "internal error: the XML parser panicked",
+                )
+                .with_help("please report this file as a bug"))
             })
     })
 }
 
-fn plain(file: &str, message: impl Into<String>) -> TreeError {
-    TreeError {
-        file: file.into(),
-        line: 0,
-        column: 0,
-        message: message.into(),
-        help: None,
-        source_line: None,
-    }
-}
-
 fn too_large(file: &str, len: usize) -> TreeError {
-    plain(
+    TreeError::file(
+        Kind::Budget,
         file,
         format!("the file is {len} bytes, more than the limit of {MAX_BYTES} bytes"),
     )
@@ -2820,6 +2938,7 @@ fn unsupported_nodes(
     let refs: Vec<&Problem> = problems.iter().collect();
     Some(
         b.err_in(
+            Kind::NoMeaning,
             first.doc,
             first.loc,
             format!(
@@ -2895,9 +3014,10 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
         b.cur.set(doc);
         let root = &elems[ri];
         let src = &sources[doc];
-        let err = |at: Loc, msg: String| TreeError::at(&src.name, &src.text, at, msg);
+        let err =
+            |kind: Kind, at: Loc, msg: String| TreeError::at(kind, &src.name, &src.text, at, msg);
         if root.name != "root" {
-            return Err(err(root.loc, format!("the root element is <{}>, not <root>", root.name))
+            return Err(err(Kind::Structure, root.loc, format!("the root element is <{}>, not <root>", root.name))
                 .with_help("a BT.CPP file is `<root BTCPP_format=\"4\"> <BehaviorTree ID=\"Main\"> ... </BehaviorTree> </root>`"));
         }
         b.check_attrs(root, &["BTCPP_format", "main_tree_to_execute"], false)?;
@@ -2920,17 +3040,18 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
                             None
                         }
                         None if lone => {
-                            return Err(err(e.loc, "<BehaviorTree> needs an ID attribute in an included file".into())
+                            return Err(err(Kind::Structure, e.loc, "<BehaviorTree> needs an ID attribute in an included file".into())
                                 .with_help("a SubTree refers to an included tree by its ID: write <BehaviorTree ID=\"...\">"))
                         }
                         None => {
-                            return Err(err(e.loc, "<BehaviorTree> needs an ID attribute".into())
+                            return Err(err(Kind::Structure, e.loc, "<BehaviorTree> needs an ID attribute".into())
                                 .with_help("only a file's only BehaviorTree may omit its ID; write <BehaviorTree ID=\"...\">"))
                         }
                         Some(_) => Some(b.id_attr(e)?),
                     };
                     if e.children.len() != 1 {
                         return Err(err(
+                            Kind::Structure,
                             e.loc,
                             format!(
                                 "<BehaviorTree{}> must hold exactly one node, found {}",
@@ -2944,11 +3065,15 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
                     let defs = b.trees.entry(id).or_default();
                     if let Some(&prev) = defs.iter().find(|&&p| elems[p].doc == doc) {
                         let p = elems[prev].loc;
-                        return Err(err(e.loc, format!("duplicate BehaviorTree ID `{id}`"))
-                            .with_help(format!(
-                                "`{id}` is already defined at line {}, column {}",
-                                p.0, p.1
-                            )));
+                        return Err(err(
+                            Kind::Structure,
+                            e.loc,
+                            format!("duplicate BehaviorTree ID `{id}`"),
+                        )
+                        .with_help(format!(
+                            "`{id}` is already defined at line {}, column {}",
+                            p.0, p.1
+                        )));
                     }
                     defs.push(c);
                     if doc == 0 {
@@ -2966,7 +3091,7 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
                             // a SubTree's model (ports, metadata) says nothing about leaves
                             "SubTree" => continue,
                             other => {
-                                return Err(err(d.loc, format!("unknown <{other}> in <TreeNodesModel>"))
+                                return Err(err(Kind::Structure, d.loc, format!("unknown <{other}> in <TreeNodesModel>"))
                                     .with_help("<TreeNodesModel> declares <Action>, <Condition>, <Decorator>, <Control> and <SubTree> entries"));
                             }
                         };
@@ -2974,6 +3099,7 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
                         if let Some(&prev) = b.model.get(id) {
                             if prev != decl {
                                 return Err(err(
+                                    Kind::Structure,
                                     d.loc,
                                     format!("`{id}` is declared twice with different kinds"),
                                 )
@@ -2986,18 +3112,23 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
                 // resolved when the file was read
                 "include" => {}
                 other => {
-                    return Err(
-                        err(e.loc, format!("unknown <{other}> in <root>")).with_help(
-                            "<root> holds <BehaviorTree>, <TreeNodesModel> and <include> elements",
-                        ),
-                    );
+                    return Err(err(
+                        Kind::Structure,
+                        e.loc,
+                        format!("unknown <{other}> in <root>"),
+                    )
+                    .with_help(
+                        "<root> holds <BehaviorTree>, <TreeNodesModel> and <include> elements",
+                    ));
                 }
             }
         }
     }
     b.cur.set(0);
     let root = &elems[roots[0]];
-    let err = |at: Loc, msg: String| TreeError::at(&sources[0].name, &sources[0].text, at, msg);
+    let err = |kind: Kind, at: Loc, msg: String| {
+        TreeError::at(kind, &sources[0].name, &sources[0].text, at, msg)
+    };
     let (main_id, main): (Option<&str>, usize) = match root.attr("main_tree_to_execute") {
         Some(a) => match b.lookup_tree(&a.value, a.loc)? {
             Some(t) => (Some(a.value.as_str()), t),
@@ -3009,17 +3140,24 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
                     Some(k) => format!("did you mean `{k}`? trees: {}", sorted.join(", ")),
                     None => format!("trees: {}", sorted.join(", ")),
                 };
-                return Err(
-                    err(a.loc, format!("no <BehaviorTree ID=\"{}\">", a.value)).with_help(hint)
-                );
+                return Err(err(
+                    Kind::Structure,
+                    a.loc,
+                    format!("no <BehaviorTree ID=\"{}\">", a.value),
+                )
+                .with_help(hint));
             }
         },
         None => match (order.first(), unnamed_main) {
             (Some(&(id, t)), _) => (Some(id), t),
             (None, Some(t)) => (None, t),
             (None, None) => {
-                return Err(err(root.loc, "the file has no <BehaviorTree>".into())
-                    .with_help("add <BehaviorTree ID=\"Main\"> holding the root node"))
+                return Err(err(
+                    Kind::Structure,
+                    root.loc,
+                    "the file has no <BehaviorTree>".into(),
+                )
+                .with_help("add <BehaviorTree ID=\"Main\"> holding the root node"))
             }
         },
     };
@@ -3029,6 +3167,7 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
     };
     if size > MAX_NODES as u64 {
         return Err(err(
+            Kind::Budget,
             elems[main].loc,
             format!("the tree has too many nodes after SubTree expansion ({size})"),
         )
@@ -3043,9 +3182,10 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
     if !b.problems.is_empty() {
         let (semantic, front): (Vec<&Problem>, Vec<&Problem>) =
             b.problems.iter().partition(|p| p.semantic);
-        let (first, message, help) = if front.is_empty() {
+        let (kind, first, message, help) = if front.is_empty() {
             let n = semantic.len();
             (
+                Kind::NoMeaning,
                 semantic[0],
                 format!(
                     "{UNSUPPORTED} {n} node{} of this tree:\n{}",
@@ -3089,15 +3229,18 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
             if front.iter().any(|p| p.text.starts_with("no <BehaviorTree")) {
                 help.push("a SubTree's BehaviorTree may be defined in an included file");
             }
-            (front[0], message, help.join("; "))
+            (Kind::UnknownNode, front[0], message, help.join("; "))
         };
-        return Err(b.err_in(first.doc, first.loc, message).with_help(help));
+        return Err(b
+            .err_in(kind, first.doc, first.loc, message)
+            .with_help(help));
     }
 
     // parameters
-    let perr = |at: Loc, msg: String, help: String| {
-        TreeError::at(params_file, params, at, msg).with_help(help)
+    let perr_as = |kind: Kind, at: Loc, msg: String, help: String| {
+        TreeError::at(kind, params_file, params, at, msg).with_help(help)
     };
+    let perr = |at: Loc, msg: String, help: String| perr_as(Kind::InvalidValue, at, msg, help);
     let mut used_keys: HashSet<&str> = HashSet::new();
     let mut param_keys: Vec<(usize, String)> = Vec::new();
     // (document, location, line, what copies of one element share: its keys)
@@ -3176,7 +3319,8 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
                 .chain(p.time_law_at())
                 .next()
             {
-                return Err(perr(
+                return Err(perr_as(
+                    Kind::Structure,
                     extra,
                     format!("`{key}` is used by {who}, and a condition takes only `ps`"),
                     "a condition returns in zero time; give only its probability of success `ps`"
@@ -3193,7 +3337,8 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
                 continue;
             };
             if !ps.value.is_finite() || !(0.0..=1.0).contains(&ps.value) {
-                return Err(perr(
+                return Err(perr_as(
+                    Kind::InvalidValue,
                     sloc(ps),
                     format!("ps = {} is not a probability", ps.value),
                     "ps must be a number in [0, 1]".into(),
@@ -3240,6 +3385,7 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
         let n = lines.len();
         return Err(b
             .err_in(
+                Kind::MissingParameter,
                 doc,
                 first,
                 format!(
@@ -3267,7 +3413,8 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
         .filter(|(k, _)| !blackboard_used.contains(k.as_str()))
         .min_by_key(|(_, d)| sloc(d))
     {
-        return Err(perr(
+        return Err(perr_as(
+            Kind::InvalidValue,
             sloc(def),
             format!(
                 "params key `{key}` matches no blackboard reference or port value that btrel reads"
@@ -3298,7 +3445,8 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
             Some(k) => format!("did you mean `{k}`? keys are leaf names or IDs"),
             None => "keys are the names or IDs of the tree's actions and conditions; remove unused entries".into(),
         };
-        return Err(perr(
+        return Err(perr_as(
+            Kind::InvalidValue,
             sloc(def),
             format!("params key `{key}` matches no action or condition"),
             hint,
@@ -3498,14 +3646,15 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
                 .find(|r| loops.contains_key(&r.0))
                 .expect("a rewritten node is reactive");
             let s = &sources[doc];
-            TreeError::at(&s.name, &s.text, loc, e)
+            TreeError::at(Kind::Budget, &s.name, &s.text, loc, e)
         })?;
     Ok(Keyed { tree, keys })
 }
 
 fn read_text(path: &Path, file: &str) -> Result<String, TreeError> {
     let io_err = |e: std::io::Error| {
-        plain(file, format!("cannot read the file: {e}")).with_help(super::parse::read_help(&e))
+        TreeError::file(Kind::Io, file, format!("cannot read the file: {e}"))
+            .with_help(super::parse::read_help(&e))
     };
     let meta = std::fs::metadata(path).map_err(io_err)?;
     if meta.len() > MAX_BYTES as u64 {
@@ -3517,12 +3666,10 @@ fn read_text(path: &Path, file: &str) -> Result<String, TreeError> {
         let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
         let column = before.iter().rev().take_while(|&&b| b != b'\n').count() + 1;
         TreeError {
-            file: file.into(),
             line,
             column,
-            message: "the file is not valid UTF-8 text".into(),
-            help: Some("is this the right file?".into()),
-            source_line: None,
+            ..TreeError::file(Kind::Syntax, file, "the file is not valid UTF-8 text")
         }
+        .with_help("is this the right file?")
     })
 }
