@@ -1146,3 +1146,42 @@ fn blackboard_counts_and_durations_read_the_params_file() {
         "{e}"
     );
 }
+
+/// Blackboard values the params file lacks are missing parameters (the fix
+/// is a params entry), listed at once with their locations, also when the
+/// tree has nodes without a stochastic meaning (those follow the list).
+#[test]
+fn missing_blackboard_values_are_missing_parameters() {
+    let body = "<Sequence>\n<LoopPose queue=\"{waypoints}\"><Go/></LoopPose>\n\
+                <Timeout msec=\"{relaxation_time_ms}\"><Go/></Timeout>\n\
+                <RunOnce><Go/></RunOnce>\n</Sequence>";
+    let e = err(&wrap(body), "Go: {ps: 0.5, mu: 1, nu: 1}\n");
+    assert_eq!(e.kind, TreeErrorKind::MissingParameter, "{e}");
+    assert!(!is_unsupported(&e), "{e}");
+    // the body starts on line 3: LoopPose at 4:1, its queue at 4:11,
+    // Timeout's msec at 5:10, RunOnce at 6:1
+    assert_eq!(
+        e.message,
+        "missing parameters for 2 nodes in t.params.yaml:\n  \
+         t.xml:4:11: <LoopPose> queue = \"{waypoints}\": a blackboard value known only at run \
+         time; give its length: `\"{waypoints}\": {value: N}`\n  \
+         t.xml:5:10: <Timeout> msec = \"{relaxation_time_ms}\": a blackboard value known only \
+         at run time; give it in milliseconds: `\"{relaxation_time_ms}\": {value: N}`\n\
+         and btrel has no stochastic meaning yet for 1 node of this tree:\n  \
+         t.xml:6:1: <RunOnce>: it runs its child at most once, keeping its status across \
+         executions"
+    );
+    assert_eq!((e.line, e.column), (4, 11));
+    assert!(e
+        .help
+        .as_deref()
+        .unwrap()
+        .contains("`\"{waypoints}\": {value: 5}`"));
+    // with the values given, only the refusal is left
+    let e = err(
+        &wrap(body),
+        "Go: {ps: 0.5, mu: 1, nu: 1}\n\"{waypoints}\": {value: 2}\n\"{relaxation_time_ms}\": {value: 500}\n",
+    );
+    assert_eq!(e.kind, TreeErrorKind::NoMeaning, "{e}");
+    assert!(is_unsupported(&e), "{e}");
+}

@@ -3179,7 +3179,23 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
     b.node(elems[main].children[0], None, 0, "0".into(), "", None)?;
     b.expanding.pop();
 
+    // Nodes without a stochastic meaning wait while the params file lacks
+    // blackboard values: the fix for those is a params entry, so they are
+    // reported as missing parameters, with these nodes listed after them.
+    let mut no_meaning_after: Option<String> = None;
     if !b.problems.is_empty() {
+        let (semantic, front): (Vec<&Problem>, Vec<&Problem>) =
+            b.problems.iter().partition(|p| p.semantic);
+        if front.is_empty() && !b.missing_values.is_empty() {
+            let n = semantic.len();
+            no_meaning_after = Some(format!(
+                "\nand {UNSUPPORTED} {n} node{} of this tree:\n{}",
+                if n == 1 { "" } else { "s" },
+                problem_lines(&sources, &semantic)
+            ));
+        }
+    }
+    if !b.problems.is_empty() && no_meaning_after.is_none() {
         let (semantic, front): (Vec<&Problem>, Vec<&Problem>) =
             b.problems.iter().partition(|p| p.semantic);
         let (kind, first, message, help) = if front.is_empty() {
@@ -3389,9 +3405,10 @@ fn build_keyed(files: Files, params: &str, params_file: &str) -> Result<Keyed, T
                 doc,
                 first,
                 format!(
-                    "missing parameters for {n} node{} in {params_file}:\n{}",
+                    "missing parameters for {n} node{} in {params_file}:\n{}{}",
                     if n == 1 { "" } else { "s" },
-                    lines.join("\n")
+                    lines.join("\n"),
+                    no_meaning_after.unwrap_or_default()
                 ),
             )
             .with_help(format!(
