@@ -740,3 +740,88 @@ pub(super) fn build_keyed(
         })?;
     Ok(Keyed { tree, keys })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn keyed(body: &str, params: &str) -> Result<Keyed, TreeError> {
+        let xml = format!(
+            "<root BTCPP_format=\"4\">\n<BehaviorTree ID=\"M\">\n{body}\n</BehaviorTree>\n</root>"
+        );
+        parse_xml_str_keyed(&xml, "t.xml", params, "p.yaml")
+    }
+
+    #[test]
+    fn leaves_take_their_keys() {
+        let k = keyed(
+            "<Sequence><A name=\"a\"/><B/></Sequence>",
+            "a: {ps: 0.5, mu: 1, nu: 1}\nB: {ps: 0.9}\n",
+        )
+        .unwrap();
+        let names: Vec<&str> = k.tree.nodes.iter().map(|n| n.name.as_str()).collect();
+        assert_eq!(names, ["Sequence", "a", "B"]);
+        assert_eq!(k.keys, [None, Some("a".into()), Some("B".into())]);
+        assert_eq!(k.tree.nodes[2].kind, NodeKind::Condition { ps: 0.9 });
+    }
+
+    #[test]
+    fn missing_parameters_are_listed_at_once() {
+        // the body is line 3: <Sequence> at column 1, <A/> at 11, <B/> at 15
+        let e = keyed("<Sequence><A/><B/></Sequence>", "").unwrap_err();
+        assert_eq!(e.kind, Kind::MissingParameter);
+        assert_eq!((e.line, e.column), (3, 11));
+        let lines: Vec<&str> = e.message.lines().collect();
+        assert_eq!(lines[0], "missing parameters for 2 nodes in p.yaml:");
+        assert!(
+            lines[1].starts_with("  t.xml:3:11: leaf `A` (ID `A`): no entry"),
+            "{e}"
+        );
+        assert!(
+            lines[2].starts_with("  t.xml:3:15: leaf `B` (ID `B`): no entry"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn problems_are_reported_by_kind() {
+        let e = keyed("<RunOnce><A/></RunOnce>", "A: {ps: 1}").unwrap_err();
+        assert_eq!((e.kind, e.line, e.column), (Kind::NoMeaning, 3, 1));
+        let e = keyed("<Mystery><A/></Mystery>", "A: {ps: 1}").unwrap_err();
+        assert_eq!(e.kind, Kind::UnknownNode);
+        assert!(e
+            .message
+            .starts_with("1 node cannot be read:\n  t.xml:3:1: unknown node <Mystery>"));
+    }
+
+    #[test]
+    fn unused_params_keys_are_refused() {
+        let e = keyed("<A/>", "A: {ps: 1}\nZ: {ps: 1}\n").unwrap_err();
+        assert_eq!(
+            (e.kind, e.file.as_str(), e.line),
+            (Kind::InvalidValue, "p.yaml", 2)
+        );
+        assert_eq!(e.message, "params key `Z` matches no action or condition");
+        let e = keyed("<A/>", "A: {ps: 1}\n\"{n}\": {value: 1}\n").unwrap_err();
+        assert_eq!((e.kind, e.line), (Kind::InvalidValue, 2));
+    }
+
+    #[test]
+    fn problem_lines_are_located() {
+        let sources = [Source {
+            name: "t.xml".into(),
+            text: String::new(),
+            format: Format::V4,
+        }];
+        let p = Problem {
+            doc: 0,
+            loc: (2, 5),
+            text: "<X>: why".into(),
+            semantic: true,
+        };
+        assert_eq!(
+            problem_lines(&sources, &[&p, &p]),
+            "  t.xml:2:5: <X>: why\n  t.xml:2:5: <X>: why"
+        );
+    }
+}

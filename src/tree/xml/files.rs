@@ -225,3 +225,77 @@ pub(super) fn read_text(path: &Path, file: &str) -> Result<String, TreeError> {
         .with_help("is this the right file?")
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn add(files: &mut Files, name: &str, text: &str) -> Result<(), TreeError> {
+        files.add(name.into(), text.into(), None)
+    }
+
+    #[test]
+    fn each_source_has_its_root_and_format() {
+        let mut f = Files::new();
+        add(&mut f, "a.xml", "<root BTCPP_format=\"3\"><A/></root>").unwrap();
+        add(&mut f, "b.xml", "<root><B/><C/></root>").unwrap();
+        let formats: Vec<Format> = f.sources.iter().map(|s| s.format).collect();
+        assert_eq!(formats, [Format::V3, Format::Unspecified]);
+        // elements of both files in one list: a.xml's root and A, then
+        // b.xml's root, B and C
+        assert_eq!(f.roots, [0, 2]);
+        assert_eq!(f.elems.len(), 5);
+        assert_eq!(f.elems[2].children, [3, 4]);
+        assert_eq!((f.elems[3].doc, f.elems[3].name.as_str()), (1, "B"));
+        assert_eq!(f.bytes, 34 + 21);
+    }
+
+    #[test]
+    fn formats_and_includes_without_a_folder() {
+        let mut f = Files::new();
+        let e = add(&mut f, "a.xml", "<root BTCPP_format=\"5\"/>").unwrap_err();
+        assert_eq!((e.kind, e.line, e.column), (Kind::InvalidValue, 1, 7));
+        let e = add(&mut f, "a.xml", "<root><include path=\"b.xml\"/></root>").unwrap_err();
+        assert_eq!((e.kind, e.line, e.column), (Kind::Structure, 1, 7));
+        assert!(e.message.contains("not read from a file"), "{e}");
+        let e = add(&mut f, "a.xml", "<root><include/></root>").unwrap_err();
+        assert_eq!(e.message, "<include> needs a `path` attribute");
+    }
+
+    #[test]
+    fn files_on_disk() {
+        let dir = std::env::temp_dir().join(format!("btrel-files-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let main = dir.join("main.xml");
+        std::fs::write(&main, "<root><include path=\"sub/b.xml\"/></root>").unwrap();
+        std::fs::create_dir_all(dir.join("sub")).unwrap();
+        std::fs::write(
+            dir.join("sub/b.xml"),
+            "<root><include path=\"../main.xml\"/></root>",
+        )
+        .unwrap();
+        let mut f = Files::new();
+        f.add_file(&main).unwrap();
+        // main.xml, then b.xml; b.xml's include of main.xml is read once
+        assert_eq!(f.sources.len(), 2);
+        let e = read_text(&dir.join("none.xml"), "none.xml").unwrap_err();
+        assert_eq!((e.kind, e.line), (Kind::Io, 0));
+        std::fs::write(dir.join("bad.xml"), b"<r>\n\xff</r>").unwrap();
+        let e = read_text(&dir.join("bad.xml"), "bad.xml").unwrap_err();
+        assert_eq!((e.kind, e.line, e.column), (Kind::Syntax, 2, 1));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn too_large_names_the_limit() {
+        let e = too_large("a.xml", MAX_BYTES + 1);
+        assert_eq!(e.kind, Kind::Budget);
+        assert_eq!(
+            e.message,
+            format!(
+                "the file is {} bytes, more than the limit of {MAX_BYTES} bytes",
+                MAX_BYTES + 1
+            )
+        );
+    }
+}

@@ -521,3 +521,75 @@ pub fn scan_elements(src: &str, file: &str) -> Result<Vec<XmlElement>, TreeError
         })
         .collect())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scan(src: &str) -> Result<Vec<XmlElement>, TreeError> {
+        scan_elements(src, "t.xml")
+    }
+
+    #[test]
+    fn elements_in_document_order_with_locations_and_decoded_values() {
+        // `<root a="1">` is 12 characters: <B starts at column 13; the
+        // start tag of B is 18 characters and the comment 10, so <C starts
+        // at column 13 + 18 + 10 = 41
+        let e = scan("<root a=\"1\"><B x='&lt;y&gt;'/><!-- c --><C/></root>").unwrap();
+        let names: Vec<&str> = e.iter().map(|e| e.name.as_str()).collect();
+        assert_eq!(names, ["root", "B", "C"]);
+        assert_eq!((e[0].line, e[0].column), (1, 1));
+        assert_eq!((e[1].line, e[1].column), (1, 13));
+        assert_eq!((e[2].line, e[2].column), (1, 41));
+        assert_eq!(e[0].children, [1, 2]);
+        assert_eq!(e[0].attr("a"), Some("1"));
+        assert_eq!(e[1].attr("x"), Some("<y>"));
+        assert!(e[1].children.is_empty());
+    }
+
+    #[test]
+    fn lenient_like_tinyxml2() {
+        // a `&` that starts no known reference is kept; text around the
+        // root and inside elements is ignored; a declaration is accepted
+        let e =
+            scan("<?xml version=\"1.0\"?>\ntext\n<root>\n  words <A s=\"a && b\"/>\n</root>\nmore")
+                .unwrap();
+        assert_eq!(e.len(), 2);
+        assert_eq!(e[1].attr("s"), Some("a && b"));
+        // line 4 is `  words <A ...`: <A at column 9
+        assert_eq!((e[1].line, e[1].column), (4, 9));
+    }
+
+    #[test]
+    fn syntax_errors_are_located() {
+        // </root> starts at column 10 and closes the open <A>
+        let e = scan("<root><A></root>").unwrap_err();
+        assert_eq!(e.kind, Kind::Syntax);
+        assert_eq!((e.line, e.column), (1, 10));
+        assert_eq!(e.message, "</root> does not close <A>");
+        let e = scan("<root><![CDATA[x]]></root>").unwrap_err();
+        assert_eq!((e.kind, e.line, e.column), (Kind::Syntax, 1, 7));
+        let e = scan("<root a=\"1\" a=\"2\"/>").unwrap_err();
+        assert_eq!((e.kind, e.column), (Kind::Syntax, 13));
+        assert_eq!(e.message, "duplicate attribute `a`");
+        let e = scan("").unwrap_err();
+        assert_eq!(e.message, "the file has no root element");
+        let e = scan("<a/><b/>").unwrap_err();
+        assert_eq!((e.kind, e.column), (Kind::Syntax, 5));
+    }
+
+    #[test]
+    fn nesting_is_bounded() {
+        let ok = format!(
+            "{}{}",
+            "<a>".repeat(MAX_XML_DEPTH),
+            "</a>".repeat(MAX_XML_DEPTH)
+        );
+        assert_eq!(scan(&ok).unwrap().len(), MAX_XML_DEPTH);
+        let deep = "<a>".repeat(MAX_XML_DEPTH + 1);
+        let e = scan(&deep).unwrap_err();
+        assert_eq!(e.kind, Kind::Budget);
+        // the element one too deep starts after MAX_XML_DEPTH `<a>`s
+        assert_eq!((e.line, e.column), (1, 3 * MAX_XML_DEPTH + 1));
+    }
+}

@@ -573,3 +573,74 @@ impl<'a> Builder<'a> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tree(body: &str, params: &str) -> Tree {
+        let xml =
+            format!("<root BTCPP_format=\"4\"><BehaviorTree ID=\"M\">{body}</BehaviorTree></root>");
+        parse_xml_str(&xml, "t.xml", params, "p.yaml").unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    fn shape(t: &Tree) -> Vec<(&str, &str)> {
+        t.nodes
+            .iter()
+            .map(|n| (n.name.as_str(), n.kind.keyword()))
+            .collect()
+    }
+
+    #[test]
+    fn control_nodes_and_decorators() {
+        let t = tree(
+            "<Fallback><Inverter><C/></Inverter><ReactiveSequence name=\"r\"><C/><AlwaysFailure/></ReactiveSequence></Fallback>",
+            "C: {ps: 0.25}",
+        );
+        // names are unique in pre-order: the second C is C#2
+        let names: Vec<&str> = t.nodes.iter().map(|n| n.name.as_str()).collect();
+        assert_eq!(
+            names,
+            ["Fallback", "Inverter", "C", "r", "C#2", "AlwaysFailure"]
+        );
+        assert_eq!(t.nodes[2].kind, NodeKind::Condition { ps: 0.25 });
+        assert_eq!(t.nodes[5].kind, NodeKind::Condition { ps: 0.0 });
+        let kw = shape(&t);
+        assert_eq!(kw[0].1, NodeKind::Fallback { children: vec![] }.keyword());
+        assert_eq!(kw[3].1, NodeKind::Sequence { children: vec![] }.keyword());
+    }
+
+    #[test]
+    fn explicit_forms_and_v3_spellings() {
+        let a = tree(
+            "<Control ID=\"SequenceStar\"><C/></Control>",
+            "C: {ps: 0.5}",
+        );
+        let b = tree(
+            "<SequenceWithMemory><C/></SequenceWithMemory>",
+            "C: {ps: 0.5}",
+        );
+        assert_eq!(shape(&a)[1..], shape(&b)[1..]);
+        assert_eq!(a.nodes[0].name, "SequenceStar");
+    }
+
+    #[test]
+    fn script_nodes_take_no_time() {
+        let t = tree(
+            "<Sequence><Script code=\"x:=1\"/><C/></Sequence>",
+            "C: {ps: 0.5}",
+        );
+        assert_eq!(t.nodes[1].kind, NodeKind::Condition { ps: 1.0 });
+    }
+
+    #[test]
+    fn recovery_node_unrolls() {
+        // RecoveryNode(main, recovery) with 1 retry:
+        // Fallback(main, Sequence(recovery, main)): 5 nodes
+        let t = tree(
+            "<RecoveryNode number_of_retries=\"1\"><M/><R/></RecoveryNode>",
+            "M: {ps: 0.5}\nR: {ps: 0.5}",
+        );
+        assert_eq!(t.nodes.len(), 5);
+    }
+}

@@ -186,3 +186,70 @@ pub(super) fn parse_params_entries(
         )
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn refused(src: &str) -> TreeError {
+        match parse_params(src, "p.yaml") {
+            Ok(_) => panic!("{src}: accepted"),
+            Err(e) => e,
+        }
+    }
+
+    #[test]
+    fn leaves_and_blackboard_values() {
+        let t = parse_params(
+            "grasp: {ps: 0.5, mu: 0.1, nu: 0.2}\n\"{n}\": {value: 3}\n\"Dist/speed\": {value: 0.3}\n",
+            "p.yaml",
+        )
+        .unwrap();
+        assert_eq!(t.leaves.keys().collect::<Vec<_>>(), ["grasp"]);
+        let g = &t.leaves["grasp"];
+        // a leaf entry is located at its value: `grasp: ` is 7 characters
+        assert_eq!((g.line, g.column), (1, 8));
+        assert_eq!(g.value.ps.as_ref().map(|p| p.value), Some(0.5));
+        assert_eq!(g.value.nu.as_ref().map(|p| p.value), Some(0.2));
+        assert!(g.value.pf.is_none());
+        // a value is located at its entry too (`"{n}": ` is 7 characters),
+        // not at the number
+        let n = &t.blackboard["{n}"];
+        assert_eq!((n.value, n.line, n.column), (3.0, 2, 8));
+        assert_eq!(t.blackboard["Dist/speed"].value, 0.3);
+    }
+
+    #[test]
+    fn empty_and_comment_only_files() {
+        for src in ["", "\n", "# nothing yet\n  # indented\n"] {
+            let t = parse_params(src, "p.yaml").unwrap();
+            assert!(t.leaves.is_empty() && t.blackboard.is_empty(), "{src:?}");
+        }
+    }
+
+    #[test]
+    fn misplaced_keys() {
+        let e = refused("\"{n}\": {ps: 1, value: 2}\n");
+        assert_eq!((e.kind, e.line), (Kind::Structure, 1));
+        assert_eq!(e.message, "blackboard entry `{n}` takes only `value`");
+        let e = refused("\"{n}\": {ps: 1}\n");
+        assert_eq!(e.message, "blackboard entry `{n}` needs a `value`");
+        let e = refused("grasp: {value: 2}\n");
+        assert_eq!(e.kind, Kind::Structure);
+        assert!(
+            e.message.starts_with("`value` in the entry of `grasp`"),
+            "{e}"
+        );
+        let e = refused("grasp: {ps: 0.5, bogus: 1}\n");
+        assert_eq!((e.kind, e.line), (Kind::Syntax, 1));
+        assert!(e.message.starts_with("invalid params file: "), "{e}");
+    }
+
+    #[test]
+    fn blackboard_keys() {
+        assert!(is_blackboard_key("{a}"));
+        assert!(!is_blackboard_key("{}"));
+        assert!(!is_blackboard_key("a"));
+        assert!(!is_blackboard_key("{a"));
+    }
+}

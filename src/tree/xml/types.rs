@@ -156,3 +156,68 @@ pub(super) fn has_timing(p: &ActionParams) -> bool {
         .any(Option::is_some)
         || p.time_law_at().is_some()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn v3_spellings_map_to_read_types() {
+        assert_eq!(canonical("SequenceStar"), "SequenceWithMemory");
+        assert_eq!(canonical("RetryUntilSuccesful"), "RetryUntilSuccessful");
+        assert_eq!(canonical("RepeatUnlessFailureEachTick"), "Repeat");
+        assert_eq!(canonical("Sequence"), "Sequence");
+        for t in BUILTINS {
+            assert!(BUILTINS.contains(&canonical(t)), "{t}");
+        }
+    }
+
+    #[test]
+    fn read_types_and_types_without_meaning_are_disjoint() {
+        assert!(unsupported("RunOnce").is_some());
+        assert!(unsupported("PersistentSequence").is_some());
+        assert!(unsupported("BlackboardCheckInt").is_some());
+        assert!(unsupported("MyCustomNode").is_none());
+        for t in BUILTINS {
+            assert!(unsupported(t).is_none(), "{t}");
+        }
+    }
+
+    #[test]
+    fn preconditions_have_a_no_op_value() {
+        let noop: HashMap<&str, &str> = PRECONDITIONS.iter().copied().collect();
+        assert_eq!(noop["_skipIf"], "false");
+        assert_eq!(noop["_while"], "true");
+        assert_eq!(noop.len(), 4);
+    }
+
+    #[test]
+    fn timing_makes_an_action() {
+        let at = |v| {
+            Some(At {
+                value: v,
+                line: 1,
+                column: 1,
+            })
+        };
+        let p = ActionParams {
+            ps: at(0.5),
+            ..Default::default()
+        };
+        assert!(!has_timing(&p));
+        let p = ActionParams {
+            ps: at(0.5),
+            mu: at(1.0),
+            ..Default::default()
+        };
+        assert!(has_timing(&p));
+    }
+
+    #[test]
+    fn kind_decides_is_unsupported() {
+        let e = TreeError::file(Kind::NoMeaning, "t.xml", "x");
+        assert!(is_unsupported(&e));
+        let e = TreeError::file(Kind::MissingParameter, "t.xml", UNSUPPORTED);
+        assert!(!is_unsupported(&e));
+    }
+}
