@@ -10,10 +10,11 @@ pub enum TreeErrorKind {
     Syntax,
     /// Well-formed, but not a tree: an unknown key, element or attribute, a
     /// required attribute or key missing, a wrong number of children, a
-    /// duplicate or recursive definition, a SubTree defined nowhere.
+    /// duplicate or recursive definition.
     Structure,
     /// Node types btrel does not know (leaves need no declaration; a node
-    /// with children must be a known control node or decorator).
+    /// with children must be a known control node or decorator), SubTrees
+    /// defined in no file read.
     UnknownNode,
     /// Parameters the params file (or a YAML leaf) lacks: leaf parameters,
     /// blackboard values known only at run time. Fixed by adding entries.

@@ -80,7 +80,47 @@ pub(super) fn build_keyed(
         elem_parent: predicates::parents(&elems),
         pre_handled: HashSet::new(),
     };
-    // (ID, BehaviorTree element) of the main file, in order
+    let (order, unnamed_main) = declarations(&mut b, &sources, &elems, &roots)?;
+    let main_id = lower_main(&mut b, &sources, &elems, &roots, &order, unnamed_main)?;
+    let no_meaning_after = report_problems(&b, &sources)?;
+    let param_keys = resolve_leaves(&mut b, &table, params, params_file, no_meaning_after)?;
+    let loops = check_restarts(&b, &sources)?;
+    let mut keys = vec![None; b.nodes.len()];
+    for (node, key) in param_keys {
+        keys[node] = Some(key);
+    }
+    check_retick(&b, &sources)?;
+    let tree = Tree {
+        title: main_id.map(str::to_string),
+        nodes: b.nodes,
+    };
+    if loops.is_empty() {
+        return Ok(Keyed { tree, keys });
+    }
+    // the restart loops, once every check on the built tree is done
+    let (tree, keys) =
+        reactive::rewrite(&tree, &keys, &loops, MAX_NODES, MAX_DEPTH).map_err(|e| {
+            let &(_, doc, loc, _) = b
+                .reactive
+                .iter()
+                .find(|r| loops.contains_key(&r.0))
+                .expect("a rewritten node is reactive");
+            let s = &sources[doc];
+            TreeError::at(Kind::Budget, &s.name, &s.text, loc, e)
+        })?;
+    Ok(Keyed { tree, keys })
+}
+
+/// Step 1: every file's `<root>`: its BehaviorTree definitions (by ID; the
+/// main file's in order, with its only unnamed one) and its
+/// `<TreeNodesModel>` declarations.
+#[allow(clippy::type_complexity)]
+fn declarations<'a>(
+    b: &mut Builder<'a>,
+    sources: &'a [Source],
+    elems: &'a [Elem],
+    roots: &[usize],
+) -> Result<(Vec<(&'a str, usize)>, Option<usize>), TreeError> {
     let mut order: Vec<(&str, usize)> = Vec::new();
     let mut unnamed_main: Option<usize> = None;
     for (doc, &ri) in roots.iter().enumerate() {
@@ -197,6 +237,19 @@ pub(super) fn build_keyed(
             }
         }
     }
+    Ok((order, unnamed_main))
+}
+
+/// Step 2: the tree to analyse (`main_tree_to_execute`, else the main
+/// file's first), its size checked before it is lowered; returns its ID.
+fn lower_main<'a>(
+    b: &mut Builder<'a>,
+    sources: &'a [Source],
+    elems: &'a [Elem],
+    roots: &[usize],
+    order: &[(&'a str, usize)],
+    unnamed_main: Option<usize>,
+) -> Result<Option<&'a str>, TreeError> {
     b.cur.set(0);
     let root = &elems[roots[0]];
     let err = |kind: Kind, at: Loc, msg: String| {
@@ -251,7 +304,14 @@ pub(super) fn build_keyed(
     }
     b.node(elems[main].children[0], None, 0, "0".into(), "", None)?;
     b.expanding.pop();
+    Ok(main_id)
+}
 
+/// Step 3: the problems collected while lowering, all in one error: unknown
+/// nodes and SubTrees defined nowhere (UnknownNode), else nodes without a
+/// stochastic meaning (NoMeaning). While blackboard values are missing the
+/// latter wait: returned as the text that follows the missing parameters.
+fn report_problems(b: &Builder, sources: &[Source]) -> Result<Option<String>, TreeError> {
     // Nodes without a stochastic meaning wait while the params file lacks
     // blackboard values: the fix for those is a params entry, so they are
     // reported as missing parameters, with these nodes listed after them.
@@ -264,7 +324,7 @@ pub(super) fn build_keyed(
             no_meaning_after = Some(format!(
                 "\nand {UNSUPPORTED} {n} node{} of this tree:\n{}",
                 if n == 1 { "" } else { "s" },
-                problem_lines(&sources, &semantic)
+                problem_lines(sources, &semantic)
             ));
         }
     }
@@ -279,7 +339,7 @@ pub(super) fn build_keyed(
                 format!(
                     "{UNSUPPORTED} {n} node{} of this tree:\n{}",
                     if n == 1 { "" } else { "s" },
-                    problem_lines(&sources, &semantic)
+                    problem_lines(sources, &semantic)
                 ),
                 "these BT.CPP node types (or attributes) have no model as a Stochastic Behavior \
                  Tree in btrel yet; read: Sequence, SequenceWithMemory, ReactiveSequence, \
@@ -297,14 +357,14 @@ pub(super) fn build_keyed(
             let mut message = format!(
                 "{n} node{} cannot be read:\n{}",
                 if n == 1 { "" } else { "s" },
-                problem_lines(&sources, &front)
+                problem_lines(sources, &front)
             );
             if !semantic.is_empty() {
                 message.push_str(&format!(
                     "\nand {UNSUPPORTED} {} node{}:\n{}",
                     semantic.len(),
                     if semantic.len() == 1 { "" } else { "s" },
-                    problem_lines(&sources, &semantic)
+                    problem_lines(sources, &semantic)
                 ));
             }
             let mut help = Vec::new();
@@ -324,224 +384,15 @@ pub(super) fn build_keyed(
             .err_in(kind, first.doc, first.loc, message)
             .with_help(help));
     }
+    Ok(no_meaning_after)
+}
 
-    // parameters
-    let perr_as = |kind: Kind, at: Loc, msg: String, help: String| {
-        TreeError::at(kind, params_file, params, at, msg).with_help(help)
-    };
-    let perr = |at: Loc, msg: String, help: String| perr_as(Kind::InvalidValue, at, msg, help);
-    let mut used_keys: HashSet<&str> = HashSet::new();
-    let mut param_keys: Vec<(usize, String)> = Vec::new();
-    // (document, location, line, what copies of one element share: its keys)
-    let mut missing: Vec<(usize, Loc, String, Option<String>)> = Vec::new();
-    let leaves = std::mem::take(&mut b.leaves);
-    for leaf in &leaves {
-        let shared = Some(format!(
-            "{}\0{}",
-            leaf.id,
-            leaf.name_attr.as_deref().unwrap_or("")
-        ));
-        let node = &b.nodes[leaf.node];
-        let at = node.location.unwrap_or((0, 0));
-        let mut keys = vec![node.name.as_str()];
-        for k in leaf.name_attr.iter().chain(std::iter::once(&leaf.id)) {
-            if !keys.contains(&k.as_str()) {
-                keys.push(k);
-            }
-        }
-        let found = keys.iter().find_map(|k| table.leaves.get_key_value(*k));
-        let is_action = match (leaf.kind, found) {
-            (LeafKind::Action, _) => true,
-            (LeafKind::Condition, _) => false,
-            (LeafKind::ZeroTime, None) => {
-                b.nodes[leaf.node].kind = NodeKind::Condition { ps: 1.0 };
-                continue;
-            }
-            (LeafKind::Inferred | LeafKind::ZeroTime, Some((_, def))) => has_timing(&def.value),
-            (LeafKind::Inferred, None) => {
-                let typo = match nearest(&leaf.id, BUILTINS) {
-                    Some(k) if k != leaf.id => format!(" (or did you mean <{k}>?)"),
-                    _ => String::new(),
-                };
-                missing.push((
-                    leaf.doc,
-                    at,
-                    format!(
-                        "leaf `{}` (ID `{}`): no entry (keys tried: {}); give `{{ps: ...}}` for a \
-                         condition or `{{ps: ..., mu: ..., nu: ...}}` for an action{typo}",
-                        node.name,
-                        leaf.id,
-                        keys.join(", ")
-                    ),
-                    shared,
-                ));
-                continue;
-            }
-        };
-        let kind = if is_action { "action" } else { "condition" };
-        let who = format!("{kind} `{}` (ID `{}`)", node.name, leaf.id);
-        let Some((key, def)) = found else {
-            missing.push((
-                leaf.doc,
-                at,
-                format!("{who}: no entry (keys tried: {})", keys.join(", ")),
-                shared,
-            ));
-            continue;
-        };
-        used_keys.insert(key.as_str());
-        param_keys.push((leaf.node, key.clone()));
-        let p = &def.value;
-        let new_kind = if is_action {
-            match validate_action(p, &perr)? {
-                Ok(a) => NodeKind::Action(a),
-                Err(m) => {
-                    missing.push((leaf.doc, at, format!("{who} (key `{key}`): {m}"), shared));
-                    continue;
-                }
-            }
-        } else {
-            if let Some(extra) = [&p.pf, &p.mu, &p.nu, &p.tau_s, &p.tau_f]
-                .into_iter()
-                .flatten()
-                .map(sloc)
-                .chain(p.time_law_at())
-                .next()
-            {
-                return Err(perr_as(
-                    Kind::Structure,
-                    extra,
-                    format!("`{key}` is used by {who}, and a condition takes only `ps`"),
-                    "a condition returns in zero time; give only its probability of success `ps`"
-                        .into(),
-                ));
-            }
-            let Some(ps) = &p.ps else {
-                missing.push((
-                    leaf.doc,
-                    at,
-                    format!("{who} (key `{key}`): missing `ps` (probability of success in [0, 1])"),
-                    shared,
-                ));
-                continue;
-            };
-            if !ps.value.is_finite() || !(0.0..=1.0).contains(&ps.value) {
-                return Err(perr_as(
-                    Kind::InvalidValue,
-                    sloc(ps),
-                    format!("ps = {} is not a probability", ps.value),
-                    "ps must be a number in [0, 1]".into(),
-                ));
-            }
-            NodeKind::Condition { ps: ps.value }
-        };
-        b.nodes[leaf.node].kind = new_kind;
-    }
-    let values_missing = !b.missing_values.is_empty();
-    missing.extend(
-        b.missing_values
-            .drain(..)
-            .map(|(d, at, m)| (d, at, m, None)),
-    );
-    if let Some(&(doc, first, ..)) = missing.first() {
-        // copies of one element (a RecoveryNode's retries, a SubTree used
-        // twice) share its keys: one line each, with the number of copies
-        let mut lines: Vec<String> = Vec::new();
-        let mut seen: HashMap<(usize, Loc, &str), (usize, usize)> = HashMap::new();
-        for (d, at, m, shared) in &missing {
-            let (l, c) = at;
-            let line = format!("  {}:{l}:{c}: {m}", sources[*d].name);
-            let Some(shared) = shared else {
-                lines.push(line);
-                continue;
-            };
-            match seen.get_mut(&(*d, *at, shared.as_str())) {
-                Some((_, copies)) => *copies += 1,
-                None => {
-                    seen.insert((*d, *at, shared), (lines.len(), 1));
-                    lines.push(line);
-                }
-            }
-        }
-        for &(line, copies) in seen.values() {
-            if copies > 1 {
-                lines[line].push_str(&format!(
-                    " [{copies} copies of this element (retries, SubTrees): one entry keyed by \
-                     its name or ID covers them all]"
-                ));
-            }
-        }
-        let n = lines.len();
-        return Err(b
-            .err_in(
-                Kind::MissingParameter,
-                doc,
-                first,
-                format!(
-                    "missing parameters for {n} node{} in {params_file}:\n{}{}",
-                    if n == 1 { "" } else { "s" },
-                    lines.join("\n"),
-                    no_meaning_after.unwrap_or_default()
-                ),
-            )
-            .with_help(format!(
-                "add an entry per node to {params_file}, keyed by name or ID, e.g. \
-                 `grasp: {{ps: 0.5, mu: 0.1, nu: 0.2}}` (actions) or `ready: {{ps: 0.9}}` \
-                 (conditions){}",
-                if values_missing {
-                    ", and one per blackboard value, keyed by the reference as written, e.g. \
-                     `\"{waypoints}\": {value: 5}`"
-                } else {
-                    ""
-                }
-            )));
-    }
-    let blackboard_used = b.blackboard_used.take();
-    if let Some((key, def)) = table
-        .blackboard
-        .iter()
-        .filter(|(k, _)| !blackboard_used.contains(k.as_str()))
-        .min_by_key(|(_, d)| sloc(d))
-    {
-        return Err(perr_as(
-            Kind::InvalidValue,
-            sloc(def),
-            format!(
-                "params key `{key}` matches no blackboard reference or port value that btrel reads"
-            ),
-            "blackboard values (keys written `{name}`) are read where a count, a duration or a \
-             queue (num_cycles, num_attempts, number_of_retries, msec, delay_msec, queue, \
-             vector_in, ...) is written as that reference; port values (keys written \
-             `<node>/<port>`) are read by DistanceController and SpeedController (`speed`); \
-             remove the entry or check its spelling"
-                .into(),
-        ));
-    }
-    if let Some((key, def)) = table
-        .leaves
-        .iter()
-        .filter(|(k, _)| !used_keys.contains(k.as_str()))
-        .min_by_key(|(_, d)| sloc(d))
-    {
-        let names: Vec<&str> = leaves
-            .iter()
-            .flat_map(|l| {
-                [b.nodes[l.node].name.as_str(), l.id.as_str()]
-                    .into_iter()
-                    .chain(l.name_attr.as_deref())
-            })
-            .collect();
-        let hint = match nearest(key, &names) {
-            Some(k) => format!("did you mean `{k}`? keys are leaf names or IDs"),
-            None => "keys are the names or IDs of the tree's actions and conditions; remove unused entries".into(),
-        };
-        return Err(perr_as(
-            Kind::InvalidValue,
-            sloc(def),
-            format!("params key `{key}` matches no action or condition"),
-            hint,
-        ));
-    }
+/// Step 5: reactive nodes with actions in two children (their restart
+/// loops, or refused) and WhileDoElse with an action in its condition.
+fn check_restarts(
+    b: &Builder,
+    sources: &[Source],
+) -> Result<HashMap<usize, reactive::Restart>, TreeError> {
     // A Reactive node halts (resets) its other children when one returns
     // RUNNING and ticks them again from IDLE on the next tick: an action in
     // an earlier child is restarted while a later child runs (and that one
@@ -658,8 +509,8 @@ pub(super) fn build_keyed(
         }
     }
     if let Some(e) = unsupported_nodes(
-        &b,
-        &sources,
+        b,
+        sources,
         &restarts,
         "ReactiveSequence and ReactiveFallback are read as Sequence and Fallback when \
                  at most one child holds actions (conditions before it are re-ticked, which \
@@ -670,10 +521,12 @@ pub(super) fn build_keyed(
     ) {
         return Err(e);
     }
-    let mut keys = vec![None; b.nodes.len()];
-    for (node, key) in param_keys {
-        keys[node] = Some(key);
-    }
+    Ok(loops)
+}
+
+/// Step 6: nodes whose re-tick as an earlier PipelineSequence child btrel
+/// would read as a re-run.
+fn check_retick(b: &Builder, sources: &[Source]) -> Result<(), TreeError> {
     // GoalUpdatedController and PathLongerOnApproach ticked again after
     // returning (an earlier PipelineSequence child) do not run their child
     // again while the goal and the path keep their values; btrel reads a
@@ -711,8 +564,8 @@ pub(super) fn build_keyed(
         }
     }
     if let Some(e) = unsupported_nodes(
-        &b,
-        &sources,
+        b,
+        sources,
         &again,
         "as an earlier PipelineSequence child, GoalUpdatedController is read exactly when \
                  its child is a leaf, takes no time or cannot fail, and PathLongerOnApproach when \
@@ -720,25 +573,7 @@ pub(super) fn build_keyed(
     ) {
         return Err(e);
     }
-    let tree = Tree {
-        title: main_id.map(str::to_string),
-        nodes: b.nodes,
-    };
-    if loops.is_empty() {
-        return Ok(Keyed { tree, keys });
-    }
-    // the restart loops, once every check on the built tree is done
-    let (tree, keys) =
-        reactive::rewrite(&tree, &keys, &loops, MAX_NODES, MAX_DEPTH).map_err(|e| {
-            let &(_, doc, loc, _) = b
-                .reactive
-                .iter()
-                .find(|r| loops.contains_key(&r.0))
-                .expect("a rewritten node is reactive");
-            let s = &sources[doc];
-            TreeError::at(Kind::Budget, &s.name, &s.text, loc, e)
-        })?;
-    Ok(Keyed { tree, keys })
+    Ok(())
 }
 
 #[cfg(test)]
