@@ -151,6 +151,7 @@ mod lower;
 mod params;
 mod predicates;
 mod reactive;
+mod steps;
 mod subtree;
 mod types;
 
@@ -159,6 +160,7 @@ use checks::*;
 use files::*;
 use leaves::*;
 use lex::*;
+use lower::*;
 use params::*;
 use types::*;
 
