@@ -1034,3 +1034,44 @@ fn broken_pipe_does_not_panic() {
         assert_eq!(out.status.code(), Some(0), "{format}: {stderr}");
     }
 }
+
+/// A blackboard value the params file lacks is a missing parameter: exit 2,
+/// every missing value listed with its location, the output ending with a
+/// newline, also when the tree has a node without a stochastic meaning.
+#[test]
+fn missing_blackboard_values_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let xml = dir.path().join("t.xml");
+    std::fs::write(
+        &xml,
+        "<root BTCPP_format=\"4\">\n<BehaviorTree ID=\"Main\">\n<Sequence>\n\
+         <LoopPose queue=\"{waypoints}\"><Go/></LoopPose>\n\
+         <Timeout msec=\"{relaxation_time_ms}\"><Go/></Timeout>\n\
+         <RunOnce><Go/></RunOnce>\n</Sequence>\n</BehaviorTree>\n</root>\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("t.params.yaml"),
+        "Go: {ps: 0.5, mu: 1, nu: 1}\n",
+    )
+    .unwrap();
+    let out = btrel().arg("check").arg(&xml).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(out.status.code(), Some(2), "stderr:\n{stderr}");
+    let file = xml.display().to_string();
+    assert!(
+        stderr.starts_with(&format!(
+            "error: {file}:4:11: missing parameters for 2 nodes"
+        )),
+        "stderr:\n{stderr}"
+    );
+    for p in [
+        format!("{file}:4:11: <LoopPose> queue = \"{{waypoints}}\""),
+        format!("{file}:5:10: <Timeout> msec = \"{{relaxation_time_ms}}\""),
+        format!("{file}:6:1: <RunOnce>"),
+    ] {
+        assert!(stderr.contains(&p), "stderr lacks {p:?}:\n{stderr}");
+    }
+    assert!(stderr.contains("\n  help: "), "stderr:\n{stderr}");
+    assert!(stderr.ends_with('\n'), "stderr:\n{stderr:?}");
+}

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use btrel::compile::{analyze, Options};
 use btrel::tree::xml::{is_unsupported, parse_xml_file, parse_xml_str, parse_xml_str_with};
-use btrel::tree::{parse_file, Decorator, NodeKind, Tree, TreeError};
+use btrel::tree::{parse_file, Decorator, NodeKind, Tree, TreeError, TreeErrorKind};
 
 fn xml(src: &str, params: &str) -> Result<Tree, TreeError> {
     parse_xml_str(src, "t.xml", params, "t.params.yaml")
@@ -473,8 +473,10 @@ fn deep_nesting_is_rejected() {
         )
     };
     let e = err(&wrap(&deep(500)), "");
+    assert_eq!(e.kind, TreeErrorKind::Budget, "{e}");
     assert!(e.message.contains("nested too deeply"), "{e}");
     let e = err(&wrap(&deep(200)), "");
+    assert_eq!(e.kind, TreeErrorKind::Budget, "{e}");
     assert!(e.message.contains("nested too deeply"), "{e}");
     let t = ok(&wrap(&deep(199)), "");
     assert_eq!(t.nodes.len(), 200);
@@ -488,9 +490,11 @@ fn deep_nesting_is_rejected() {
     }
     src.push_str("<BehaviorTree ID=\"T300\"><AlwaysSuccess/></BehaviorTree></root>");
     let e = err(&src, "");
+    assert_eq!(e.kind, TreeErrorKind::Budget, "{e}");
     assert!(e.message.contains("too deeply"), "{e}");
     // 100 000 unclosed elements: bounded, no stack overflow
     let e = err(&"<a>".repeat(100_000), "");
+    assert_eq!(e.kind, TreeErrorKind::Budget, "{e}");
     assert!(e.message.contains("nested too deeply"), "{e}");
 }
 
@@ -506,6 +510,7 @@ fn subtree_blowup_is_bounded() {
     }
     src.push_str("<BehaviorTree ID=\"T30\"><AlwaysSuccess/></BehaviorTree></root>");
     let e = err(&src, "");
+    assert_eq!(e.kind, TreeErrorKind::Budget, "{e}");
     assert!(e.message.contains("too many nodes"), "{e}");
 }
 
@@ -528,6 +533,7 @@ fn all_leaves_without_parameters_are_listed_at_once() {
         "FollowPath: {ps: 0.9, mu: 1, nu: 1}\nIsStuck: {ps: 0.1}\n",
     );
     let lines: Vec<&str> = e.message.lines().skip(1).collect();
+    assert_eq!(e.kind, TreeErrorKind::MissingParameter, "{e}");
     assert!(
         e.message.starts_with("missing parameters for 3 nodes"),
         "{e}"
@@ -575,7 +581,7 @@ fn node_types_without_a_meaning_are_listed_at_once() {
     // and the semantic ones follow
     let src = wrap("<Sequence>\n<Fallbak><A/></Fallbak>\n<RunOnce><A/></RunOnce>\n<Sequense><A/></Sequense>\n</Sequence>");
     let e = err(&src, "A: {ps: 0.5, mu: 1, nu: 1}");
-    assert!(!is_unsupported(&e), "{e}");
+    assert_eq!(e.kind, TreeErrorKind::UnknownNode, "{e}");
     assert!(e.message.starts_with("2 nodes cannot be read:"), "{e}");
     assert!(
         e.message
@@ -866,7 +872,7 @@ fn recovery_node_is_nav2s_retry_loop() {
         params,
     );
     assert!(
-        !is_unsupported(&e)
+        e.kind == TreeErrorKind::MissingParameter
             && e.message.starts_with("missing parameters for 1 node")
             && e.message.contains("number_of_retries = \"{n}\""),
         "{e}"
@@ -877,6 +883,7 @@ fn recovery_node_is_nav2s_retry_loop() {
         body = format!("<RecoveryNode number_of_retries=\"1000\">{body}<R/></RecoveryNode>");
     }
     let e = err(&wrap(&body), params);
+    assert_eq!(e.kind, TreeErrorKind::Budget, "{e}");
     assert!(e.message.contains("too many nodes"), "{e}");
 }
 
@@ -1080,7 +1087,7 @@ fn blackboard_counts_and_durations_read_the_params_file() {
     // without the values: missing parameters (not a refusal), all of them
     // at once and each located, with a leaf's missing entry in the same list
     let e = err(&wrap(body), "Step: {ps: 0.9, mu: 2, nu: 1}\n");
-    assert!(!is_unsupported(&e), "{e}");
+    assert_eq!(e.kind, TreeErrorKind::MissingParameter, "{e}");
     assert!(
         e.message.starts_with("missing parameters for 4 nodes"),
         "{e}"
@@ -1138,4 +1145,43 @@ fn blackboard_counts_and_durations_read_the_params_file() {
             .contains("reads 2.5 from the params file, not a whole number"),
         "{e}"
     );
+}
+
+/// Blackboard values the params file lacks are missing parameters (the fix
+/// is a params entry), listed at once with their locations, also when the
+/// tree has nodes without a stochastic meaning (those follow the list).
+#[test]
+fn missing_blackboard_values_are_missing_parameters() {
+    let body = "<Sequence>\n<LoopPose queue=\"{waypoints}\"><Go/></LoopPose>\n\
+                <Timeout msec=\"{relaxation_time_ms}\"><Go/></Timeout>\n\
+                <RunOnce><Go/></RunOnce>\n</Sequence>";
+    let e = err(&wrap(body), "Go: {ps: 0.5, mu: 1, nu: 1}\n");
+    assert_eq!(e.kind, TreeErrorKind::MissingParameter, "{e}");
+    assert!(!is_unsupported(&e), "{e}");
+    // the body starts on line 3: LoopPose at 4:1, its queue at 4:11,
+    // Timeout's msec at 5:10, RunOnce at 6:1
+    assert_eq!(
+        e.message,
+        "missing parameters for 2 nodes in t.params.yaml:\n  \
+         t.xml:4:11: <LoopPose> queue = \"{waypoints}\": a blackboard value known only at run \
+         time; give its length: `\"{waypoints}\": {value: N}`\n  \
+         t.xml:5:10: <Timeout> msec = \"{relaxation_time_ms}\": a blackboard value known only \
+         at run time; give it in milliseconds: `\"{relaxation_time_ms}\": {value: N}`\n\
+         and btrel has no stochastic meaning yet for 1 node of this tree:\n  \
+         t.xml:6:1: <RunOnce>: it runs its child at most once, keeping its status across \
+         executions"
+    );
+    assert_eq!((e.line, e.column), (4, 11));
+    assert!(e
+        .help
+        .as_deref()
+        .unwrap()
+        .contains("`\"{waypoints}\": {value: 5}`"));
+    // with the values given, only the refusal is left
+    let e = err(
+        &wrap(body),
+        "Go: {ps: 0.5, mu: 1, nu: 1}\n\"{waypoints}\": {value: 2}\n\"{relaxation_time_ms}\": {value: 500}\n",
+    );
+    assert_eq!(e.kind, TreeErrorKind::NoMeaning, "{e}");
+    assert!(is_unsupported(&e), "{e}");
 }

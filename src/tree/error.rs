@@ -2,12 +2,45 @@
 
 use std::fmt;
 
+/// What kind of problem a [`TreeError`] reports, for callers that react to
+/// it (exit codes, tests) without reading the message.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum TreeErrorKind {
+    /// The text is not valid XML or YAML (also: not UTF-8, an empty file).
+    Syntax,
+    /// Well-formed, but not a tree: an unknown key, element or attribute, a
+    /// required attribute or key missing, a wrong number of children, a
+    /// duplicate or recursive definition.
+    Structure,
+    /// Node types btrel does not know (leaves need no declaration; a node
+    /// with children must be a known control node or decorator), SubTrees
+    /// defined in no file read.
+    UnknownNode,
+    /// Parameters the params file (or a YAML leaf) lacks: leaf parameters,
+    /// blackboard values known only at run time. Fixed by adding entries.
+    MissingParameter,
+    /// A value of the wrong type or out of range (a probability above 1, a
+    /// negative count, an unused params key).
+    InvalidValue,
+    /// Known node types (or attributes) that btrel has no stochastic
+    /// meaning for yet: the input is valid, the analysis is not available.
+    NoMeaning,
+    /// Over one of btrel's size limits (bytes, nodes, depth, files).
+    Budget,
+    /// A file or folder cannot be read.
+    Io,
+    /// btrel failed (a parser thread could not start or panicked).
+    Internal,
+}
+
 /// An invalid tree file: where, what, and how to fix it.
 ///
 /// Displays as `file:line:column: message`, then the offending source line
 /// with a caret, then a `help:` line when there is advice.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error, miette::Diagnostic)]
 pub struct TreeError {
+    /// What kind of problem this is.
+    pub kind: TreeErrorKind,
     /// The file name as given by the user.
     pub file: String,
     /// 1-based line, 0 if unknown.
@@ -26,6 +59,7 @@ pub struct TreeError {
 impl TreeError {
     /// An error at a location in `source`.
     pub fn at(
+        kind: TreeErrorKind,
         file: &str,
         source: &str,
         (line, column): (usize, usize),
@@ -36,12 +70,26 @@ impl TreeError {
             .flatten()
             .map(|l| l.chars().take(200).collect());
         TreeError {
+            kind,
             file: file.to_string(),
             line,
             column,
             message: message.into(),
             help: None,
             source_line,
+        }
+    }
+
+    /// An error about a whole file (no line or column).
+    pub fn file(kind: TreeErrorKind, file: &str, message: impl Into<String>) -> TreeError {
+        TreeError {
+            kind,
+            file: file.to_string(),
+            line: 0,
+            column: 0,
+            message: message.into(),
+            help: None,
+            source_line: None,
         }
     }
 
@@ -128,12 +176,26 @@ mod tests {
 
     #[test]
     fn display_has_location_caret_and_help() {
-        let e = TreeError::at("t.yaml", "a: 1\nps: 2\n", (2, 5), "ps = 2 is out of range")
-            .with_help("ps must be in [0, 1]");
+        let e = TreeError::at(
+            TreeErrorKind::InvalidValue,
+            "t.yaml",
+            "a: 1\nps: 2\n",
+            (2, 5),
+            "ps = 2 is out of range",
+        )
+        .with_help("ps must be in [0, 1]");
         let s = e.to_string();
         assert!(s.starts_with("t.yaml:2:5: ps = 2 is out of range"));
         assert!(s.contains("2 | ps: 2"));
         assert!(s.contains("    ^"));
         assert!(s.ends_with("help: ps must be in [0, 1]"));
+        assert_eq!(e.kind, TreeErrorKind::InvalidValue);
+    }
+
+    #[test]
+    fn file_error_has_no_location() {
+        let e = TreeError::file(TreeErrorKind::Io, "t.xml", "cannot read the file");
+        assert_eq!(e.to_string(), "t.xml: cannot read the file");
+        assert_eq!((e.line, e.column, e.kind), (0, 0, TreeErrorKind::Io));
     }
 }

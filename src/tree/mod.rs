@@ -12,7 +12,7 @@ pub mod parse;
 pub mod stages;
 pub mod xml;
 
-pub use error::TreeError;
+pub use error::{TreeError, TreeErrorKind};
 pub use parse::{parse_bytes, parse_file, parse_str, parse_str_with, ParseLimits};
 pub use stages::Stages;
 

@@ -12,7 +12,9 @@
 //! * BT.CPP v3's `ManualSelector` (the user picks the child to run): a
 //!   branch chosen with the probabilities of the params file.
 
-use super::{Builder, Decorator, Elem, Flow, FlowNext, FlowState, LeafKind, NodeKind, TreeError};
+use super::{
+    Builder, Decorator, Elem, Flow, FlowNext, FlowState, Kind, LeafKind, NodeKind, TreeError,
+};
 
 impl<'a> Builder<'a> {
     /// A number the params file gives port `port` of `e` (a port whose
@@ -67,7 +69,11 @@ impl<'a> Builder<'a> {
         match v.parse::<f64>() {
             Ok(x) if x.is_finite() => Ok(Some(x)),
             _ => Err(self
-                .err(a.loc, format!("{key} = \"{v}\" is not a number"))
+                .err(
+                    Kind::InvalidValue,
+                    a.loc,
+                    format!("{key} = \"{v}\" is not a number"),
+                )
                 .with_help(format!("write {key} as a number such as 1.0"))),
         }
     }
@@ -113,6 +119,7 @@ impl<'a> Builder<'a> {
         };
         let bad_speed = |b: &Self| {
             b.err(
+                Kind::InvalidValue,
                 e.loc,
                 format!("<{ty}>: speed {speed} m/s from the params file is not valid"),
             )
@@ -127,7 +134,11 @@ impl<'a> Builder<'a> {
             };
             if d < 0.0 {
                 return Err(self
-                    .err(e.loc, format!("<{ty}> with distance = {d}"))
+                    .err(
+                        Kind::InvalidValue,
+                        e.loc,
+                        format!("<{ty}> with distance = {d}"),
+                    )
                     .with_help("distance is in metres, ≥ 0"));
             }
             if speed == 0.0 {
@@ -153,6 +164,7 @@ impl<'a> Builder<'a> {
         if !(min_rate > 0.0 && max_rate >= min_rate && max_speed > min_speed) {
             return Err(self
                 .err(
+                    Kind::InvalidValue,
                     e.loc,
                     format!(
                         "<{ty}> with min_rate {min_rate}, max_rate {max_rate}, min_speed \
@@ -170,6 +182,7 @@ impl<'a> Builder<'a> {
         if !(first.is_finite() && period.is_finite()) {
             return Err(self
                 .err(
+                    Kind::InvalidValue,
                     e.loc,
                     format!("<{ty}>: rates {min_rate}..{max_rate} Hz give no finite period"),
                 )
@@ -269,6 +282,7 @@ impl<'a> Builder<'a> {
                 v => {
                     return Err(self
                         .err(
+                            Kind::InvalidValue,
                             a.loc,
                             format!("repeat_last_selection = \"{v}\" is not a boolean"),
                         )

@@ -9,7 +9,7 @@
 //! it once (Precondition reads `if` only before the child starts) is exact.
 
 use super::{
-    canonical, Builder, Elem, Flow, FlowNext, FlowState, Leaf, LeafKind, NodeKind, Queue,
+    canonical, Builder, Elem, Flow, FlowNext, FlowState, Kind, Leaf, LeafKind, NodeKind, Queue,
     TreeError, PRECONDITIONS,
 };
 
@@ -141,7 +141,11 @@ impl<'a> Builder<'a> {
         match e.attr("if") {
             Some(a) if a.value.trim().is_empty() => {
                 return Err(self
-                    .err(a.loc, format!("<{ty}> has an empty `if`"))
+                    .err(
+                        Kind::InvalidValue,
+                        a.loc,
+                        format!("<{ty}> has an empty `if`"),
+                    )
                     .with_help(
                         "write the predicate as a BT.CPP script, e.g. if=\"battery > 20\"",
                     ));
@@ -149,7 +153,7 @@ impl<'a> Builder<'a> {
             Some(_) => {}
             None => {
                 return Err(self
-                    .err(e.loc, format!("<{ty}> needs `if`"))
+                    .err(Kind::Structure, e.loc, format!("<{ty}> needs `if`"))
                     .with_help(format!(
                         "write <{ty} if=\"...\" else=\"FAILURE\">; the probability that `if` \
                          holds is the params entry `\"{base}/if\": {{ps: ...}}`"
@@ -190,7 +194,11 @@ impl<'a> Builder<'a> {
                 }
                 v => {
                     return Err(self
-                        .err(a.loc, format!("else = \"{v}\" is not a node status"))
+                        .err(
+                            Kind::InvalidValue,
+                            a.loc,
+                            format!("else = \"{v}\" is not a node status"),
+                        )
                         .with_help(
                             "`else` is SUCCESS, FAILURE (the default), RUNNING or SKIPPED",
                         ));
@@ -314,7 +322,7 @@ impl<'a> Builder<'a> {
                 String::new()
             };
             return Err(self
-                .err(e.loc, format!("<{ty}> needs `{port}`"))
+                .err(Kind::Structure, e.loc, format!("<{ty}> needs `{port}`"))
                 .with_help(format!(
                     "write {literal}a blackboard reference whose length the params file gives: \
                      <{ty} {port}=\"{{items}}\"> with `\"{{items}}\": {{value: N}}`"
@@ -339,11 +347,15 @@ impl<'a> Builder<'a> {
                 return self.placeholder(e, &base, parent, depth, path, prefix, retry);
             }
             let Some((n, at)) = self.int_attr(e, port)? else {
-                return Err(self.err(q.loc, format!("<{ty}> needs `{port}`")));
+                return Err(self.err(Kind::Structure, q.loc, format!("<{ty}> needs `{port}`")));
             };
             if !(0..=MAX_QUEUE as i64).contains(&n) {
                 return Err(self
-                    .err(at, format!("queue length {n} is not valid"))
+                    .err(
+                        Kind::InvalidValue,
+                        at,
+                        format!("queue length {n} is not valid"),
+                    )
                     .with_help(format!(
                         "the params value of a queue is its length, 0 to {MAX_QUEUE}"
                     )));
@@ -356,7 +368,11 @@ impl<'a> Builder<'a> {
             }
             if pieces > MAX_QUEUE {
                 return Err(self
-                    .err(q.loc, format!("the queue has {pieces} elements"))
+                    .err(
+                        Kind::Budget,
+                        q.loc,
+                        format!("the queue has {pieces} elements"),
+                    )
                     .with_help(format!(
                         "btrel reads queues of at most {MAX_QUEUE} elements"
                     )));
@@ -384,7 +400,11 @@ impl<'a> Builder<'a> {
                 }
                 v => {
                     return Err(self
-                        .err(a.loc, format!("if_empty = \"{v}\" is not a valid status"))
+                        .err(
+                            Kind::InvalidValue,
+                            a.loc,
+                            format!("if_empty = \"{v}\" is not a valid status"),
+                        )
                         .with_help("`if_empty` is SUCCESS (the default), FAILURE or SKIPPED"));
                 }
             },
@@ -638,7 +658,11 @@ impl<'a> Builder<'a> {
     ) -> Result<usize, TreeError> {
         if e.children.len() != cases + 1 {
             return Err(self
-                .err(e.loc, format!("<{ty}> has {} children", e.children.len()))
+                .err(
+                    Kind::Structure,
+                    e.loc,
+                    format!("<{ty}> has {} children", e.children.len()),
+                )
                 .with_help(format!(
                     "<{ty}> takes {} children: one per case_1..case_{cases}, then the default",
                     cases + 1
@@ -646,7 +670,7 @@ impl<'a> Builder<'a> {
         }
         if e.attr("variable").is_none() {
             return Err(self
-                .err(e.loc, format!("<{ty}> needs `variable`"))
+                .err(Kind::Structure, e.loc, format!("<{ty}> needs `variable`"))
                 .with_help(format!("write <{ty} variable=\"{{name}}\" case_1=\"...\">")));
         }
         let base = self.name_attr(e)?.unwrap_or_else(|| ty.to_string());

@@ -22,7 +22,7 @@ mod fast;
 use serde::Deserialize;
 
 use super::action::{sloc, validate_action, ActionParams, At, TimeDef};
-use super::error::{nearest, TreeError};
+use super::error::{nearest, TreeError, TreeErrorKind as Kind};
 use super::{Action, Decorator, Flow, FlowNext, FlowState, Node, NodeKind, Tree};
 
 /// Bounds on what the parser accepts.
@@ -221,13 +221,9 @@ struct ConditionDef {
 /// Reads and parses a tree file with default limits.
 pub fn parse_file(path: &std::path::Path) -> Result<Tree, TreeError> {
     let file = path.display().to_string();
-    let io_err = |e: std::io::Error| TreeError {
-        file: file.clone(),
-        line: 0,
-        column: 0,
-        message: format!("cannot read the file: {e}"),
-        help: Some(read_help(&e).into()),
-        source_line: None,
+    let io_err = |e: std::io::Error| {
+        TreeError::file(Kind::Io, &file, format!("cannot read the file: {e}"))
+            .with_help(read_help(&e))
     };
     let limits = ParseLimits::default();
     let meta = std::fs::metadata(path).map_err(io_err)?;
@@ -256,13 +252,11 @@ pub fn text_from_bytes(bytes: Vec<u8>, file: &str) -> Result<String, TreeError> 
         let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
         let column = before.iter().rev().take_while(|&&b| b != b'\n').count() + 1;
         TreeError {
-            file: file.to_string(),
             line,
             column,
-            message: "the input is not valid UTF-8 text".into(),
-            help: Some("a tree file is YAML or XML text; is this the right file?".into()),
-            source_line: None,
+            ..TreeError::file(Kind::Syntax, file, "the input is not valid UTF-8 text")
         }
+        .with_help("a tree file is YAML or XML text; is this the right file?")
     })
 }
 
@@ -284,17 +278,14 @@ pub fn parse_str(source: &str, file: &str) -> Result<Tree, TreeError> {
 }
 
 fn too_large(file: &str, len: usize, limits: &ParseLimits) -> TreeError {
-    TreeError {
-        file: file.into(),
-        line: 0,
-        column: 0,
-        message: format!(
+    TreeError::file(
+        Kind::Budget,
+        file,
+        format!(
             "the file is {len} bytes, more than the limit of {} bytes",
             limits.max_bytes
         ),
-        help: None,
-        source_line: None,
-    }
+    )
 }
 
 /// Parses a tree from YAML text within `limits`.
@@ -309,24 +300,19 @@ pub fn parse_str_with(source: &str, file: &str, limits: ParseLimits) -> Result<T
             .name("btrel-parse".into())
             .stack_size(256 << 20)
             .spawn_scoped(s, || parse_on_this_thread(source, file, limits))
-            .map_err(|e| TreeError {
-                file: file.into(),
-                line: 0,
-                column: 0,
-                message: format!("cannot start the parser thread: {e}"),
-                help: None,
-                source_line: None,
+            .map_err(|e| {
+                TreeError::file(
+                    Kind::Internal,
+                    file,
+                    format!("cannot start the parser thread: {e}"),
+                )
             })?
             .join()
             .unwrap_or_else(|_| {
-                Err(TreeError {
-                    file: file.into(),
-                    line: 0,
-                    column: 0,
-                    message: "internal error: the parser panicked".into(),
-                    help: Some("please report this file as a bug".into()),
-                    source_line: None,
-                })
+                Err(
+                    TreeError::file(Kind::Internal, file, "internal error: the parser panicked")
+                        .with_help("please report this file as a bug"),
+                )
             })
     })
 }
@@ -337,7 +323,7 @@ fn parse_on_this_thread(source: &str, file: &str, limits: ParseLimits) -> Result
         .all(|l| l.trim().is_empty() || l.trim_start().starts_with('#'));
     if only_comments {
         return Err(
-            TreeError::at(file, source, (1, 1), "the file is empty").with_help(
+            TreeError::at(Kind::Structure, file, source, (1, 1), "the file is empty").with_help(
                 "a tree file needs a `tree:` key, e.g. `tree: {action: {ps: 0.5, mu: 1, nu: 1}}`",
             ),
         );
@@ -413,7 +399,7 @@ fn yaml_error(
     if let Some(err) = common_mistake(inner, source, file, loc) {
         return err;
     }
-    let (message, help): (String, Option<String>) = match inner {
+    let (kind, message, help): (Kind, String, Option<String>) = match inner {
         E::SerdeUnknownField {
             field, expected, ..
         } => {
@@ -422,7 +408,11 @@ fn yaml_error(
                 Some(k) => format!("did you mean `{k}`? accepted keys: {}", keys.join(", ")),
                 None => format!("accepted keys: {}", keys.join(", ")),
             };
-            (format!("unknown key `{field}`"), Some(hint))
+            (
+                Kind::Structure,
+                format!("unknown key `{field}`"),
+                Some(hint),
+            )
         }
         E::SerdeUnknownVariant { variant, .. } => {
             let hint = match nearest(variant, NODE_KINDS) {
@@ -434,12 +424,22 @@ fn yaml_error(
                 ),
                 None => format!("node kinds: {}", NODE_KINDS.join(", ")),
             };
-            (format!("unknown node kind `{variant}`"), Some(hint))
+            (
+                Kind::UnknownNode,
+                format!("unknown node kind `{variant}`"),
+                Some(hint),
+            )
         }
         E::SerdeMissingField { field, .. } => {
             // serde reports the mapping's last key; point at the node instead
             if let Some(at) = enclosing_node(source, loc) {
-                let mut err = TreeError::at(file, source, at, format!("missing key `{field}`"));
+                let mut err = TreeError::at(
+                    missing_key_kind(field),
+                    file,
+                    source,
+                    at,
+                    format!("missing key `{field}`"),
+                );
                 err.help = Some(missing_help(field));
                 return err;
             }
@@ -451,9 +451,14 @@ fn yaml_error(
                 "tree" => "a tree file needs a `tree:` key holding the root node",
                 _ => "add the missing key",
             };
-            (format!("missing key `{field}`"), Some(hint.to_string()))
+            (
+                missing_key_kind(field),
+                format!("missing key `{field}`"),
+                Some(hint.to_string()),
+            )
         }
         E::InvalidScalar { ty, .. } => (
+            Kind::InvalidValue,
             format!("expected a number ({ty})"),
             Some("write a plain number such as 0.25 or 1e-3".into()),
         ),
@@ -461,6 +466,7 @@ fn yaml_error(
             let msg = format!("{breach:?}");
             if msg.starts_with("Depth") {
                 (
+                    Kind::Budget,
                     "the tree is nested too deeply".into(),
                     Some(format!(
                         "btrel accepts trees up to {} levels deep",
@@ -469,18 +475,21 @@ fn yaml_error(
                 )
             } else {
                 (
+                    Kind::Budget,
                     format!("the document exceeds a size limit ({msg})"),
                     Some("is this really a behavior tree? alias expansion and very large documents are bounded".into()),
                 )
             }
         }
         E::AliasError { .. } | E::AliasReplayLimitExceeded { .. } => (
+            Kind::Budget,
             strip_location(&inner.to_string()),
             Some("alias expansion is bounded; expand fewer or smaller aliases".into()),
         ),
         other => {
             let text = strip_location(&other.to_string());
-            let help = if text.contains("recursion limit") {
+            let deep = text.contains("recursion limit");
+            let help = if deep {
                 Some(format!(
                     "btrel accepts trees up to {} levels deep",
                     limits.max_depth
@@ -490,12 +499,22 @@ fn yaml_error(
             } else {
                 None
             };
-            (text, help)
+            let kind = if deep { Kind::Budget } else { Kind::Syntax };
+            (kind, text, help)
         }
     };
-    let mut err = TreeError::at(file, source, loc, message);
+    let mut err = TreeError::at(kind, file, source, loc, message);
     err.help = help;
     err
+}
+
+/// A missing YAML key is a missing parameter when it is one of a leaf's
+/// parameters, else a structural error (`children`, `tree`, ...).
+fn missing_key_kind(field: &str) -> Kind {
+    match field {
+        "ps" | "pf" | "mu" | "nu" | "tau_s" | "tau_f" => Kind::MissingParameter,
+        _ => Kind::Structure,
+    }
 }
 
 /// Keys that belong inside a node (what a missing kind line leaves behind).
@@ -631,7 +650,7 @@ fn common_mistake(
     let lines: Vec<&str> = source.lines().collect();
     let text = line_of(&lines, line);
     let at = |l: (usize, usize), m: String, h: String| {
-        Some(TreeError::at(file, source, l, m).with_help(h))
+        Some(TreeError::at(Kind::Syntax, file, source, l, m).with_help(h))
     };
     let raw = e.to_string();
     // tabs anywhere in the indentation of this line (the scanner's message
@@ -918,8 +937,8 @@ fn loc<T>(s: &At<T>) -> (usize, usize) {
 }
 
 impl Builder<'_> {
-    fn err(&self, at: (usize, usize), msg: impl Into<String>) -> TreeError {
-        TreeError::at(self.file, self.source, at, msg)
+    fn err(&self, kind: Kind, at: (usize, usize), msg: impl Into<String>) -> TreeError {
+        TreeError::at(kind, self.file, self.source, at, msg)
     }
 
     fn node(
@@ -932,7 +951,7 @@ impl Builder<'_> {
         let at = loc(def);
         if depth >= self.max_depth {
             return Err(self
-                .err(at, "the tree is nested too deeply")
+                .err(Kind::Budget, at, "the tree is nested too deeply")
                 .with_help(format!(
                     "btrel accepts trees up to {} levels deep",
                     self.max_depth
@@ -1024,7 +1043,11 @@ impl Builder<'_> {
             if list.value.is_empty() {
                 let keyword = self.nodes[id].kind.keyword();
                 return Err(self
-                    .err(loc(list), format!("{keyword} has no children"))
+                    .err(
+                        Kind::Structure,
+                        loc(list),
+                        format!("{keyword} has no children"),
+                    )
                     .with_help("a control node needs at least one child"));
             }
             let mut ids = Vec::with_capacity(list.value.len());
@@ -1040,6 +1063,7 @@ impl Builder<'_> {
                     if !(2..=3).contains(&ids.len()) {
                         return Err(self
                             .err(
+                                Kind::Structure,
                                 loc(list),
                                 format!("if_then_else has {} children", ids.len()),
                             )
@@ -1080,7 +1104,7 @@ impl Builder<'_> {
     ) -> Result<String, TreeError> {
         match name {
             Some(n) if n.value.trim().is_empty() => Err(self
-                .err(loc(n), "a node name must not be empty")
+                .err(Kind::InvalidValue, loc(n), "a node name must not be empty")
                 .with_help("omit `name` to get a generated one")),
             Some(n) => Ok(n.value.clone()),
             None => Ok(format!("{keyword}@{path}")),
@@ -1123,7 +1147,11 @@ impl Builder<'_> {
             let x = v.value;
             if !(x.is_finite() && x.fract() == 0.0 && x >= 0.0 && x < bound as f64) {
                 return Err(self
-                    .err(loc(v), format!("{what} {x} does not exist"))
+                    .err(
+                        Kind::InvalidValue,
+                        loc(v),
+                        format!("{what} {x} does not exist"),
+                    )
                     .with_help(format!(
                         "{what}s are numbered from 0 to {} in the order written",
                         bound.saturating_sub(1)
@@ -1139,7 +1167,7 @@ impl Builder<'_> {
                     NextDef::Outcome(w) if w == "success" => Ok(FlowNext::Success),
                     NextDef::Outcome(w) if w == "failure" => Ok(FlowNext::Failure),
                     NextDef::Outcome(w) => Err(self
-                        .err(loc(n), format!("`{w}` is not a state"))
+                        .err(Kind::InvalidValue, loc(n), format!("`{w}` is not a state"))
                         .with_help("write a later state's number, `success` or `failure`")),
                     NextDef::State(_) => {
                         let at = At {
@@ -1153,7 +1181,11 @@ impl Builder<'_> {
                         let j = index(&at, "state", n_states)?;
                         if j <= i {
                             return Err(self
-                                .err(loc(n), format!("state {i} goes back to state {j}"))
+                                .err(
+                                    Kind::Structure,
+                                    loc(n),
+                                    format!("state {i} goes back to state {j}"),
+                                )
                                 .with_help(
                                     "a flow is acyclic: a state may only lead to a later state \
                                      (repeat with retry/repeat around the flow instead)",
@@ -1170,8 +1202,12 @@ impl Builder<'_> {
             });
         }
         Flow::new(ids, states).map_err(|what| {
-            self.err(loc(&def.states), format!("invalid flow: {what}"))
-                .with_help("every child must be run by some state; state 0 runs first")
+            self.err(
+                Kind::Structure,
+                loc(&def.states),
+                format!("invalid flow: {what}"),
+            )
+            .with_help("every child must be run by some state; state 0 runs first")
         })
     }
 
@@ -1180,7 +1216,11 @@ impl Builder<'_> {
         let x = v.value;
         if !(x.is_finite() && x.fract() == 0.0 && (1.0..=1e6).contains(&x)) {
             return Err(self
-                .err(loc(v), format!("{key} = {x} is not a valid count"))
+                .err(
+                    Kind::InvalidValue,
+                    loc(v),
+                    format!("{key} = {x} is not a valid count"),
+                )
                 .with_help(format!("{key} must be a whole number from 1 to 1000000")));
         }
         Ok(x as usize)
@@ -1192,6 +1232,7 @@ impl Builder<'_> {
             if !(v.is_finite() && v.fract() == 0.0 && v >= 1.0 && v <= n as f64) {
                 return Err(self
                     .err(
+                        Kind::InvalidValue,
                         loc(t),
                         format!(
                             "{key} = {v} is not valid for {n} {}",
@@ -1219,7 +1260,11 @@ impl Builder<'_> {
         let x = v.value;
         if !x.is_finite() || !(0.0..=1.0).contains(&x) {
             return Err(self
-                .err(loc(v), format!("{key} = {x} is not a probability"))
+                .err(
+                    Kind::InvalidValue,
+                    loc(v),
+                    format!("{key} = {x} is not a probability"),
+                )
                 .with_help(format!("{key} must be a number in [0, 1]")));
         }
         Ok(x)
@@ -1237,14 +1282,14 @@ impl Builder<'_> {
             failure_time: a.failure_time.clone(),
         };
         let err = |at: (usize, usize), message: String, help: String| {
-            self.err(at, message).with_help(help)
+            self.err(Kind::InvalidValue, at, message).with_help(help)
         };
         match validate_action(&params, &err)? {
             Ok(action) => Ok(action),
             Err(missing) => {
                 let (what, help) = missing.split_once(": ").unwrap_or((&missing, ""));
                 Err(self
-                    .err(loc(&a.ps), format!("action {what}"))
+                    .err(Kind::MissingParameter, loc(&a.ps), format!("action {what}"))
                     .with_help(help.to_string()))
             }
         }
@@ -1258,6 +1303,7 @@ impl Builder<'_> {
                 let (l, c) = self.locations[j];
                 return Err(self
                     .err(
+                        Kind::Structure,
                         self.locations[i],
                         format!("duplicate node name '{}'", n.name),
                     )
