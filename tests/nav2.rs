@@ -8,7 +8,7 @@ mod common;
 use btrel::compile::curve::{curve, CurveOptions};
 use btrel::sim::{simulate, SimOptions, SimResult};
 use btrel::tree::xml::{is_unsupported, parse_xml_str};
-use btrel::tree::{Decorator, NodeKind, Tree};
+use btrel::tree::{Decorator, NodeKind, Tree, TreeErrorKind};
 use btrel::{analyze, Options};
 use common::{assert_within_z, run_btrel};
 
@@ -522,7 +522,7 @@ fn attributes_are_checked_with_their_place() {
     // a rate from the blackboard: a missing parameter until the params
     // file gives it, then read as written there (2 Hz: a 0.5 s period)
     let e = parse_xml_str(&text(&body("hz=\"{rate}\"")), "t.xml", params, "p.yaml").unwrap_err();
-    assert!(!is_unsupported(&e), "{e}");
+    assert_eq!(e.kind, TreeErrorKind::MissingParameter, "{e}");
     assert!(
         e.message.starts_with("missing parameters for 1 node")
             && e.message.contains("hz = \"{rate}\""),

@@ -7,7 +7,7 @@ mod common;
 
 use btrel::compile::{analyze, Figures, Options};
 use btrel::tree::xml::{is_unsupported, parse_xml_str};
-use btrel::tree::{NodeKind, Tree, TreeError};
+use btrel::tree::{NodeKind, Tree, TreeError, TreeErrorKind};
 use common::{check_figures, close};
 
 fn xml(body: &str, params: &str) -> Result<Tree, TreeError> {
@@ -53,6 +53,7 @@ fn script_condition_is_a_condition_from_the_params_file() {
     assert!(e.message.contains("a condition takes only `ps`"), "{e}");
     // listed with the other missing parameters, with its location
     let e = err("<Sequence><ScriptCondition code=\"x\"/><B/></Sequence>", "");
+    assert_eq!(e.kind, TreeErrorKind::MissingParameter, "{e}");
     assert!(
         e.message.starts_with("missing parameters for 2 nodes"),
         "{e}"

@@ -998,6 +998,11 @@ fn include_elements_and_folders_are_read_from_disk() {
     )
     .unwrap();
     std::fs::write(p.join("plain.params.yaml"), "Put: {ps: 0.5}").unwrap();
+    // without the include: only SubTrees are missing
+    let e =
+        btrel::tree::xml::parse_xml_files(&p.join("plain.xml"), &p.join("plain.params.yaml"), &[])
+            .unwrap_err();
+    assert_eq!(e.kind, TreeErrorKind::UndefinedSubTree, "{e}");
     let out = assert_cmd::Command::cargo_bin("btrel")
         .unwrap()
         .current_dir(p)

@@ -137,7 +137,7 @@ fn load_keyed(
     }
     let keyed =
         btrel::tree::xml::parse_xml_files_keyed(path, &params, include).map_err(|mut e| {
-            if e.message.contains("for this SubTree") {
+            if e.kind == btrel::tree::error::TreeErrorKind::UndefinedSubTree {
                 e.help = Some(advice::include_subtree(e.help.take()));
             }
             if btrel::tree::xml::is_unsupported(&e) {

@@ -13,9 +13,12 @@ pub enum TreeErrorKind {
     /// duplicate or recursive definition.
     Structure,
     /// Node types btrel does not know (leaves need no declaration; a node
-    /// with children must be a known control node or decorator), SubTrees
-    /// defined in no file read.
+    /// with children must be a known control node or decorator), with or
+    /// without SubTrees defined in no file read.
     UnknownNode,
+    /// SubTrees whose `<BehaviorTree>` is defined in no file read (and no
+    /// unknown node type): fixed by reading the file that defines them.
+    UndefinedSubTree,
     /// Parameters the params file (or a YAML leaf) lacks: leaf parameters,
     /// blackboard values known only at run time. Fixed by adding entries.
     MissingParameter,

@@ -308,7 +308,8 @@ fn lower_main<'a>(
 }
 
 /// Step 3: the problems collected while lowering, all in one error: unknown
-/// nodes and SubTrees defined nowhere (UnknownNode), else nodes without a
+/// nodes and SubTrees defined nowhere (UnknownNode, or UndefinedSubTree
+/// when only SubTrees are), else nodes without a
 /// stochastic meaning (NoMeaning). While blackboard values are missing the
 /// latter wait: returned as the text that follows the missing parameters.
 fn report_problems(b: &Builder, sources: &[Source]) -> Result<Option<String>, TreeError> {
@@ -378,7 +379,12 @@ fn report_problems(b: &Builder, sources: &[Source]) -> Result<Option<String>, Tr
             if front.iter().any(|p| p.text.starts_with("no <BehaviorTree")) {
                 help.push("a SubTree's BehaviorTree may be defined in an included file");
             }
-            (Kind::UnknownNode, front[0], message, help.join("; "))
+            let kind = if front.iter().all(|p| p.text.starts_with("no <BehaviorTree")) {
+                Kind::UndefinedSubTree
+            } else {
+                Kind::UnknownNode
+            };
+            (kind, front[0], message, help.join("; "))
         };
         return Err(b
             .err_in(kind, first.doc, first.loc, message)

@@ -93,12 +93,16 @@
 //!
 //! Known node types without a stochastic meaning yet (RunOnce, ParallelAll,
 //! Nav2's PersistentSequence, ...), custom control nodes
-//! and decorators, counts from the blackboard (unless the params file gives
-//! the reference a value: `"{name}": {value: N}`) or −1 (forever), and
+//! and decorators, counts of −1 (forever), and
 //! pre-conditions (`_skipIf`, `_failureIf`, `_successIf`, `_while`, unless
 //! constant no-ops such as `_skipIf="false"`) are all listed in one error
-//! (see [`is_unsupported`]); unknown nodes with children and SubTrees defined
-//! nowhere are listed in one error too, each with its file, line and column.
+//! of kind `NoMeaning` (see [`is_unsupported`]); unknown nodes with children
+//! and SubTrees defined nowhere are listed in one error too (`UnknownNode`),
+//! each with its file, line and column. A count, duration, rate or queue
+//! read from the blackboard (`"{name}"`) takes its value from the params
+//! file (`"{name}": {value: N}`); without it, it is a missing parameter
+//! (`MissingParameter`), listed with the leaves' missing parameters, and
+//! nodes without a stochastic meaning follow that list.
 //!
 //! # Accepted as BT.CPP's parser does
 //!
