@@ -25,12 +25,12 @@ fn xml(body: &str, params: &str) -> Result<Tree, TreeError> {
     parse_xml_str(&src, "t.xml", params, "t.params.yaml")
 }
 
-fn tree(body: &str, params: &str) -> Tree {
+fn xml_tree(body: &str, params: &str) -> Tree {
     xml(body, params).unwrap_or_else(|e| panic!("{e}"))
 }
 
-fn root(body: &str, params: &str) -> Figures {
-    analyze(&tree(body, params), &Options::default())
+fn xml_root(body: &str, params: &str) -> Figures {
+    analyze(&xml_tree(body, params), &Options::default())
         .unwrap_or_else(|e| panic!("{e}"))
         .nodes[0]
 }
@@ -59,15 +59,15 @@ fn manual_selector_is_a_choice_with_the_params_probabilities() {
     // MTTS = (0.16·(1/2) + 0.16·1 + 0.12·0) / 0.44
     // MTTF = (0.04·1 + 0.24·(1/4) + 0.28·0) / 0.56
     check_figures(
-        root(body, params),
+        xml_root(body, params),
         0.44,
         Some(0.24 / 0.44),
         Some(0.1 / 0.56),
     );
-    assert_root_matches_simulation(&tree(body, params), 200_000);
+    assert_root_matches_simulation(&xml_tree(body, params), 200_000);
     // the type keys the predicates when there is no name
     let body = "<ManualSelector><X/><Y/></ManualSelector>";
-    let f = root(body, "X: {ps: 0.8, mu: 2, nu: 1}\nY: {ps: 0.4, mu: 1, nu: 4}\n\"ManualSelector/select_1\": {ps: 0.25}\n");
+    let f = xml_root(body, "X: {ps: 0.8, mu: 2, nu: 1}\nY: {ps: 0.4, mu: 1, nu: 4}\n\"ManualSelector/select_1\": {ps: 0.25}\n");
     check_figures(
         f,
         0.25 * 0.8 + 0.75 * 0.4,
@@ -77,14 +77,14 @@ fn manual_selector_is_a_choice_with_the_params_probabilities() {
     // without children the user picks the status: a condition keyed like a
     // leaf
     check_figures(
-        root("<ManualSelector name=\"Ask\"/>", "Ask: {ps: 0.3}"),
+        xml_root("<ManualSelector name=\"Ask\"/>", "Ask: {ps: 0.3}"),
         0.3,
         Some(0.0),
         Some(0.0),
     );
     // one child: the child itself, no predicate
     check_figures(
-        root("<ManualSelector><A/></ManualSelector>", A),
+        xml_root("<ManualSelector><A/></ManualSelector>", A),
         0.5,
         Some(1.0),
         Some(0.5),
@@ -123,16 +123,16 @@ fn consume_queue_and_foreach_run_the_child_once_per_element() {
         "<ConsumeQueue queue=\"{q}\" popped_item=\"{x}\"><A/></ConsumeQueue>",
         "<Decorator ID=\"ForEach\" vector_in=\"{q}\" out=\"{x}\" index=\"{i}\"><A/></Decorator>",
     ] {
-        check_figures(root(body, &params), 0.125, Some(3.0), Some(mttf));
+        check_figures(xml_root(body, &params), 0.125, Some(3.0), Some(mttf));
         // the success curve: 1/8 times the Erlang(3, 1) CDF
         let t = 2.0f64;
         let erlang = 1.0 - (-t).exp() * (1.0 + t + t * t / 2.0);
-        let (s, _) = root_curve_at(&tree(body, &params), t);
+        let (s, _) = root_curve_at(&xml_tree(body, &params), t);
         assert!((s - 0.125 * erlang).abs() < 1e-9, "{body}: {s}");
-        assert_root_matches_simulation(&tree(body, &params), 100_000);
+        assert_root_matches_simulation(&xml_tree(body, &params), 100_000);
     }
     // ConsumeQueue on an empty queue: Success at once
-    let f = root(
+    let f = xml_root(
         "<ConsumeQueue queue=\"{q}\"><A/></ConsumeQueue>",
         "\"{q}\": {value: 0}\n",
     );
@@ -167,7 +167,7 @@ fn repeat_unless_failure_each_tick_is_repeat() {
     // two Successes in a row: ps 1/4, MTTS 2
     let body = "<Decorator ID=\"RepeatUnlessFailureEachTick\" num_cycles=\"2\"><A/></Decorator>";
     check_figures(
-        root(body, A),
+        xml_root(body, A),
         0.25,
         Some(2.0),
         Some((0.5 * 0.5 + 0.25 * 1.5) / 0.75),
@@ -176,7 +176,7 @@ fn repeat_unless_failure_each_tick_is_repeat() {
     // the k-th with probability 2^-k, after k − 1 successes: MTTF
     // 1/2 + E[k − 1] = 1/2 + 1
     let body = "<RepeatUnlessFailureEachTick num_cycles=\"-1\"><A/></RepeatUnlessFailureEachTick>";
-    check_figures(root(body, A), 0.0, None, Some(1.5));
+    check_figures(xml_root(body, A), 0.0, None, Some(1.5));
 }
 
 #[test]
@@ -184,8 +184,8 @@ fn path_longer_on_approach_runs_its_child_when_the_path_got_longer() {
     // the path got longer with 0.3: A runs (ps 1/2), else Success at once
     let body = "<PathLongerOnApproach path=\"{path}\" prox_len=\"3.0\" length_factor=\"2.0\"><A/></PathLongerOnApproach>";
     let params = format!("{A}\"PathLongerOnApproach/longer\": {{ps: 0.3}}\n");
-    check_figures(root(body, &params), 0.85, Some(0.15 / 0.85), Some(0.5));
-    assert_root_matches_simulation(&tree(body, &params), 100_000);
+    check_figures(xml_root(body, &params), 0.85, Some(0.15 / 0.85), Some(0.5));
+    assert_root_matches_simulation(&xml_tree(body, &params), 100_000);
     // the predicate is a parameter
     let e = err(body, A);
     assert!(e.to_string().contains("PathLongerOnApproach/longer"), "{e}");
@@ -194,14 +194,14 @@ fn path_longer_on_approach_runs_its_child_when_the_path_got_longer() {
 #[test]
 fn goal_updated_controller_runs_its_child_once() {
     let body = "<GoalUpdatedController><A/></GoalUpdatedController>";
-    check_figures(root(body, A), 0.5, Some(1.0), Some(0.5));
+    check_figures(xml_root(body, A), 0.5, Some(1.0), Some(0.5));
     // an earlier pipeline child: re-ticked it returns RUNNING without
     // ticking its child, so the pipeline is a Sequence (ps 1/2 · 4/5)
     let body = "<PipelineSequence><GoalUpdatedController><A/></GoalUpdatedController><B/></PipelineSequence>";
     let params = format!("{A}B: {{ps: 0.8, mu: 1, nu: 1}}\n");
-    let f = root(body, &params);
+    let f = xml_root(body, &params);
     assert!(close(f.ps, 0.4) && close(f.mtts.unwrap(), 2.0), "{f:?}");
-    assert_root_matches_simulation(&tree(body, &params), 100_000);
+    assert_root_matches_simulation(&xml_tree(body, &params), 100_000);
     // ... which btrel cannot express when the child is a subtree that takes
     // time and can fail (its re-tick would re-run it): refused, located
     let body = "<PipelineSequence><GoalUpdatedController><Sequence><A/><A/></Sequence></GoalUpdatedController><B/></PipelineSequence>";
@@ -228,7 +228,7 @@ fn distance_controller_is_a_rate_controller_of_period_distance_over_speed() {
     // outside a pipeline: its child once
     let params = format!("{A}\"DistanceController/speed\": {{value: 0.5}}\n");
     check_figures(
-        root(
+        xml_root(
             "<DistanceController distance=\"1.0\"><A/></DistanceController>",
             &params,
         ),
@@ -240,9 +240,9 @@ fn distance_controller_is_a_rate_controller_of_period_distance_over_speed() {
     // 6.5 s, so re-runs 1 and 2 (3.0, 5.5 s) must succeed: ps 1/2³
     let (body, params) = replanning("DistanceController", "distance=\"1.0\"", 6.0);
     let params = format!("{params}\"DistanceController/speed\": {{value: 0.5}}\n");
-    let f = root(&body, &params);
+    let f = xml_root(&body, &params);
     assert!(close(f.ps, 0.125), "{f:?}");
-    let sim = simulate_root(&tree(&body, &params), 40_000, &[]);
+    let sim = simulate_root(&xml_tree(&body, &params), 40_000, &[]);
     assert_within_z("ps", &sim.nodes[0].ps, 0.125);
     // a missing speed is a missing parameter, listed with the others
     let e = err("<DistanceController><A/></DistanceController>", "");
@@ -269,19 +269,19 @@ fn speed_controller_waits_two_over_the_rate_sum_first() {
     // Failures: A's first run at 0.5 s (1/2), re-run 1 at 2.0 s (1/4),
     // re-run 2 at 3.1667 s (1/8); Success at 4.1 s. The lowering runs one
     // cycle with the first wait, then the loop with the later one.
-    let t = tree(&body, &params);
+    let t = xml_tree(&body, &params);
     let mttf = (0.5 * 0.5 + 0.25 * 2.0 + 0.125 * (2.0 + 7.0 / 6.0)) / 0.875;
-    check_figures(root(&body, &params), 0.125, Some(4.1), Some(mttf));
+    check_figures(xml_root(&body, &params), 0.125, Some(4.1), Some(mttf));
     let sim = simulate_root(&t, 40_000, &[]);
     assert_within_z("ps", &sim.nodes[0].ps, 0.125);
     // v = 0.5: rate 1 Hz = (0.5 + 1.5)/2, both waits 1 s: exact. Re-runs end
     // at 2.0, 3.5, 5.0; B ends at 4.1: ps 1/8
     let params = params.replace("{value: 1.0}", "{value: 0.5}");
-    let f = root(&body, &params);
+    let f = xml_root(&body, &params);
     assert!(close(f.ps, 0.125), "{f:?}");
     // Nav2's default ports at half the top speed: rate 0.55 Hz, both waits
     // 2/1.1 = 1/0.55 s (equal up to rounding: one period)
-    let t = tree(
+    let t = xml_tree(
         "<SpeedController min_rate=\"0.1\" max_rate=\"1.0\" min_speed=\"0.0\" max_speed=\"0.26\"><A/></SpeedController>",
         &format!("{A}\"SpeedController/speed\": {{value: 0.13}}\n"),
     );
@@ -363,7 +363,7 @@ fn replanning_controllers_with_random_times_agree_with_the_simulator() {
     ] {
         let tag = &controller[1..controller.find(' ').unwrap()];
         let body = format!("<PipelineSequence>{controller}<A/></{tag}><B/></PipelineSequence>");
-        let t = tree(&body, &format!("{params}{speed}\n"));
+        let t = xml_tree(&body, &format!("{params}{speed}\n"));
         assert_root_matches_simulation(&t, 200_000);
     }
 }
@@ -377,9 +377,9 @@ fn path_longer_on_approach_below_a_reactive_sequence_is_not_restarted() {
     let params =
         format!("{A}B: {{ps: 0.8, mu: 1, nu: 1}}\n\"PathLongerOnApproach/longer\": {{ps: 0.3}}\n");
     let body = format!("<ReactiveSequence>{longer}<B/></ReactiveSequence>");
-    let f = root(&body, &params);
+    let f = xml_root(&body, &params);
     assert!(close(f.ps, 0.85 * 0.8), "{f:?}");
-    assert_root_matches_simulation(&tree(&body, &params), 100_000);
+    assert_root_matches_simulation(&xml_tree(&body, &params), 100_000);
     // after B, or below a ReactiveFallback (a re-tick's Success would end
     // the fallback): B would be restarted or halted, refused
     for body in [

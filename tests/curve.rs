@@ -6,18 +6,16 @@ use std::path::Path;
 
 mod common;
 
+use common::tree;
+
 use btrel::compile::Method;
 use btrel::curve::{curve, CurveOptions, CurvePoint, Timing};
-use btrel::tree::{parse_file, parse_str, Tree};
+use btrel::tree::{parse_file, Tree};
 use serde_json::Value;
 
 fn refs() -> Value {
     let text = std::fs::read_to_string("reference/refs.json").expect("reference/refs.json");
     serde_json::from_str(&text).expect("valid JSON")
-}
-
-fn tree(yaml: &str) -> Tree {
-    parse_str(yaml, "test.yaml").expect("valid tree")
 }
 
 fn file(name: &str) -> Tree {

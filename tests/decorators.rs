@@ -1,18 +1,14 @@
 //! Decorators and independent Parallel failure thresholds, against
 //! hand-derived closed forms, exact atoms, and the simulator.
 
+mod common;
+
+use common::{root_figures, tree};
+
 use btrel::compile::{analyze, Method, Options};
 use btrel::curve::{curve, CurveOptions};
 use btrel::sim::{simulate, SimOptions};
-use btrel::tree::{parse_str, Tree};
-
-fn tree(yaml: &str) -> Tree {
-    parse_str(yaml, "test.yaml").unwrap_or_else(|e| panic!("{e}"))
-}
-
-fn root(t: &Tree) -> btrel::Figures {
-    analyze(t, &Options::default()).unwrap().nodes[0]
-}
+use btrel::tree::parse_str;
 
 fn close(a: f64, b: f64, tol: f64) -> bool {
     (a - b).abs() <= tol * b.abs().max(1.0)
@@ -23,7 +19,7 @@ const ACTION: &str = "{action: {ps: 0.3, mu: 1.0, nu: 2.0}}";
 #[test]
 fn inverter_swaps_outcomes_and_curves() {
     let t = tree(&format!("tree: {{inverter: {{child: {ACTION}}}}}"));
-    let f = root(&t);
+    let f = root_figures(&t);
     assert!(close(f.ps, 0.7, 1e-15) && close(f.mtts.unwrap(), 0.5, 1e-15));
     assert!(close(f.mttf.unwrap(), 1.0, 1e-15));
     for p in curve(&t, 0, &[0.5, 2.0], &CurveOptions::default()).unwrap() {
@@ -35,7 +31,7 @@ fn inverter_swaps_outcomes_and_curves() {
 #[test]
 fn force_success_keeps_the_time() {
     let t = tree(&format!("tree: {{force_success: {{child: {ACTION}}}}}"));
-    let f = root(&t);
+    let f = root_figures(&t);
     assert_eq!((f.ps, f.pf), (1.0, 0.0));
     assert!(close(f.mtts.unwrap(), 0.3 / 1.0 + 0.7 / 2.0, 1e-15));
     assert_eq!(f.mttf, None);
@@ -44,7 +40,7 @@ fn force_success_keeps_the_time() {
         assert!(close(p.success, s, 1e-13) && p.failure == 0.0);
     }
     let t = tree(&format!("tree: {{force_failure: {{child: {ACTION}}}}}"));
-    let f = root(&t);
+    let f = root_figures(&t);
     assert_eq!((f.ps, f.pf), (0.0, 1.0));
     assert!(close(f.mttf.unwrap(), 0.65, 1e-15));
 }
@@ -53,7 +49,7 @@ fn force_success_keeps_the_time() {
 fn retry_is_a_fallback_of_fresh_copies() {
     // ps .4, mean success time 1, failure 0.5; 3 attempts
     let t = tree("tree: {retry: {attempts: 3, child: {action: {ps: 0.4, mu: 1.0, nu: 2.0}}}}");
-    let f = root(&t);
+    let f = root_figures(&t);
     assert!(close(f.ps, 1.0 - 0.6f64.powi(3), 1e-14));
     // success on attempt k after k-1 failures: (k-1)·0.5 + 1
     let ets: f64 = (1..=3)
@@ -72,7 +68,7 @@ fn retry_is_a_fallback_of_fresh_copies() {
 #[test]
 fn repeat_is_a_sequence_of_fresh_copies() {
     let t = tree("tree: {repeat: {times: 2, child: {action: {ps: 0.7, mu: 1.0, nu: 3.0}}}}");
-    let f = root(&t);
+    let f = root_figures(&t);
     assert!(close(f.ps, 0.49, 1e-14));
     assert!(close(f.mtts.unwrap(), 2.0, 1e-14));
     let etf = 0.3 * (1.0 / 3.0) + 0.7 * 0.3 * (1.0 + 1.0 / 3.0);
@@ -96,7 +92,7 @@ fn deterministic_retry_atoms() {
             "{p:?}"
         );
     }
-    let f = root(&t);
+    let f = root_figures(&t);
     assert!(close(
         f.mtts.unwrap(),
         (0.5 * 2.0 + 0.25 * 3.0) / 0.75,
@@ -114,7 +110,7 @@ fn independent_failure_threshold_by_hand() {
          {action: {ps: 0.5, tau_s: 1, tau_f: 2}}, {action: {ps: 0.5, tau_s: 3, tau_f: 0.5}}, \
          {action: {ps: 1, tau_s: 2.5}}]}}",
     );
-    let f = root(&t);
+    let f = root_figures(&t);
     assert!(close(f.ps, 0.25, 1e-15));
     assert!(close(f.mtts.unwrap(), 2.5, 1e-15));
     assert!(close(

@@ -1,14 +1,14 @@
 //! DOT and PRISM exporters: structure, escaping, and exact round-trips.
 
+mod common;
+
+use common::tree;
+
 use btrel::compile::phase::phase_chain;
 use btrel::compile::{analyze, Options};
 use btrel::export::{dot_mrg, dot_tree, prism_ctmc, prism_model, PRISM_PROPERTIES};
-use btrel::tree::{parse_file, parse_str, Tree};
+use btrel::tree::{parse_file, Tree};
 use btrel::Figures;
-
-fn tree(yaml: &str) -> Tree {
-    parse_str(yaml, "test.yaml").unwrap_or_else(|e| panic!("{e}"))
-}
 
 fn search_and_grasp() -> Tree {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/trees/search-and-grasp.yaml");

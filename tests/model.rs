@@ -2,11 +2,11 @@
 //! (`compile::plan`): one representation per node, decided by the first
 //! rule that applies, and figures and curves that agree with closed forms.
 
-use btrel::{Error, Method, Model, Options, Representation, Tree};
+mod common;
 
-fn tree(yaml: &str) -> Tree {
-    btrel::parse_str(yaml, "t.yaml").expect("valid tree")
-}
+use common::tree;
+
+use btrel::{Error, Method, Model, Options, Representation, Tree};
 
 fn rep(model: &Model, id: usize) -> Representation {
     model.representation(id).expect("planned")

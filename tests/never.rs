@@ -7,7 +7,7 @@
 use btrel::curve::{curve, CurveOptions};
 use btrel::tree::xml::parse_xml_str;
 use btrel::tree::Tree;
-use btrel::{analyze, Figures, Options};
+use btrel::{analyze, Options};
 
 mod common;
 
@@ -16,10 +16,6 @@ fn xml(body: &str, params: &str) -> Tree {
         r#"<root BTCPP_format="4" main_tree_to_execute="Main"><BehaviorTree ID="Main">{body}</BehaviorTree></root>"#
     );
     parse_xml_str(&text, "t.xml", params, "t.params.yaml").unwrap_or_else(|e| panic!("{e}"))
-}
-
-fn root(tree: &Tree) -> Figures {
-    analyze(tree, &Options::default()).expect("analysed").nodes[0]
 }
 
 fn near(a: f64, b: f64) {
@@ -35,7 +31,7 @@ fn reactive_sequence_whose_first_action_cannot_fail_never_returns() {
         "<ReactiveSequence name=\"RS\"><C/><A/><B/></ReactiveSequence>",
         "{C: {ps: 0.6}, A: {ps: 1.0, mu: 1}, B: {ps: 0.9, mu: 1, nu: 1}}",
     );
-    let f = root(&t);
+    let f = common::root_figures(&t);
     near(f.ps, 0.0);
     near(f.pf, 0.4);
     near(f.never(), 0.6);
@@ -60,14 +56,14 @@ fn reactive_sequence_whose_first_action_cannot_fail_never_returns() {
 fn reactive_sequence_restarts_its_first_action_until_it_fails() {
     let params = "{A: {ps: 0.8, mu: 1, nu: 2}, B: {ps: 0.9, mu: 1, nu: 1}}";
     let t = xml("<ReactiveSequence><A/><B/></ReactiveSequence>", params);
-    let f = root(&t);
+    let f = common::root_figures(&t);
     near(f.pf, 1.0);
     near(f.mttf.expect("MTTF"), 4.5);
     let t = xml(
         "<ReactiveSequence><C/><A/><B/></ReactiveSequence>",
         "{C: {ps: 0.6}, A: {ps: 0.8, mu: 1, nu: 2}, B: {ps: 0.9, mu: 1, nu: 1}}",
     );
-    let f = root(&t);
+    let f = common::root_figures(&t);
     near(f.pf, 1.0);
     near(f.mttf.expect("MTTF"), 2.7);
     let r = common::simulate_root(&t, 200_000, &[]);
@@ -92,7 +88,7 @@ fn a_condition_between_the_timed_children_is_read_after_the_first_success() {
         "<ReactiveSequence><A/><Q/><B/></ReactiveSequence>",
         "{A: {ps: 0.8, mu: 1, nu: 2}, Q: {ps: 0.5}, B: {ps: 0.9, mu: 1, nu: 1}}",
     );
-    let f = root(&t);
+    let f = common::root_figures(&t);
     near(f.pf, 1.0);
     near(f.mttf.expect("MTTF"), 2.7);
     assert!(t.nodes.iter().any(|n| n.name.contains("/restart/A")));
@@ -109,7 +105,7 @@ fn reactive_fallback_restarts_its_first_action_until_it_succeeds() {
         "<ReactiveFallback><A/><B/></ReactiveFallback>",
         "{A: {ps: 0.3, mu: 1, nu: 2}, B: {ps: 0.9, mu: 1, nu: 1}}",
     );
-    let f = root(&t);
+    let f = common::root_figures(&t);
     near(f.ps, 1.0);
     near(f.mtts.expect("MTTS"), 13.0 / 6.0);
     let r = common::simulate_root(&t, 200_000, &[]);
@@ -118,7 +114,7 @@ fn reactive_fallback_restarts_its_first_action_until_it_succeeds() {
         "<ReactiveFallback><A/><B/></ReactiveFallback>",
         "{A: {ps: 0.0, nu: 2}, B: {ps: 0.9, mu: 1, nu: 1}}",
     );
-    near(root(&t).never(), 1.0);
+    near(common::root_figures(&t).never(), 1.0);
 }
 
 /// KeepRunningUntilFailure over a child that cannot fail never returns; in
@@ -136,12 +132,12 @@ fn a_loop_that_never_returns_inside_a_parallel() {
         )
     };
     let t = xml(&body(1), params);
-    let f = root(&t);
+    let f = common::root_figures(&t);
     near(f.ps, 0.7);
     near(f.mtts.expect("MTTS"), 0.5);
     near(f.mttf.expect("MTTF"), 1.0 / 3.0);
     let t = xml(&body(2), params);
-    let f = root(&t);
+    let f = common::root_figures(&t);
     near(f.never(), 0.7);
     near(f.pf, 0.3);
     near(f.mttf.expect("MTTF"), 1.0 / 3.0);
@@ -225,7 +221,7 @@ fn a_replanning_cycle_that_never_returns_leaves_the_follower_to_decide() {
     let params = "{C: {ps: 0.5}, T: {ps: 1.0, mu: 10}, V: {ps: 0.9, mu: 10, nu: 10}, \
                   Plan: {ps: 0.9, mu: 1, nu: 0.5}, Follow: {ps: 0.7, mu: 0.05, nu: 0.1}}";
     let t = parse_xml_str(text, "t.xml", params, "t.params.yaml").unwrap_or_else(|e| panic!("{e}"));
-    let f = root(&t);
+    let f = common::root_figures(&t);
     // the first planning never returns when C holds (0.5): the pipeline
     // never starts the follower; after it, the follower (which always
     // returns) decides every run
@@ -260,7 +256,7 @@ fn a_loop_over_one_action_races_exactly() {
          {until_failure: {child: {action: {ps: 0.7, mu: 2.0, nu: 1.0}}}}, \
          {action: {ps: 0.0, nu: 1.0}}]}}",
     );
-    let f = root(&t);
+    let f = common::root_figures(&t);
     near(f.pf, 1.0);
     near(f.mttf.expect("MTTF"), 0.71875);
     // the curve: P(F ≤ t) = 1 − P(T > t)·e^{−t}

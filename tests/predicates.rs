@@ -25,7 +25,7 @@ const SUB: &str = "<BehaviorTree ID=\"Sub\">\n<Precondition name=\"P\" if=\"x\">
 /// (mean 1/2 s).
 const A: &str = "A: {ps: 0.5, mu: 1, nu: 2}\n";
 
-fn root(body: &str, params: &str) -> Figures {
+fn xml_root(body: &str, params: &str) -> Figures {
     let t = xml(body, params).unwrap_or_else(|e| panic!("{e}"));
     analyze(&t, &Options::default()).unwrap().nodes[0]
 }
@@ -42,7 +42,7 @@ fn script_condition_is_a_condition_from_the_params_file() {
     // Sequence(cond 0.7, A): ps 0.35; success takes A's success time (1);
     // failure: 0.3 at time 0, 0.35 at A's failure time 1/2
     let body = "<Sequence><ScriptCondition code=\"x == 1\"/><A/></Sequence>";
-    let f = root(body, &format!("{A}ScriptCondition: {{ps: 0.7}}"));
+    let f = xml_root(body, &format!("{A}ScriptCondition: {{ps: 0.7}}"));
     check_figures(f, 0.35, Some(1.0), Some(0.35 * 0.5 / 0.65));
     // keyed by name; the explicit form <Action ID="ScriptCondition"> is a
     // condition all the same (a timing key is refused)
@@ -74,10 +74,10 @@ fn precondition_else_failure_is_a_sequence() {
     // A's failure time 1/2 → MTTF 0.2/0.6
     let body = "<Precondition if=\"A > -B\" else=\"FAILURE\"><A/></Precondition>";
     let params = format!("{A}\"Precondition/if\": {{ps: 0.8}}");
-    check_figures(root(body, &params), 0.4, Some(1.0), Some(0.2 / 0.6));
+    check_figures(xml_root(body, &params), 0.4, Some(1.0), Some(0.2 / 0.6));
     // `else` defaults to FAILURE
     let body = "<Precondition if=\"ok\"><A/></Precondition>";
-    check_figures(root(body, &params), 0.4, Some(1.0), Some(0.2 / 0.6));
+    check_figures(xml_root(body, &params), 0.4, Some(1.0), Some(0.2 / 0.6));
     let t = xml(body, &params).unwrap();
     assert_eq!(t.nodes[1].name, "Precondition/if");
     assert_eq!(t.nodes[1].kind, NodeKind::Condition { ps: 0.8 });
@@ -89,12 +89,12 @@ fn precondition_else_success_skips_the_child_with_success() {
     // MTTS = 0.4·1/0.6, MTTF = A's 1/2
     let body = "<Precondition name=\"Check\" if=\"ok\" else=\"SUCCESS\"><A/></Precondition>";
     let params = format!("{A}\"Check/if\": {{ps: 0.8}}");
-    check_figures(root(body, &params), 0.6, Some(0.4 / 0.6), Some(0.5));
+    check_figures(xml_root(body, &params), 0.6, Some(0.4 / 0.6), Some(0.5));
     // constant predicates need no entry
     let body = "<Precondition if=\"false\" else=\"SUCCESS\"><A/></Precondition>";
-    check_figures(root(body, A), 1.0, Some(0.0), None);
+    check_figures(xml_root(body, A), 1.0, Some(0.0), None);
     let body = "<Precondition if=\"true\"><A/></Precondition>";
-    check_figures(root(body, A), 0.5, Some(1.0), Some(0.5));
+    check_figures(xml_root(body, A), 0.5, Some(1.0), Some(0.5));
 }
 
 #[test]
@@ -102,7 +102,7 @@ fn predicate_keys_follow_leaf_keys() {
     // inside a SubTree instance: full name, then name attribute, then ID
     let body = "<SubTree ID=\"Sub\" name=\"S\"/>";
     for key in ["S/P/if", "P/if", "Precondition/if"] {
-        let f = root(body, &format!("{A}\"{key}\": {{ps: 0.5}}"));
+        let f = xml_root(body, &format!("{A}\"{key}\": {{ps: 0.5}}"));
         check_figures(f, 0.25, Some(1.0), Some(0.25 * 0.5 / 0.75));
     }
     // missing: named with the keys tried
@@ -184,27 +184,32 @@ fn loops_over_a_literal_queue_repeat_their_child() {
         "LoopPose",
     ] {
         let body = format!("<{ty} queue=\"1;2;3\" value=\"{{v}}\"><A/></{ty}>");
-        check_figures(root(&body, A), 0.125, Some(3.0), Some(mttf3));
+        check_figures(xml_root(&body, A), 0.125, Some(3.0), Some(mttf3));
     }
     // a trailing `;` adds no element (BT.CPP's splitString)
     let body = "<LoopDouble queue=\"1;2;\"><A/></LoopDouble>";
     check_figures(
-        root(body, A),
+        xml_root(body, A),
         0.25,
         Some(2.0),
         Some((0.25 + 0.25 * 1.5) / 0.75),
     );
     // if_empty = FAILURE: the emptied queue fails (after 3 s)
     let body = "<LoopInt queue=\"1;2;3\" if_empty=\"FAILURE\"><A/></LoopInt>";
-    check_figures(root(body, A), 0.0, None, Some(mttf3 * 0.875 + 0.125 * 3.0));
+    check_figures(
+        xml_root(body, A),
+        0.0,
+        None,
+        Some(mttf3 * 0.875 + 0.125 * 3.0),
+    );
     // an empty queue returns if_empty at once, the child never runs
     let body = "<LoopInt queue=\"\"><B/></LoopInt>";
-    check_figures(root(body, ""), 1.0, Some(0.0), None);
+    check_figures(xml_root(body, ""), 1.0, Some(0.0), None);
     let body = "<LoopInt queue=\"\" if_empty=\"FAILURE\"><B/></LoopInt>";
-    check_figures(root(body, ""), 0.0, None, Some(0.0));
+    check_figures(xml_root(body, ""), 0.0, None, Some(0.0));
     // a blackboard queue: its length from the params file
     let body = "<LoopPose queue=\"{waypoints}\" value=\"{wp}\"><A/></LoopPose>";
-    let f = root(body, &format!("{A}\"{{waypoints}}\": {{value: 4}}"));
+    let f = xml_root(body, &format!("{A}\"{{waypoints}}\": {{value: 4}}"));
     assert!(close(f.ps, 1.0 / 16.0), "{f:?}");
     assert!(close(f.mtts.unwrap(), 4.0), "{f:?}");
 }
@@ -260,11 +265,21 @@ fn a_skipped_child_of_a_sequence_is_passed_over_as_a_success() {
     let params = format!("{A}{B}\"A/_skipIf\": {{ps: 0.3}}");
     let body = "<Sequence><A _skipIf=\"s\"/><B/></Sequence>";
     let mttf = (0.35 * 0.5 + 0.065 * (0.35 / 0.65)) / 0.415;
-    check_figures(root(body, &params), 0.585, Some(0.35 / 0.65), Some(mttf));
+    check_figures(
+        xml_root(body, &params),
+        0.585,
+        Some(0.35 / 0.65),
+        Some(mttf),
+    );
     // `_while` false skips: the same with P(while) = 0.7
     let params = format!("{A}{B}\"A/_while\": {{ps: 0.7}}");
     let body = "<Sequence><A _while=\"w\"/><B/></Sequence>";
-    check_figures(root(body, &params), 0.585, Some(0.35 / 0.65), Some(mttf));
+    check_figures(
+        xml_root(body, &params),
+        0.585,
+        Some(0.35 / 0.65),
+        Some(mttf),
+    );
     let t = xml(body, &params).unwrap();
     let names: Vec<&str> = t.nodes.iter().map(|n| n.name.as_str()).collect();
     assert_eq!(names, ["Sequence", "A/guard", "A/_while", "A", "B"]);
@@ -277,14 +292,19 @@ fn a_skipped_child_of_a_fallback_is_passed_over_as_a_failure() {
     let body = "<Fallback><A _skipIf=\"s\"/><B/></Fallback>";
     let mtts = (0.35 * 1.0 + 0.9 * 0.35 * 0.5) / 0.935;
     check_figures(
-        root(body, &params),
+        xml_root(body, &params),
         0.935,
         Some(mtts),
         Some(0.35 * 0.5 / 0.65),
     );
     // a constant `_skipIf="true"` always skips, without an entry
     let body = "<Fallback><A _skipIf=\"true\"/><B/></Fallback>";
-    check_figures(root(body, &format!("{A}{B}")), 0.9, Some(0.0), Some(0.0));
+    check_figures(
+        xml_root(body, &format!("{A}{B}")),
+        0.9,
+        Some(0.0),
+        Some(0.0),
+    );
 }
 
 #[test]
@@ -295,7 +315,7 @@ fn failure_if_is_checked_before_success_if() {
     let params = format!("{A}\"A/_failureIf\": {{ps: 0.2}}\n\"A/_successIf\": {{ps: 0.5}}");
     let body = "<A _successIf=\"s\" _failureIf=\"f\"/>";
     check_figures(
-        root(body, &params),
+        xml_root(body, &params),
         0.6,
         Some(0.2 / 0.6),
         Some(0.2 * 0.5 / 0.4),
@@ -311,7 +331,7 @@ fn a_skipped_subtree_is_keyed_by_its_id() {
     // Sub = Precondition(if ps 1, A): Sub' succeeds with 0.5 + 0.25 = 0.75
     let ps = 0.75 * 0.9;
     let mttf = (0.25 * 0.5 + 0.75 * 0.1 * (0.25 / 0.75)) / (1.0 - ps);
-    check_figures(root(body, &params), ps, Some(0.25 / 0.75), Some(mttf));
+    check_figures(xml_root(body, &params), ps, Some(0.25 / 0.75), Some(mttf));
 }
 
 #[test]
@@ -355,7 +375,7 @@ fn a_switch_runs_the_child_of_the_first_matching_case() {
     let body = "<Switch2 variable=\"{v}\" case_1=\"1\" case_2=\"true\"><A/><AlwaysSuccess/><AlwaysFailure/></Switch2>";
     let params = format!("{A}\"Switch2/case_1\": {{ps: 0.5}}\n\"Switch2/case_2\": {{ps: 0.4}}");
     check_figures(
-        root(body, &params),
+        xml_root(body, &params),
         0.45,
         Some(0.25 / 0.45),
         Some(0.125 / 0.55),
@@ -364,7 +384,7 @@ fn a_switch_runs_the_child_of_the_first_matching_case() {
     // `true` is a case value, not a constant predicate: it needs an entry
     let body = "<Switch2 name=\"S\" variable=\"{v}\" case_1=\"1\"><A/><AlwaysSuccess/><AlwaysFailure/></Switch2>";
     let params = format!("{A}\"S/case_1\": {{ps: 0.5}}");
-    check_figures(root(body, &params), 0.25, Some(1.0), Some(0.125 / 0.75));
+    check_figures(xml_root(body, &params), 0.25, Some(1.0), Some(0.125 / 0.75));
     let body = "<Switch2 variable=\"{v}\" case_1=\"true\" case_2=\"2\"><A/><A/><A/></Switch2>";
     let e = err(body, A);
     assert!(e.message.contains("missing parameters for 2 nodes"), "{e}");

@@ -7,20 +7,20 @@
 //! mean durations the sample error. Seeds are fixed, so the tests are
 //! deterministic.
 
+mod common;
+
+use common::tree;
+
 use std::sync::{Mutex, OnceLock};
 
 use btrel::sim::{
     simulate, simulate_node, Estimate, SimError, SimOptions, SimResult, DEFAULT_SEED, MAX_RUNS,
 };
-use btrel::tree::{parse_str, Tree};
+use btrel::tree::Tree;
 use serde_json::Value;
 
 const Z: f64 = 5.0;
 const RUNS: u64 = 1_000_000;
-
-fn tree(yaml: &str) -> Tree {
-    parse_str(yaml, "test.yaml").expect("test tree parses")
-}
 
 fn sim(tree: &Tree, runs: u64, times: &[f64]) -> SimResult {
     let opts = SimOptions {

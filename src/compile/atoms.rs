@@ -19,11 +19,8 @@
 
 use super::mrg::{Outcome, Policy, Status};
 use super::{AnalysisError, Figures};
-use crate::tree::Decorator;
+use crate::tree::{same_instant, Decorator};
 use crate::tree::{Duration, Flow, FlowNext, NodeId, NodeKind, Tree};
-
-/// Relative tolerance under which two instants are the same.
-pub const TIME_TOLERANCE: f64 = 1e-12;
 
 /// One possible return of a node: at `time`, with `outcome`, with probability `prob`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -34,11 +31,6 @@ pub struct Atom {
     pub outcome: Outcome,
     /// Probability of this return.
     pub prob: f64,
-}
-
-/// Whether two instants are the same (within [`TIME_TOLERANCE`] relative).
-pub(crate) fn same_time(a: f64, b: f64) -> bool {
-    (a - b).abs() <= TIME_TOLERANCE * a.abs().max(b.abs()).max(1.0)
 }
 
 /// Sorts atoms by (outcome, time) and merges equal instants.
@@ -52,7 +44,7 @@ fn normalise(mut atoms: Vec<Atom>) -> Vec<Atom> {
     let mut out: Vec<Atom> = Vec::with_capacity(atoms.len());
     for a in atoms {
         match out.last_mut() {
-            Some(l) if l.outcome == a.outcome && same_time(l.time, a.time) => l.prob += a.prob,
+            Some(l) if l.outcome == a.outcome && same_instant(l.time, a.time) => l.prob += a.prob,
             _ => out.push(a),
         }
     }
@@ -261,7 +253,7 @@ pub fn atoms(
 }
 
 /// Within each run of events at the same instant (within
-/// [`TIME_TOLERANCE`]; `events` sorted by time), takes the run's first time
+/// [`SAME_INSTANT`](crate::tree::SAME_INSTANT); `events` sorted by time), takes the run's first time
 /// for all of them and puts them in child order: a tick visits the children
 /// in order, so that is the order in which simultaneous returns count.
 fn same_instants_in_child_order(events: &mut [(f64, usize, Outcome)]) {
@@ -271,7 +263,7 @@ fn same_instants_in_child_order(events: &mut [(f64, usize, Outcome)]) {
         let end = start
             + events[start..]
                 .iter()
-                .position(|e| !same_time(e.0, t))
+                .position(|e| !same_instant(e.0, t))
                 .unwrap_or(events.len() - start);
         for e in &mut events[start..end] {
             e.0 = t;
@@ -386,7 +378,7 @@ pub fn figures(atoms: &[Atom]) -> Figures {
 pub fn cumulative(atoms: &[Atom], t: f64) -> (f64, f64) {
     let (mut s, mut f) = (0.0, 0.0);
     for a in atoms {
-        if a.time <= t || same_time(a.time, t) {
+        if a.time <= t || same_instant(a.time, t) {
             match a.outcome {
                 Outcome::Success => s += a.prob,
                 Outcome::Failure => f += a.prob,

@@ -334,7 +334,7 @@ pub(super) fn curve_by_shifted(
             let (idx, local): (Vec<usize>, Vec<f64>) = times
                 .iter()
                 .enumerate()
-                .filter(|&(_, &t)| t >= c.shift || atoms_same_time(t, c.shift))
+                .filter(|&(_, &t)| t >= c.shift || crate::tree::same_instant(t, c.shift))
                 .map(|(k, &t)| (k, (t - c.shift).max(0.0)))
                 .unzip();
             if idx.is_empty() {
@@ -365,11 +365,6 @@ pub(super) fn curve_by_shifted(
             }
         })
         .collect())
-}
-
-/// Whether two instants are the same (within [`atoms::TIME_TOLERANCE`]).
-fn atoms_same_time(a: f64, b: f64) -> bool {
-    (a - b).abs() <= atoms::TIME_TOLERANCE * a.abs().max(b.abs()).max(1.0)
 }
 
 pub(super) fn solve_chain(

@@ -45,8 +45,8 @@
 //!   decorators exchange or merge the outcomes; a flow carries the law of
 //!   the time each state is entered.
 //!
-//! **Atoms.** Instants that agree within [`det::TIME_TOLERANCE`] (1e-12
-//! relative, [`same_time`]: the deterministic analysis's and the races'
+//! **Atoms.** Instants that agree within [`SAME_INSTANT`](crate::tree::SAME_INSTANT) (1e-12
+//! relative, [`same_instant`]: the deterministic analysis's and the races'
 //! rule) are one instant — `0.1 + 0.2` and `0.3` are the same — and a curve
 //! point at such an instant counts the atom as returned. Atoms after T are
 //! dropped (they do not change `[0, T]`); atoms below [`ATOM_FLOOR`] are
@@ -67,7 +67,7 @@
 //! on the joint times): it is refused here (its own curve is a race,
 //! `super::race`).
 
-use super::atoms::{self as det, same_time};
+use super::atoms as det;
 use super::curve::CurveOptions;
 use super::mrg::Outcome;
 use crate::compile::{counts, phase, renewal_law, AnalysisError};
@@ -79,6 +79,7 @@ use crate::solve::transient::{
     absorption_by_phase, transient_split, transient_weighted, uniformization_work, CurvePoint,
     MAX_SINGLE_PASS_STEPS,
 };
+use crate::tree::same_instant;
 use crate::tree::stages::Stages;
 use crate::tree::{Decorator, Duration, Flow, FlowNext, NodeId, NodeKind, Tree};
 use rayon::prelude::*;
@@ -187,7 +188,7 @@ impl HorizonLaw {
 
     /// `[S, F, s, f]` at `t`; `left`: without a return exactly at `t`.
     pub(crate) fn row(&self, t: f64, left: bool) -> [f64; 4] {
-        if t > self.end && !same_time(t, self.end) {
+        if t > self.end && !same_instant(t, self.end) {
             return [
                 self.law.cdf(SUCCESS, self.end),
                 self.law.cdf(FAILURE, self.end),
@@ -668,12 +669,12 @@ impl Builder<'_> {
         mut dropped: f64,
     ) -> Measure {
         let end = self.end;
-        atoms.retain(|&(t, p)| p != 0.0 && (t <= end || same_time(t, end)));
+        atoms.retain(|&(t, p)| p != 0.0 && (t <= end || same_instant(t, end)));
         atoms.sort_by(|a, b| a.0.total_cmp(&b.0));
         let mut merged: Vec<(f64, f64)> = Vec::with_capacity(atoms.len());
         for (t, p) in atoms {
             match merged.last_mut() {
-                Some(l) if same_time(l.0, t) => l.1 += p,
+                Some(l) if same_instant(l.0, t) => l.1 += p,
                 _ => merged.push((t, p)),
             }
         }
@@ -684,9 +685,9 @@ impl Builder<'_> {
             }
             keep
         });
-        breaks.retain(|&b| b > 0.0 && b < end && !same_time(b, 0.0) && !same_time(b, end));
+        breaks.retain(|&b| b > 0.0 && b < end && !same_instant(b, 0.0) && !same_instant(b, end));
         breaks.sort_by(f64::total_cmp);
-        breaks.dedup_by(|b, a| same_time(*a, *b));
+        breaks.dedup_by(|b, a| same_instant(*a, *b));
         breaks.truncate(MAX_BREAKS);
         // a jump too small to need its own panels is interpolated through
         // (panels that hold it are halved as any others)
@@ -892,15 +893,15 @@ impl Builder<'_> {
     fn deadline(&self, id: NodeId, race: &DeadlineRace) -> Result<Law, AnalysisError> {
         let law = self.law(race.child)?;
         let d = race.time;
-        if d > self.end && !same_time(d, self.end) {
+        if d > self.end && !same_instant(d, self.end) {
             // the deadline is after the horizon: the child's law is the node's
             return Ok(law);
         }
         let before = |t: f64| {
             if race.deadline_first {
-                t < d && !same_time(t, d)
+                t < d && !same_instant(t, d)
             } else {
-                t < d || same_time(t, d)
+                t < d || same_instant(t, d)
             }
         };
         let cut = |m: &Measure| -> Result<Measure, AnalysisError> {
@@ -1037,7 +1038,7 @@ impl Builder<'_> {
             }
         }
         instants.sort_by(f64::total_cmp);
-        instants.dedup_by(|b, a| same_time(*a, *b));
+        instants.dedup_by(|b, a| same_instant(*a, *b));
         // the probabilities just after each instant, and just before
         let after = self.columns(children, pieces, &instants)?;
         let mut atoms = [Vec::new(), Vec::new()];
@@ -1329,7 +1330,7 @@ impl Builder<'_> {
         let mut atoms = Vec::with_capacity(pairs as usize);
         for &(a, p) in &x.atoms {
             for &(b, q) in &y.atoms {
-                if a + b <= end || same_time(a + b, end) {
+                if a + b <= end || same_instant(a + b, end) {
                     atoms.push((a + b, p * q));
                 }
             }
@@ -1556,11 +1557,11 @@ impl Measure {
             + self.density.as_ref().map_or(0.0, Interpolant::total)
     }
 
-    /// The mass in `[0, t]`: an atom at t (within [`same_time`]) counts.
+    /// The mass in `[0, t]`: an atom at t (within [`same_instant`]) counts.
     fn cdf(&self, t: f64) -> f64 {
         let k = self
             .atoms
-            .partition_point(|a| a.0 <= t || same_time(a.0, t));
+            .partition_point(|a| a.0 <= t || same_instant(a.0, t));
         self.atoms[..k].iter().map(|a| a.1).sum::<f64>()
             + self.density.as_ref().map_or(0.0, |d| d.integral_to(t))
     }
@@ -1569,7 +1570,7 @@ impl Measure {
     fn cdf_left(&self, t: f64) -> f64 {
         let k = self
             .atoms
-            .partition_point(|a| a.0 < t && !same_time(a.0, t));
+            .partition_point(|a| a.0 < t && !same_instant(a.0, t));
         self.atoms[..k].iter().map(|a| a.1).sum::<f64>()
             + self.density.as_ref().map_or(0.0, |d| d.integral_to(t))
     }

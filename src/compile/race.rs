@@ -39,7 +39,6 @@
 //! contribution to the mean below 1e-14 relative. The quadrature error is
 //! an *estimate*, not a bound.
 
-use super::atoms::same_time;
 use super::curve::CurvePoint;
 use super::law::{sample_weighted, HorizonLaw};
 use super::renewal::Renewal;
@@ -49,6 +48,7 @@ use super::{counts, AnalysisError, Figures, Plan, Representation};
 use crate::solve::chain::PhaseChain;
 use crate::solve::quadrature::GaussLegendre;
 use crate::tree::nav2::MAX_RERUN_TERMS;
+use crate::tree::same_instant;
 use crate::tree::{Duration, NodeId, NodeKind};
 
 /// Points of the quadrature rule (the error is estimated against half).
@@ -152,7 +152,7 @@ type Row = [f64; 4];
 fn sorted_unique(mut v: Vec<f64>) -> Vec<f64> {
     v.retain(|t| t.is_finite() && *t >= 0.0);
     v.sort_by(f64::total_cmp);
-    v.dedup_by(|a, b| same_time(*a, *b));
+    v.dedup_by(|a, b| same_instant(*a, *b));
     v
 }
 
@@ -365,7 +365,7 @@ impl Racer {
                             .iter()
                             .enumerate()
                             .filter(|&(_, &t)| {
-                                let at = same_time(t, c.shift);
+                                let at = same_instant(t, c.shift);
                                 if left {
                                     t > c.shift && !at
                                 } else {
@@ -594,14 +594,14 @@ impl Race {
             .iter()
             .zip(dens)
             .map(|(&t, d)| {
-                let k = ends.partition_point(|e| e.0 < t && !same_time(e.0, t));
+                let k = ends.partition_point(|e| e.0 < t && !same_instant(e.0, t));
                 let base = ends[k.min(ends.len() - 1)];
                 let mut row = [base.1[0], base.1[1], d[0], d[1]];
                 for &(tau, s, f) in &self.atoms {
                     let counted = if left {
-                        tau < t && !same_time(tau, t)
+                        tau < t && !same_instant(tau, t)
                     } else {
-                        tau <= t || same_time(tau, t)
+                        tau <= t || same_instant(tau, t)
                     };
                     if counted {
                         row[0] += s;

@@ -38,11 +38,12 @@
 //! solutions of the chains (with their own bounds) and the rounding of the
 //! signed sums. Atoms at the same instant (within 1e-12 relative) are merged.
 
-use super::atoms::{self, same_time, Atom};
+use super::atoms::{self, Atom};
 use super::mrg::Outcome;
 use super::phase;
 use super::AnalysisError;
 use crate::solve::chain::PhaseChain;
+use crate::tree::same_instant;
 use crate::tree::{Decorator, Duration, Flow, FlowNext, NodeId, NodeKind, Tree};
 
 /// One term `weight · (δ_shift ⊛ PH(chain))` of an outcome's law.
@@ -147,10 +148,10 @@ fn leaf_side(p: f64, d: Option<Duration>) -> Vec<Component> {
 }
 
 /// Whether a component shifted by `shift` starts by `horizon` (the same
-/// instant within [`atoms::TIME_TOLERANCE`]): one that starts later is zero
+/// instant within [`SAME_INSTANT`](crate::tree::SAME_INSTANT)): one that starts later is zero
 /// on `[0, horizon]` and is dropped.
 fn starts_by(shift: f64, horizon: f64) -> bool {
-    shift <= horizon || same_time(shift, horizon)
+    shift <= horizon || same_instant(shift, horizon)
 }
 
 /// Merges atoms at the same instant and drops zero weights.
@@ -162,7 +163,7 @@ fn tidy(mut comps: Vec<Component>) -> Vec<Component> {
     let mut merged: Vec<Component> = Vec::with_capacity(atoms.len());
     for a in atoms {
         match merged.last_mut() {
-            Some(l) if same_time(l.shift, a.shift) => {
+            Some(l) if same_instant(l.shift, a.shift) => {
                 l.weight += a.weight * a.chain.initial_success;
             }
             _ => {
@@ -671,7 +672,7 @@ fn first_return(
     // the instants, merged across children
     let mut instants: Vec<f64> = fixed.iter().flatten().map(|a| a.time).collect();
     instants.sort_by(f64::total_cmp);
-    instants.dedup_by(|a, b| same_time(*a, *b));
+    instants.dedup_by(|a, b| same_instant(*a, *b));
     // per instant: u_i and the atoms' outcome masses (given none before)
     let mut returned = vec![0.0f64; fixed.len()]; // each child's mass before τ_i
     let mut u = Vec::with_capacity(instants.len() + 1);
@@ -684,7 +685,7 @@ fn first_return(
         for (h, list) in fixed.iter().enumerate() {
             let alive = (1.0 - returned[h]).max(0.0);
             let (mut qs, mut qf) = (0.0, 0.0);
-            for a in list.iter().filter(|a| same_time(a.time, tau)) {
+            for a in list.iter().filter(|a| same_instant(a.time, tau)) {
                 match a.outcome {
                     Outcome::Success => qs += a.prob,
                     Outcome::Failure => qf += a.prob,

@@ -44,7 +44,7 @@ use rand::Rng;
 use rand_distr::{Distribution, Exp1};
 
 use super::stats::Raw;
-use crate::tree::{Decorator, Duration, FlowNext, NodeId, NodeKind, Stages, Tree};
+use crate::tree::{same_instant, Decorator, Duration, FlowNext, NodeId, NodeKind, Stages, Tree};
 
 /// Outcomes compare the top 53 bits of a `u64` draw with `round(ps · 2^53)`.
 const ONE53: f64 = (1u64 << 53) as f64;
@@ -1381,7 +1381,7 @@ impl Program {
     /// first. With the book's F = N − M + 1 the outcome vector alone decides
     /// (both thresholds cannot be met); with a smaller F the two times are
     /// compared, and when they are the same instant (within
-    /// [`SAME_INSTANT`]) the returns at that instant are replayed in child
+    /// [`SAME_INSTANT`](crate::tree::SAME_INSTANT)) the returns at that instant are replayed in child
     /// order, the node returning at the first threshold met (a tick visits
     /// the children in order, as in BehaviorTree.CPP).
     #[inline(never)]
@@ -1512,16 +1512,6 @@ fn halt_at(scratch: &mut Scratch, from: usize, h: f64) {
     if scratch.halters == 0 {
         scratch.journal.clear();
     }
-}
-
-/// Relative tolerance under which two return times are the same instant:
-/// deterministic times are decimal numbers whose sums are rounded in binary
-/// (0.1 + 0.2 ≠ 0.3), so `|a − b| ≤ 1e-12 · max(|a|, |b|, 1 s)` counts as a tie.
-pub const SAME_INSTANT: f64 = 1e-12;
-
-fn same_instant(a: f64, b: f64) -> bool {
-    // ∞ (never) is no instant
-    a.is_finite() && b.is_finite() && (a - b).abs() <= SAME_INSTANT * a.abs().max(b.abs()).max(1.0)
 }
 
 /// The outcome of a Parallel whose success and failure thresholds are both

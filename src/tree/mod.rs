@@ -7,12 +7,14 @@
 
 mod action;
 pub mod error;
+mod instant;
 pub mod nav2;
 pub mod parse;
 pub mod stages;
 pub mod xml;
 
 pub use error::{TreeError, TreeErrorKind};
+pub use instant::{same_instant, SAME_INSTANT};
 pub use parse::{parse_bytes, parse_file, parse_str, parse_str_with, ParseLimits};
 pub use stages::Stages;
 
