@@ -797,7 +797,10 @@ fn a_bad_covariance_is_a_located_error() {
     ));
     let tree = r#"<root BTCPP_format="4"><BehaviorTree ID="T"><A/></BehaviorTree>
         <TreeNodesModel><Action ID="A"/></TreeNodesModel></root>"#;
-    assert!(btrel::tree::xml::parse_xml_str_keyed(tree, "t.xml", &text, "p.yaml").is_ok());
+    let keyed = btrel::tree::xml::parse_xml_str_keyed(tree, "t.xml", &text, "p.yaml")
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(keyed.tree.nodes.len(), 1);
+    assert_eq!(keyed.tree.nodes[0].name, "A");
 }
 
 /// Coverage with `--timing auto`: A's Success times are Erlang-3 (rate 6,

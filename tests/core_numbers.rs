@@ -714,5 +714,15 @@ fn sequence_exact_with_deterministic_leaves_is_fine() {
         "s.yaml",
     )
     .unwrap();
-    assert!(analyze(&tree, &Options::default()).is_ok());
+    // a Sequence of one action: its figures, in closed form (success after
+    // exactly 1 s; failure at min(X, 1 s), X ~ Exp(3) (Def. 9.9, eq. 9.24):
+    // mean (1 − e^{−3})/3)
+    let root = analyze(&tree, &Options::default()).unwrap().nodes[0];
+    assert_relative_eq!(root.ps, 0.5, max_relative = 1e-12);
+    assert_relative_eq!(root.mtts.unwrap(), 1.0, max_relative = 1e-9);
+    assert_relative_eq!(
+        root.mttf.unwrap(),
+        (1.0 - (-3.0f64).exp()) / 3.0,
+        max_relative = 1e-9
+    );
 }
