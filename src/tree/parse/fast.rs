@@ -15,10 +15,11 @@
 //! message (including those found while building the tree) comes from the
 //! full parser. Tests check that both readers build identical trees.
 
+use super::super::action::At;
 use super::super::action::{ErlangDef, HyperBranchDef, PhaseTypeDef, TimeDef};
-use super::{
-    ActionDef, At, ConditionDef, ControlDef, DecoratorDef, FileDef, NodeDef, ParallelDef,
-    RepeatDef, RetryDef,
+use super::defs::{
+    ActionDef, ConditionDef, ControlDef, DecoratorDef, FileDef, NodeDef, ParallelDef, RepeatDef,
+    RetryDef,
 };
 
 /// A YAML value of the subset, with the 1-based line and column of its
