@@ -33,6 +33,10 @@
 //! minimising each Fallback's `E[T]` bottom-up minimises the root's: the rule
 //! is globally optimal. Under a Parallel the mean time is not linear in the
 //! children's means, and the rule is then reported as not proven.
+//!
+//! Size: one concern, ranking Fallback orderings: the search space, the
+//! exhaustive and greedy searches and their budget (about 140 lines are
+//! comments).
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;

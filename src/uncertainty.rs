@@ -64,6 +64,10 @@
 //!
 //! Draw `i` uses its own random stream (seeded from the seed and `i`), so
 //! the intervals do not depend on the number of threads.
+//!
+//! Size: one concern, `--ci`'s parametric bootstrap: reading the fit statistics
+//! and sampling leaf parameters from them (about 160 lines are comments, 80
+//! tests).
 
 use std::collections::BTreeMap;
 

@@ -66,6 +66,10 @@
 //! children has no such decomposition (which threshold is met first depends
 //! on the joint times): it is refused here (its own curve is a race,
 //! `super::race`).
+//!
+//! Size: one concern, the composed outcome law; most of it is one `Builder`
+//! whose methods are the law of each node kind over shared panels and memo
+//! (about 280 lines are comments).
 
 use super::atoms as det;
 use super::curve::CurveOptions;

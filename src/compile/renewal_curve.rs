@@ -74,6 +74,9 @@
 //! levels, `N ≈ (Λ + c)d` steps (plus `N·(M + 1)·nnz` per level where the
 //! rate changes); refused beyond 4e9 operations or when the numbers kept
 //! exceed the state budget (8 a state).
+//!
+//! Size: one concern, the renewal race's curve by levels (about 200 lines
+//! are comments).
 
 use super::curve::{self as curve_query, CurveOptions, CurvePoint};
 use super::renewal;

@@ -33,6 +33,10 @@
 //! matrix is positive definite. 95% intervals: p ± 1.96·se clipped to [0, 1]
 //! (at p = 1 or 0 with n episodes, the exact Clopper–Pearson bound
 //! 0.025^{1/n}); rates on the log scale, `rate·exp(±1.96·se/rate)`.
+//!
+//! Size: the leaf estimates and their params lines share the estimate types;
+//! the likelihoods of timing families, the information matrix and the
+//! covariances are in submodules.
 
 use crate::logs::{Declared, End, Episode};
 

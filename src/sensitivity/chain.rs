@@ -27,6 +27,10 @@
 //!   `s_k` (mass absorbed in Success after k steps) likewise. The Poisson
 //!   window drops mass ≤ 1e-14; `|ds_k| ≤ |dα|₁ + k‖dP‖`, so the dropped
 //!   part of the derivative is below 1e-14·(|dα|₁ + k_max‖dP‖).
+//!
+//! Size: one concern, the engine's chain rebuilt in dual numbers: each node
+//! kind's chain, their products and the dual solves (about 100 lines are
+//! comments).
 
 use super::dual::D;
 use super::Param;

@@ -44,6 +44,10 @@
 //! without gaps, so an earlier pipeline child that is restarted "every tick"
 //! runs back to back: after each Success it starts again at once, until one
 //! run fails (which fails the pipeline) or the pipeline ends.
+//!
+//! Size: one concern, Nav2's nodes as btrel primitives: the re-tick rules,
+//! the lowering and the memory-index flows it uses (about 240 lines are
+//! comments).
 
 use std::collections::HashMap;
 

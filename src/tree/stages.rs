@@ -11,6 +11,9 @@
 //! ([`intern`]: one copy per distinct set of stages for the life of the
 //! process), so that it stays `Copy` and 24 bytes and a tree's nodes do not
 //! grow for the families most trees do not use.
+//!
+//! Size: one concern, sums of exponential stages and their CDFs, densities
+//! and moments (about 120 lines are comments, 60 tests).
 
 use rand::{Rng, RngExt};
 use rand_distr::{Distribution, Exp1, Gamma};

@@ -497,10 +497,7 @@ fn missing_help(field: &str) -> String {
 
 /// The location of the node keyword (`action:`, `sequence:`, ...) that
 /// encloses `(line, column)`: the nearest one before it in the text.
-fn enclosing_node(
-    source: &str,
-    (line, column): (usize, usize),
-) -> Option<(usize, usize)> {
+fn enclosing_node(source: &str, (line, column): (usize, usize)) -> Option<(usize, usize)> {
     if line == 0 {
         return None;
     }

@@ -14,6 +14,9 @@
 //! under both readers or is read by serde-saphyr alone; and every error
 //! message (including those found while building the tree) comes from the
 //! full parser. Tests check that both readers build identical trees.
+//!
+//! Size: one concern, a self-contained reader of the common subset (its
+//! tokenizer and its value-to-definition mapping are one pass).
 
 use super::super::action::At;
 use super::super::action::{ErlangDef, HyperBranchDef, PhaseTypeDef, TimeDef};
