@@ -32,7 +32,7 @@
 //!
 //! 1. [`tree`]: parse and validate a tree (YAML, BehaviorTree.CPP XML);
 //!    [`logs`] and [`fit`] estimate leaf parameters from robots' logs;
-//! 2. [`compile`]: the model — the planner ([`compile::plan`]: one table
+//! 2. [`compile`]: the model — the planner (`compile::plan`, internal: one table
 //!    picks each node's representation from its children's, bottom-up,
 //!    memoised) and the representations (phase chains, atoms, shifted
 //!    phase-type mixtures, counted Parallels, races, composed laws);

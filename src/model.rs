@@ -56,7 +56,7 @@ pub enum Error {
 
 /// A tree analysed once: every node's figures, and its curves on demand.
 ///
-/// The engine plans each node's representation once ([`crate::compile::plan`]:
+/// The engine plans each node's representation once (`compile::plan`:
 /// one table of rules, bottom-up) and answers every query from it, so
 /// figures and curves of a node always come from the same law.
 #[derive(Debug, Clone)]

@@ -91,7 +91,7 @@ pub fn deterministic_version(tree: &Tree) -> Tree {
 }
 
 /// `π(t)` of node `id` at `times` (finite, ≥ 0; any order), in the order
-/// given: the query on the node's planned representation ([`super::plan`]).
+/// given: the query on the node's planned representation (`compile::plan`).
 pub fn curve(
     tree: &Tree,
     id: NodeId,

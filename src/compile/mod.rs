@@ -25,7 +25,7 @@ pub(crate) mod flow;
 pub(crate) mod law;
 pub mod mrg;
 pub mod phase;
-pub mod plan;
+pub(crate) mod plan;
 pub(crate) mod race;
 mod renewal;
 mod renewal_curve;
@@ -37,7 +37,8 @@ use crate::solve::{solve_absorbing, Absorption};
 use crate::tree::nav2::View;
 use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
 use mrg::{Mrg, Outcome, Policy, Status};
-pub use plan::{Plan, Representation};
+pub(crate) use plan::Plan;
+pub use plan::Representation;
 
 /// Which analysis to run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -303,7 +304,7 @@ impl Analysis {
 }
 
 /// Analyses every node of the tree, bottom-up, each from its planned
-/// representation ([`plan`]).
+/// representation (`plan`).
 pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError> {
     let view = primitive_view(tree)?;
     let (tree, image) = match &view {

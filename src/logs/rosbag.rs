@@ -41,7 +41,7 @@
 //!
 //! The topic carries no tree, so the tree comes from `--tree`; mapping the
 //! changes to its nodes (by uid, or by replaying the change sequence against
-//! the tree's structure when there is no uid) is in [`super::rosbag_map`].
+//! the tree's structure when there is no uid) is in `logs::rosbag_map`.
 //!
 //! Size: one concern, reading rosbag2 recordings: both storages (MCAP,
 //! SQLite), the CDR decoding of the message and the bag's file layout.

@@ -176,7 +176,7 @@ pub struct NodeEstimate {
     /// Probability that the run never returns (`1 − ps − pf`): it reached
     /// a loop whose child can never end it (an endless loop, judged from
     /// which outcomes each node can return at all), directly or through a
-    /// node that waits for it ([`outcomes`]; module docs).
+    /// node that waits for it (`outcomes`; module docs).
     pub never: Estimate,
     /// Mean Time To Succeed, `E[T | Success]`; `None` if no run succeeded.
     pub mtts: Option<Estimate>,
@@ -343,7 +343,7 @@ pub(crate) fn outcomes(tree: &Tree, root: NodeId) -> Vec<(bool, bool)> {
 
 /// The loops (`until_failure` / `until_success`) of `tree` that never
 /// return when they run: their child can never return the outcome that
-/// ends them ([`outcomes`]). Each with a sentence saying why; a loop made
+/// ends them (`outcomes`). Each with a sentence saying why; a loop made
 /// for a ReactiveSequence / ReactiveFallback's restarts (named
 /// `<node>/restarts`) is described as that restart loop.
 pub fn endless_loops(tree: &Tree) -> Vec<(NodeId, String)> {

@@ -531,7 +531,7 @@ const BREAK_NUDGE: f64 = 1e-13;
 /// [`build`] for functions that may jump or kink at `breaks` (instants in
 /// `(0, end)`, any order; others are ignored): panels start at every break,
 /// so that each panel's function is smooth (its values at a break are
-/// sampled [`BREAK_NUDGE`] inside the panel: one-sided limits).
+/// sampled `BREAK_NUDGE` inside the panel: one-sided limits).
 /// `[0, first break]` starts from
 /// [`build`]'s grid graded towards 0, every later segment from a coarser
 /// grid graded towards its break; panels are then halved as in [`build`].
