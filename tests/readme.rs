@@ -1,4 +1,4 @@
-//! The README cannot drift: its examples are run and its synopsis is checked
+//! The README and docs/*.md cannot drift: their examples are run and the synopsis is checked
 //! against the binary.
 //!
 //! * Every ```` ```console ```` block is a transcript: each `$ btrel ...` line
@@ -41,8 +41,27 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-fn readme() -> String {
-    std::fs::read_to_string(root().join("README.md")).expect("README.md is readable")
+/// The documents checked: README.md, then every `docs/*.md`, as
+/// (path relative to the crate root, text).
+fn documents() -> Vec<(String, String)> {
+    let mut names = vec!["README.md".to_string()];
+    let mut docs: Vec<String> = std::fs::read_dir(root().join("docs"))
+        .expect("docs/ is readable")
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".md"))
+        .map(|n| format!("docs/{n}"))
+        .collect();
+    docs.sort();
+    names.extend(docs);
+    names
+        .into_iter()
+        .map(|n| {
+            let text = std::fs::read_to_string(root().join(&n))
+                .unwrap_or_else(|e| panic!("{n} is readable: {e}"));
+            (n, text)
+        })
+        .collect()
 }
 
 /// A fenced code block of the README.
@@ -306,75 +325,78 @@ fn run(p: &Pipeline) -> (i32, Vec<String>, bool) {
 
 #[test]
 fn console_examples_print_what_the_binary_prints() {
-    let text = readme();
-    let ts = transcripts(&text);
-    assert!(ts.len() >= 5, "found only {} README transcripts", ts.len());
     let bless = std::env::var_os(BLESS).is_some();
     let mut failures = Vec::new();
-    let mut rewrites: Vec<(usize, usize, Vec<String>)> = Vec::new();
-    for t in &ts {
-        let pipeline = match parse_command(&t.command) {
-            Ok(p) => p,
-            Err(e) => {
-                failures.push(format!("README.md:{}: `{}`: {e}", t.line, t.command));
+    let mut total = 0;
+    for (name, text) in documents() {
+        let ts = transcripts(&text);
+        total += ts.len();
+        let mut rewrites: Vec<(usize, usize, Vec<String>)> = Vec::new();
+        for t in &ts {
+            let pipeline = match parse_command(&t.command) {
+                Ok(p) => p,
+                Err(e) => {
+                    failures.push(format!("{name}:{}: `{}`: {e}", t.line, t.command));
+                    continue;
+                }
+            };
+            let (code, actual, quiet) = run(&pipeline);
+            if code != 0 && !quiet {
+                failures.push(format!(
+                    "{name}:{}: `$ {}` failed (exit {code}) but wrote to standard output",
+                    t.line, t.command
+                ));
+            }
+            if code != t.exit {
+                failures.push(format!(
+                    "{name}:{}: `$ {}` exited with {code}, the README expects {} \
+                 (write ```console exit=N for an error example)\n{}",
+                    t.line,
+                    t.command,
+                    t.exit,
+                    actual.join("\n")
+                ));
                 continue;
             }
-        };
-        let (code, actual, quiet) = run(&pipeline);
-        if code != 0 && !quiet {
+            if matches(&t.expected, &actual) {
+                continue;
+            }
+            let elided = t.expected.iter().any(|l| l == "...");
+            if bless && !elided {
+                let first = t.line; // replace the lines after the `$` line
+                rewrites.push((
+                    first,
+                    t.expected.len(),
+                    actual
+                        .iter()
+                        .map(|l| format!("{}{l}", " ".repeat(t.indent)))
+                        .collect(),
+                ));
+                continue;
+            }
             failures.push(format!(
-                "README.md:{}: `$ {}` failed (exit {code}) but wrote to standard output",
-                t.line, t.command
-            ));
-        }
-        if code != t.exit {
-            failures.push(format!(
-                "README.md:{}: `$ {}` exited with {code}, the README expects {} \
-                 (write ```console exit=N for an error example)\n{}",
+                "{name}:{}: `$ {}` prints something else (- README, + binary):\n{}",
                 t.line,
                 t.command,
-                t.exit,
-                actual.join("\n")
+                diff(&t.expected, &actual)
             ));
-            continue;
         }
-        if matches(&t.expected, &actual) {
-            continue;
+        if !rewrites.is_empty() {
+            let mut lines = lines_of(&text);
+            rewrites.sort_by_key(|r| std::cmp::Reverse(r.0));
+            for (after, len, new) in rewrites {
+                lines.splice(after..after + len, new);
+            }
+            let mut new = lines.join("\n");
+            new.push('\n');
+            std::fs::write(root().join(&name), new).expect("the document is writable");
+            eprintln!("{BLESS}: {name} transcripts rewritten; check the prose around them");
         }
-        let elided = t.expected.iter().any(|l| l == "...");
-        if bless && !elided {
-            let first = t.line; // replace the lines after the `$` line
-            rewrites.push((
-                first,
-                t.expected.len(),
-                actual
-                    .iter()
-                    .map(|l| format!("{}{l}", " ".repeat(t.indent)))
-                    .collect(),
-            ));
-            continue;
-        }
-        failures.push(format!(
-            "README.md:{}: `$ {}` prints something else (- README, + binary):\n{}",
-            t.line,
-            t.command,
-            diff(&t.expected, &actual)
-        ));
     }
-    if !rewrites.is_empty() {
-        let mut lines = lines_of(&text);
-        rewrites.sort_by_key(|r| std::cmp::Reverse(r.0));
-        for (after, len, new) in rewrites {
-            lines.splice(after..after + len, new);
-        }
-        let mut new = lines.join("\n");
-        new.push('\n');
-        std::fs::write(root().join("README.md"), new).expect("README.md is writable");
-        eprintln!("{BLESS}: README.md transcripts rewritten; check the prose around them");
-    }
+    assert!(total >= 5, "found only {total} transcripts");
     assert!(
         failures.is_empty(),
-        "{} README transcript(s) do not match the binary (set {BLESS}=1 to rewrite them):\n\n{}",
+        "{} transcript(s) do not match the binary (set {BLESS}=1 to rewrite them):\n\n{}",
         failures.len(),
         failures.join("\n\n")
     );
@@ -611,57 +633,60 @@ fn btrel_words(line: &str) -> Option<Result<Vec<String>, String>> {
 #[test]
 fn sh_examples_name_existing_commands_and_options() {
     let cli = Cli::get();
-    let text = readme();
     let mut failures = Vec::new();
     let mut checked = 0;
     let dir = tempfile::tempdir().expect("temp dir");
-    for b in blocks(&text)
-        .iter()
-        .filter(|b| matches!(b.lang(), "sh" | "bash" | "shell"))
-    {
-        for (line, no) in b.lines.iter().zip(&b.line_numbers) {
-            let Some(w) = btrel_words(line) else { continue };
-            checked += 1;
-            let w = match w.and_then(|w| check_words(&cli, &w).map(|()| w)) {
-                Ok(w) => w,
-                Err(e) => {
-                    failures.push(format!("README.md:{no}: `{}`: {e}", line.trim()));
+    for (name, text) in documents() {
+        for b in blocks(&text)
+            .iter()
+            .filter(|b| matches!(b.lang(), "sh" | "bash" | "shell"))
+        {
+            for (line, no) in b.lines.iter().zip(&b.line_numbers) {
+                let Some(w) = btrel_words(line) else { continue };
+                checked += 1;
+                let w = match w.and_then(|w| check_words(&cli, &w).map(|()| w)) {
+                    Ok(w) => w,
+                    Err(e) => {
+                        failures.push(format!("{name}:{no}: `{}`: {e}", line.trim()));
+                        continue;
+                    }
+                };
+                // a committed figure: regenerate it and compare
+                let Some(k) = w.iter().position(|t| t == "-o" || t == "--output") else {
+                    continue;
+                };
+                let Some(target) = w.get(k + 1).filter(|p| p.starts_with("docs/")) else {
+                    continue;
+                };
+                let committed = root().join(target);
+                if !committed.is_file() {
                     continue;
                 }
-            };
-            // a committed figure: regenerate it and compare
-            let Some(k) = w.iter().position(|t| t == "-o" || t == "--output") else {
-                continue;
-            };
-            let Some(target) = w.get(k + 1).filter(|p| p.starts_with("docs/")) else {
-                continue;
-            };
-            let committed = root().join(target);
-            if !committed.is_file() {
-                continue;
-            }
-            // the same extension: it may choose the format (plot: .svg, .png)
-            let mut fresh = dir.path().join(format!("out{no}"));
-            if let Some(ext) = committed.extension() {
-                fresh.set_extension(ext);
-            }
-            let mut args = w.clone();
-            args[k + 1] = fresh.display().to_string();
-            let out = Command::new(BIN)
-                .args(&args)
-                .current_dir(root())
-                .output()
-                .expect("the binary runs");
-            let same = out.status.success()
-                && std::fs::read(&fresh).ok() == std::fs::read(&committed).ok();
-            if !same {
-                failures.push(format!(
-                    "README.md:{no}: {target} is not what `{}` writes now (exit {:?}, {}); \
+                // the same extension: it may choose the format (plot: .svg, .png)
+                let mut fresh = dir
+                    .path()
+                    .join(format!("out{}-{no}", name.replace('/', "-")));
+                if let Some(ext) = committed.extension() {
+                    fresh.set_extension(ext);
+                }
+                let mut args = w.clone();
+                args[k + 1] = fresh.display().to_string();
+                let out = Command::new(BIN)
+                    .args(&args)
+                    .current_dir(root())
+                    .output()
+                    .expect("the binary runs");
+                let same = out.status.success()
+                    && std::fs::read(&fresh).ok() == std::fs::read(&committed).ok();
+                if !same {
+                    failures.push(format!(
+                        "{name}:{no}: {target} is not what `{}` writes now (exit {:?}, {}); \
                      regenerate it with that command",
-                    strip_comment(line).trim(),
-                    out.status.code(),
-                    String::from_utf8_lossy(&out.stderr).trim()
-                ));
+                        strip_comment(line).trim(),
+                        out.status.code(),
+                        String::from_utf8_lossy(&out.stderr).trim()
+                    ));
+                }
             }
         }
     }
@@ -671,7 +696,7 @@ fn sh_examples_name_existing_commands_and_options() {
     );
     assert!(
         failures.is_empty(),
-        "README sh examples that do not fit the binary:\n{}",
+        "sh examples that do not fit the binary:\n{}",
         failures.join("\n")
     );
 }
@@ -709,31 +734,33 @@ fn inline_commands_name_existing_commands_and_options() {
     let cli = Cli::get();
     let mut failures = Vec::new();
     let mut checked = 0;
-    for (no, span) in inline_spans(&readme()) {
-        if !span.starts_with("btrel ") {
-            continue;
-        }
-        let Some(Ok(w)) = btrel_words(&span) else {
-            continue;
-        };
-        let w: Vec<String> = w.into_iter().filter(|t| t != "...").collect();
-        let Some(cmd) = w.first() else { continue };
-        if !cli.commands.contains_key(cmd) && !cmd.starts_with('-') {
-            // prose such as `btrel <command>`: only real command names count
-            if cmd.chars().all(|c| c.is_ascii_lowercase()) {
-                failures.push(format!("README.md:{no}: `{span}`: no command `{cmd}`"));
+    for (name, text) in documents() {
+        for (no, span) in inline_spans(&text) {
+            if !span.starts_with("btrel ") {
+                continue;
             }
-            continue;
-        }
-        checked += 1;
-        if let Err(e) = check_words(&cli, &w) {
-            failures.push(format!("README.md:{no}: `{span}`: {e}"));
+            let Some(Ok(w)) = btrel_words(&span) else {
+                continue;
+            };
+            let w: Vec<String> = w.into_iter().filter(|t| t != "...").collect();
+            let Some(cmd) = w.first() else { continue };
+            if !cli.commands.contains_key(cmd) && !cmd.starts_with('-') {
+                // prose such as `btrel <command>`: only real command names count
+                if cmd.chars().all(|c| c.is_ascii_lowercase()) {
+                    failures.push(format!("{name}:{no}: `{span}`: no command `{cmd}`"));
+                }
+                continue;
+            }
+            checked += 1;
+            if let Err(e) = check_words(&cli, &w) {
+                failures.push(format!("{name}:{no}: `{span}`: {e}"));
+            }
         }
     }
     assert!(checked >= 5, "found only {checked} inline btrel commands");
     assert!(
         failures.is_empty(),
-        "README inline commands that do not fit the binary:\n{}",
+        "inline commands that do not fit the binary:\n{}",
         failures.join("\n")
     );
 }
@@ -746,12 +773,15 @@ fn clean(word: &str) -> &str {
 #[test]
 fn synopsis_lists_every_option_and_no_other() {
     let cli = Cli::get();
-    let text = readme();
+    let (name, text) = documents()
+        .into_iter()
+        .find(|(_, t)| t.lines().any(|l| l.trim_end() == "## Commands"))
+        .expect("README.md or a docs/*.md has a `## Commands` section");
     let lines: Vec<&str> = text.lines().collect();
     let start = lines
         .iter()
         .position(|l| l.trim_end() == "## Commands")
-        .expect("README.md has a `## Commands` section");
+        .expect("found above");
     let synopsis = blocks(&lines[start..].join("\n"))
         .into_iter()
         .next()
@@ -771,9 +801,7 @@ fn synopsis_lists_every_option_and_no_other() {
         let mut rest = &w[..];
         if !line.starts_with(' ') {
             if w[0] != "btrel" {
-                failures.push(format!(
-                    "README.md:{no}: a synopsis line starts with `btrel`"
-                ));
+                failures.push(format!("{name}:{no}: a synopsis line starts with `btrel`"));
                 continue;
             }
             let second = clean(w.get(1).copied().unwrap_or(""));
@@ -782,14 +810,14 @@ fn synopsis_lists_every_option_and_no_other() {
                 rest = &w[1..];
             } else {
                 if !cli.commands.contains_key(second) {
-                    failures.push(format!("README.md:{no}: no command `{second}`"));
+                    failures.push(format!("{name}:{no}: no command `{second}`"));
                 }
                 current = Some(Some(second.to_string()));
                 rest = &w[2..];
             }
         }
         let Some(cmd) = current.clone() else {
-            failures.push(format!("README.md:{no}: continuation without a command"));
+            failures.push(format!("{name}:{no}: continuation without a command"));
             continue;
         };
         let opts: &[Opt] = match &cmd {
@@ -804,7 +832,7 @@ fn synopsis_lists_every_option_and_no_other() {
             }
             let Some(o) = find(opts, word) else {
                 failures.push(format!(
-                    "README.md:{no}: `btrel {}` has no option `{word}`",
+                    "{name}:{no}: `btrel {}` has no option `{word}`",
                     cmd.as_deref().unwrap_or("(global)")
                 ));
                 continue;
@@ -817,7 +845,7 @@ fn synopsis_lists_every_option_and_no_other() {
                     let real: BTreeSet<&str> = o.values.iter().map(String::as_str).collect();
                     if shown != real {
                         failures.push(format!(
-                            "README.md:{no}: `{word} {v}`: the values are {}",
+                            "{name}:{no}: `{word} {v}`: the values are {}",
                             o.values.join("|")
                         ));
                     }
@@ -859,7 +887,7 @@ fn synopsis_lists_every_option_and_no_other() {
     }
     assert!(
         failures.is_empty(),
-        "README synopsis (## Commands) does not match the binary:\n{}",
+        "{name} synopsis (## Commands) does not match the binary:\n{}",
         failures.join("\n")
     );
 }
