@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """A vectorised numpy Monte Carlo of a Stochastic Behavior Tree: the anchor
-against which btrel's simulator is timed (README, *Performance*).
+against which btrel's simulator is timed (docs/BENCHMARKS.md).
 
 This is the simulation a researcher would write with numpy: every leaf is
 sampled for a whole batch of episodes at once (`Generator.random` for the

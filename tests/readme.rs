@@ -375,7 +375,7 @@ fn console_examples_print_what_the_binary_prints() {
                 continue;
             }
             failures.push(format!(
-                "{name}:{}: `$ {}` prints something else (- README, + binary):\n{}",
+                "{name}:{}: `$ {}` prints something else (- document, + binary):\n{}",
                 t.line,
                 t.command,
                 diff(&t.expected, &actual)

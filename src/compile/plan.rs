@@ -86,7 +86,7 @@ pub enum Representation {
 }
 
 impl Representation {
-    /// A short name, as in the README's method section.
+    /// A short name, as in docs/METHOD.md.
     pub fn name(&self) -> &'static str {
         match self {
             Representation::Closed => "closed form",

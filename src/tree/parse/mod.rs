@@ -1,6 +1,6 @@
 //! YAML front end: reads a tree file, validates it, and builds a [`Tree`].
 //!
-//! The format (see the README for the full reference):
+//! The format (see docs/TREE-FORMAT.md for the full reference):
 //!
 //! ```yaml
 //! name: search and grasp          # optional title

@@ -521,7 +521,7 @@ fn check_restarts(
         "ReactiveSequence and ReactiveFallback are read as Sequence and Fallback when \
                  at most one child holds actions (conditions before it are re-ticked, which \
                  changes nothing while they keep their value), and as their restart loop when \
-                 two children hold actions that surely take time (README, node table); \
+                 two children hold actions that surely take time (docs/TREE-FORMAT.md, node table); \
                  WhileDoElse is read as IfThenElse when its condition child holds conditions \
                  only",
     ) {
