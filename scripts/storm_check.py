@@ -98,7 +98,10 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("model", help="FILE.drn, FILE.sm or BASE.tra exported by btrel")
     ap.add_argument("--times", default="", help="comma-separated times for the curve")
-    ap.add_argument("--prism-properties", help="the --properties file of a prism-explicit export")
+    ap.add_argument("--prism-properties",
+                    help="the --properties file of the export (required for prism-explicit: "
+                         "its initial weights); each of its properties without the constant T "
+                         "is checked too and reported under \"properties\"")
     ap.add_argument("--precision", type=float, default=1e-12, help="Storm solver precision")
     args = ap.parse_args()
     # Storm logs (warnings, Fox-Glynn notes) to standard output: send them to
@@ -183,6 +186,17 @@ def main():
     out["max_exit_rate"] = max(exits)
     out["max_running_exit_rate"] = max(
         (e for s, e in enumerate(exits) if not done.get(s)), default=None)
+    if args.prism_properties:
+        # every property as written (filter(+, W * PHI, "init")): PHI by Storm,
+        # weighted by the initial distribution (W is that distribution)
+        props = {}
+        pattern = re.compile(r'^"([^"]+)": filter\(\+, (?:\(.*\)|w_init) \* (.*), "init"\);$')
+        with open(args.prism_properties) as f:
+            for line in f:
+                m = pattern.match(line.strip())
+                if m and not re.search(r"<=T\b", m.group(2)):
+                    props[m.group(1)] = weighted(m.group(2))
+        out["properties"] = props
     out["build_seconds"] = build
     out["check_seconds"] = time.perf_counter() - t1
     out["storm_version"] = stormpy.info.storm_version()

@@ -237,6 +237,11 @@ fn export_options_of_the_other_format_are_refused() {
         &["--properties", "--to prism"],
     );
     assert!(!repo("p.csl").exists());
+    // times go into a properties file: without one they would do nothing
+    refused(
+        &["export", SG, "--to", "prism", "--times", "100"],
+        &["--properties"],
+    );
     assert_eq!(run(&["export", SG, "--to", "dot", "--method", "book"]).0, 0);
     assert_eq!(
         run(&["export", SG, "--to", "prism", "--node", "search"]).0,

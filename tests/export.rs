@@ -498,7 +498,7 @@ fn prism_explicit_files_are_the_chain() {
         }
         assert_eq!(srew, &want);
         // the properties weight by the same initial distribution
-        let props = btrel::export::prism_explicit_properties(&chain);
+        let props = btrel::export::prism_explicit_properties(&chain, &[]);
         assert_eq!(props.matches("filter(+, (").count(), 5);
         assert!(props.contains("R=? [ F \"done\" ]"));
     }

@@ -114,17 +114,34 @@ fn check(python: &Path, file: &str, node: Option<&str>, times: &[f64]) -> usize 
         .map(|t| format!("{t:?}"))
         .collect::<Vec<_>>()
         .join(",");
-    common.extend(["prism", "-o", &sm]);
+    let sm_csl = at("sm.csl");
+    common.extend([
+        "prism",
+        "-o",
+        &sm,
+        "--properties",
+        &sm_csl,
+        "--times",
+        &times_arg,
+    ]);
     btrel(&[common.as_slice(), node_args.as_slice()].concat());
     common.truncate(3);
     common.extend(["drn", "-o", &drn]);
     btrel(&[common.as_slice(), node_args.as_slice()].concat());
     common.truncate(3);
-    common.extend(["prism-explicit", "-o", &base, "--properties", &csl]);
+    common.extend([
+        "prism-explicit",
+        "-o",
+        &base,
+        "--properties",
+        &csl,
+        "--times",
+        &times_arg,
+    ]);
     btrel(&[common.as_slice(), node_args.as_slice()].concat());
     let tra = format!("{base}.tra");
     let runs: [Vec<&str>; 3] = [
-        vec![&sm, "--times", &times_arg],
+        vec![&sm, "--prism-properties", &sm_csl, "--times", &times_arg],
         vec![&drn, "--times", &times_arg],
         vec![&tra, "--prism-properties", &csl, "--times", &times_arg],
     ];
@@ -156,6 +173,27 @@ fn check(python: &Path, file: &str, node: Option<&str>, times: &[f64]) -> usize 
                 &format!("{what}: failure by {}", p.t),
                 num(s, "failure"),
                 p.failure,
+            );
+        }
+        // the properties files as written, the times in them (PRISM takes
+        // no -const with an imported model), checked by Storm
+        if args.contains(&"--prism-properties") {
+            let props = &r["properties"];
+            for p in &points {
+                for (o, want) in [("success", p.success), ("failure", p.failure)] {
+                    let name = format!("{o}_by_{}", p.t);
+                    close(&format!("{what}: property {name}"), num(props, &name), want);
+                }
+            }
+            close(
+                &format!("{what}: property ps"),
+                num(props, "ps"),
+                figures.ps,
+            );
+            close(
+                &format!("{what}: property mean_time"),
+                num(props, "mean_time"),
+                figures.mean_time(),
             );
         }
         // the absorbing self-loops do not raise the uniformisation rate

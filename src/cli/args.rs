@@ -571,6 +571,16 @@ pub(super) struct ExportArgs {
     /// Write the matching PRISM properties file here (with --to prism or prism-explicit).
     #[arg(long, value_name = "FILE")]
     pub(super) properties: Option<PathBuf>,
+    /// Write these times (s) into the properties file (`success_by_100`,
+    /// ...) instead of the constant T; PRISM needs this with an imported
+    /// (prism-explicit) model, which cannot take -const T.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "T1,T2,...",
+        requires = "properties"
+    )]
+    pub(super) times: Vec<String>,
     /// Method of the figures shown in DOT labels.
     #[arg(long, value_enum, default_value_t = MethodArg::Exact)]
     pub(super) method: MethodArg,

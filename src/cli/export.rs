@@ -8,7 +8,7 @@ use btrel::tree::Tree;
 use super::advice::{analysis_failure, with_article, write_error, Cmd};
 use super::args::{ExportArgs, ExportFormat, MethodArg};
 use super::input::{find_nodes, InputOptions};
-use super::options::method;
+use super::options::{method, parse_time};
 use super::output::emit;
 use super::Failure;
 
@@ -52,6 +52,11 @@ pub(super) fn run(args: ExportArgs, input: &InputOptions) -> Result<(), Failure>
             _ => "--properties goes with --to prism or prism-explicit",
         }));
     }
+    let times = args
+        .times
+        .iter()
+        .map(|s| parse_time("--times", s))
+        .collect::<Result<Vec<f64>, Failure>>()?;
     let chain = |id| {
         btrel::compile::phase::phase_chain(&tree, id, args.max_states).map_err(Failure::analysis)
     };
@@ -119,7 +124,7 @@ pub(super) fn run(args: ExportArgs, input: &InputOptions) -> Result<(), Failure>
             let properties = args
                 .properties
                 .as_ref()
-                .map(|_| btrel::export::prism_explicit_properties(&chain));
+                .map(|_| btrel::export::prism_explicit_properties(&chain, &times));
             let paths: Vec<PathBuf> = btrel::export::PRISM_EXPLICIT_EXTENSIONS
                 .iter()
                 .map(|ext| {
@@ -147,10 +152,9 @@ pub(super) fn run(args: ExportArgs, input: &InputOptions) -> Result<(), Failure>
         }
     };
     if let Some(path) = &args.properties {
-        btrel::output::write_atomic(path, |out| {
-            out.write_all(btrel::export::PRISM_PROPERTIES.as_bytes())
-        })
-        .map_err(|e| Failure::input(write_error(path, &e)))?;
+        let text = btrel::export::prism_properties(&times);
+        btrel::output::write_atomic(path, |out| out.write_all(text.as_bytes()))
+            .map_err(|e| Failure::input(write_error(path, &e)))?;
     }
     emit(args.output.as_deref(), |out| out.write_all(text.as_bytes()))
 }

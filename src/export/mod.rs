@@ -20,7 +20,7 @@ pub mod prism;
 pub use dot::{dot_mrg, dot_tree};
 pub use drn::write_drn;
 pub use prism::{
-    prism_ctmc, prism_explicit_properties, prism_model, write_prism_explicit,
+    prism_ctmc, prism_explicit_properties, prism_model, prism_properties, write_prism_explicit,
     PRISM_EXPLICIT_EXTENSIONS, PRISM_PROPERTIES,
 };
 

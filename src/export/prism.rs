@@ -72,7 +72,8 @@ use crate::tree::{NodeId, Tree};
 /// `-const T=...`), the final success and failure probabilities and the
 /// mean execution time, all over the node's initial distribution.
 ///
-/// Usage: `prism node.sm btrel.csl -const T=100`.
+/// Usage: `prism node.sm btrel.csl -const T=100`; [`prism_properties`]
+/// writes the times in instead (an imported model takes no `-const`).
 pub const PRISM_PROPERTIES: &str = r#"// Properties for a phase-chain CTMC exported by btrel.
 // The model's initial distribution is `w_init` over its initial states, so
 // every figure is a w_init-weighted sum over the "init" states.
@@ -288,23 +289,84 @@ pub fn write_prism_explicit(chain: &PhaseChain, ext: &str, w: &mut dyn Write) ->
 /// figures as [`PRISM_PROPERTIES`], with the initial weights written out
 /// over the variable `s` of the `.sta` file (an imported model has no
 /// `w_init` formula) and the time reward as the model's only reward.
-pub fn prism_explicit_properties(chain: &PhaseChain) -> String {
+pub fn prism_explicit_properties(chain: &PhaseChain, times: &[f64]) -> String {
     let w = weight_expression(&initial_weights(chain));
     let mut out = String::new();
     out.push_str("// Properties for a phase-chain CTMC exported by btrel as PRISM explicit\n");
     out.push_str("// files (import with the .sta file, which defines the variable s):\n");
-    out.push_str("//   prism -importmodel BASE.all -ctmc THIS_FILE -const T=100\n");
+    if times.is_empty() {
+        out.push_str("//   prism -importmodel BASE.all -ctmc THIS_FILE -const T=100\n");
+    } else {
+        let t = times_label(times[0]);
+        let _ = writeln!(
+            out,
+            "//   prism -importmodel BASE.all -ctmc THIS_FILE -prop success_by_{t}"
+        );
+    }
     out.push_str("// Every figure is a sum over the \"init\" states weighted by their initial\n");
     out.push_str("// probability (the parenthesised expression).\n");
-    out.push_str("const double T;\n\n");
+    if times.is_empty() {
+        out.push_str("const double T;\n\n");
+    } else {
+        out.push('\n');
+    }
+    for (name, what) in timed_properties(times) {
+        let _ = writeln!(out, "\"{name}\": filter(+, ({w}) * {what}, \"init\");");
+    }
+    out
+}
+
+/// The properties by name: with `times`, `success_by_<t>` and
+/// `failure_by_<t>` for each, the time written in (PRISM refuses an
+/// undefined constant on an imported model); without, `success_by_T` and
+/// `failure_by_T` over the constant `T` (declared before them).
+fn timed_properties(times: &[f64]) -> Vec<(String, String)> {
+    let mut out = Vec::new();
+    if times.is_empty() {
+        for o in ["success", "failure"] {
+            out.push((format!("{o}_by_T"), format!("P=? [ F<=T \"{o}\" ]")));
+        }
+    } else {
+        let mut seen = std::collections::HashSet::new();
+        for &t in times.iter().filter(|&&t| seen.insert(t.to_bits())) {
+            for o in ["success", "failure"] {
+                out.push((
+                    format!("{o}_by_{}", times_label(t)),
+                    format!("P=? [ F<={} \"{o}\" ]", prism_number(t)),
+                ));
+            }
+        }
+    }
     for (name, what) in [
-        ("success_by_T", "P=? [ F<=T \"success\" ]"),
-        ("failure_by_T", "P=? [ F<=T \"failure\" ]"),
         ("ps", "P=? [ F \"success\" ]"),
         ("pf", "P=? [ F \"failure\" ]"),
         ("mean_time", "R=? [ F \"done\" ]"),
     ] {
-        let _ = writeln!(out, "\"{name}\": filter(+, ({w}) * {what}, \"init\");");
+        out.push((name.to_string(), what.to_string()));
     }
     out
+}
+
+/// The properties file for a model written by [`prism_model`]/[`prism_ctmc`]:
+/// [`PRISM_PROPERTIES`] without `times`; with them, the same figures with
+/// each time written in (`success_by_100`: no `-const` needed).
+pub fn prism_properties(times: &[f64]) -> String {
+    if times.is_empty() {
+        return PRISM_PROPERTIES.to_string();
+    }
+    let mut out = String::new();
+    out.push_str("// Properties for a phase-chain CTMC exported by btrel.\n");
+    out.push_str("// The model's initial distribution is `w_init` over its initial states, so\n");
+    out.push_str("// every figure is a w_init-weighted sum over the \"init\" states.\n\n");
+    for (name, what) in timed_properties(times) {
+        let what = what.replace("R=?", "R{\"time\"}=?");
+        let _ = writeln!(out, "\"{name}\": filter(+, w_init * {what}, \"init\");");
+    }
+    out
+}
+
+/// A time as it appears in a property's name: as the user wrote it, in
+/// Rust's shortest form (`100`, `2.5`, `1e-7`).
+fn times_label(t: f64) -> String {
+    format!("{t}")
 }
