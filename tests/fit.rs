@@ -429,6 +429,55 @@ fn btlog_records_slightly_out_of_order() {
     );
 }
 
+/// BT.CPP's FileLogger2 (behaviortreepy 0.1.4) sometimes writes its last
+/// batch of records twice (seen in about one real log in twenty-five made by
+/// tests/btcpp/make_log.py). The copy is dropped, not read as new episodes:
+/// here it would add an instant Success of `a` and then fail on `a2` going
+/// from IDLE to IDLE.
+#[test]
+fn btlog_last_batch_written_twice_is_dropped() {
+    let records = [
+        (0, 2, RUN),
+        (S, 2, OK),
+        (S, 2, IDLE),
+        (S, 4, RUN),
+        (3 * S, 4, FAIL),
+        (3 * S, 4, IDLE),
+    ];
+    let mut twice = records.to_vec();
+    twice.extend_from_slice(&records[1..]);
+    let episodes = |log: &btrel::logs::Log| -> Vec<Vec<(f64, End)>> {
+        log.leaves
+            .iter()
+            .map(|l| l.episodes.iter().map(|e| (e.duration, e.end)).collect())
+            .collect()
+    };
+    let once = read_bytes(&btlog(XML, &records), "x.btlog", "btlog").unwrap();
+    let log = read_bytes(&btlog(XML, &twice), "x.btlog", "btlog").unwrap();
+    assert_eq!((once.repeated_tail, log.repeated_tail), (0, 5));
+    assert_eq!(episodes(&log), episodes(&once));
+    assert_eq!(
+        episodes(&log)[0],
+        vec![(1.0, End::Success)],
+        "a: one 1 s success"
+    );
+    assert_eq!(
+        episodes(&log)[2],
+        vec![(2.0, End::Failure)],
+        "a2: one failure"
+    );
+    let text = btrel::fit::render(&fit_logs(&[log], By::Id).unwrap(), By::Id);
+    assert!(
+        text.contains("its last 5 records repeated the 5 before them"),
+        "{text}"
+    );
+    // a repeated status that is not such a copy is still refused
+    let mut odd = records.to_vec();
+    odd.push((4 * S, 4, IDLE));
+    let e = fit_err(&btlog(XML, &odd), "x.btlog");
+    assert!(e.contains("record 7") && e.contains("IDLE to IDLE"), "{e}");
+}
+
 fn rec_at(record: usize) -> usize {
     18 + 1 + 4 + XML.len() + 8 + 9 * (record - 1)
 }

@@ -72,6 +72,14 @@ pub(super) fn run(args: FitArgs, input: &InputOptions) -> Result<(), Failure> {
             log.max_step_back * 1e3
         );
     }
+    for log in logs.iter().filter(|l| l.repeated_tail > 0) {
+        eprintln!(
+            "note: {}: the last {} repeated the block before them byte for byte (BT.CPP's \
+             FileLogger2 can write its last batch twice); the copy was dropped",
+            log.file,
+            plural(log.repeated_tail, "record", "records"),
+        );
+    }
     let by = match args.by {
         FitBy::Id => btrel::fit::By::Id,
         FitBy::Name => btrel::fit::By::Name,

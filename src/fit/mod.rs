@@ -915,6 +915,9 @@ pub struct Fitted {
     /// Per file with records out of time order: (file, how many, the
     /// largest step back in seconds).
     pub out_of_order: Vec<(String, usize, f64)>,
+    /// Per file whose last records repeated the block before them (dropped):
+    /// (file, how many).
+    pub repeated_tail: Vec<(String, usize)>,
 }
 
 /// Pools the logs' leaves by key and fits each. Errors when one name is
@@ -934,6 +937,7 @@ pub fn fit_logs_with(
         std::collections::HashMap::new();
     let mut files = Vec::new();
     let mut out_of_order = Vec::new();
+    let mut repeated_tail = Vec::new();
     for log in logs {
         let mut n = 0;
         for leaf in &log.leaves {
@@ -962,6 +966,9 @@ pub fn fit_logs_with(
         if log.out_of_order > 0 {
             out_of_order.push((log.file.clone(), log.out_of_order, log.max_step_back));
         }
+        if log.repeated_tail > 0 {
+            repeated_tail.push((log.file.clone(), log.repeated_tail));
+        }
     }
     let mut leaves = Vec::new();
     let mut unfitted = Vec::new();
@@ -980,6 +987,7 @@ pub fn fit_logs_with(
         unfitted,
         files,
         out_of_order,
+        repeated_tail,
     })
 }
 
@@ -1005,6 +1013,12 @@ pub fn render(f: &Fitted, by: By) -> String {
         s.push_str(&format!(
             "#   {file}: {n} of them out of time order by up to {:.3} ms, kept as logged\n",
             back * 1e3
+        ));
+    }
+    for (file, n) in &f.repeated_tail {
+        s.push_str(&format!(
+            "#   {file}: its last {n} records repeated the {n} before them byte for byte \
+             (the logger wrote its last batch twice) and were dropped\n"
         ));
     }
     let auto = f

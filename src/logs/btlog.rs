@@ -178,9 +178,10 @@ pub fn read(bytes: &[u8], file: &str) -> Result<Log, LogError> {
             ),
         ));
     }
+    let (kept, repeated_tail) = without_repeated_tail(&bytes[pos..pos + records * RECORD]);
     let mut last_t = 0u64;
     let (mut out_of_order, mut max_back) = (0usize, 0u64);
-    for r in 0..records {
+    for r in 0..kept {
         let off = pos + r * RECORD;
         let b = &bytes[off..off + RECORD];
         let t = u64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], 0, 0]);
@@ -252,7 +253,31 @@ pub fn read(bytes: &[u8], file: &str) -> Result<Log, LogError> {
         records,
         out_of_order,
         max_step_back: max_back as f64 * 1e-6,
+        repeated_tail,
     })
+}
+
+/// How many of the `records` (a whole number of [`RECORD`]s) to read, and
+/// how many at the end to drop because they repeat the block just before
+/// them byte for byte. BT.CPP's FileLogger2 has been seen (behaviortreepy
+/// 0.1.4, about one log in twenty-five) to write its last batch of records
+/// twice when the logger is flushed and destroyed; such a copy is never a
+/// real change (the same node changing to the same status at the same
+/// microsecond), so it is dropped rather than read as new episodes.
+pub(super) fn without_repeated_tail(records: &[u8]) -> (usize, usize) {
+    let mut n = records.len() / RECORD;
+    let total = n;
+    'again: loop {
+        for k in (1..=n / 2).rev() {
+            let tail = &records[(n - k) * RECORD..n * RECORD];
+            let before = &records[(n - 2 * k) * RECORD..(n - k) * RECORD];
+            if tail == before {
+                n -= k;
+                continue 'again;
+            }
+        }
+        return (n, total - n);
+    }
 }
 
 /// Applies one status change (at `t` ticks) to a node: the episode it

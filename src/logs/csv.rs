@@ -114,5 +114,6 @@ pub fn read(bytes: &[u8], file: &str) -> Result<Log, LogError> {
         records: rows,
         out_of_order: 0,
         max_step_back: 0.0,
+        repeated_tail: 0,
     })
 }

@@ -82,6 +82,10 @@ pub struct Log {
     pub out_of_order: usize,
     /// The largest such step back in time, in seconds (0 when none).
     pub max_step_back: f64,
+    /// Records at the end of a `.btlog` that repeated the block before them
+    /// byte for byte and were dropped (BT.CPP's FileLogger2 can write its
+    /// last batch twice); 0 for other formats.
+    pub repeated_tail: usize,
 }
 
 /// A located error in a log file.

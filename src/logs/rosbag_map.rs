@@ -694,6 +694,7 @@ impl Replay {
                 records: self.records,
                 out_of_order: self.out_of_order,
                 max_step_back: self.max_back as f64 * 1e-9,
+                repeated_tail: 0,
             },
             notes,
         )

@@ -324,6 +324,7 @@ pub fn read(path: &Path, file: &str) -> Result<Vec<Log>, LogError> {
                 records: s.records,
                 out_of_order: 0,
                 max_step_back: 0.0,
+                repeated_tail: 0,
             }
         })
         .collect())
