@@ -220,6 +220,25 @@ pub struct Comparison {
     pub over_budget: Option<usize>,
 }
 
+impl Comparison {
+    /// `tree` (the compared tree) with the children of each compared
+    /// Fallback in `candidate`'s order: the tree a candidate stands for.
+    pub fn reordered(&self, tree: &Tree, candidate: &Candidate) -> Tree {
+        let mut t = tree.clone();
+        for (&node, order) in self.nodes.iter().zip(&candidate.orders) {
+            set_order(&mut t, node, order);
+        }
+        t
+    }
+}
+
+/// Puts the children of Fallback `node` in `order` (a permutation of them).
+fn set_order(tree: &mut Tree, node: NodeId, order: &[NodeId]) {
+    if let NodeKind::Fallback { children } = &mut tree.nodes[node].kind {
+        children.copy_from_slice(order);
+    }
+}
+
 /// Errors of a comparison.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CompareError {
@@ -288,9 +307,7 @@ struct Evaluator<'a> {
 
 impl Evaluator<'_> {
     fn set_order(&mut self, node: NodeId, order: &[NodeId]) {
-        if let NodeKind::Fallback { children } = &mut self.tree.nodes[node].kind {
-            children.copy_from_slice(order);
-        }
+        set_order(&mut self.tree, node, order);
     }
 
     fn children(&self, node: NodeId) -> Vec<NodeId> {

@@ -36,6 +36,16 @@ fn drawer_first_is_best_by_100_seconds() {
     assert!((best.success_by_deadline.unwrap() - 0.270403325).abs() < 1e-8);
     let given = c.candidates.iter().find(|x| x.given).unwrap();
     assert!((given.success_by_deadline.unwrap() - 0.197739766).abs() < 1e-8);
+    // the tree the best candidate stands for: drawer first, and its own
+    // curve gives the reference value
+    let drawer_first = c.reordered(&t, best);
+    let search = drawer_first.find("search").unwrap();
+    assert_eq!(
+        names(&drawer_first, drawer_first.node(search).kind.children()),
+        ["search drawer", "search floor", "search closet"]
+    );
+    let by_100 = btrel::curve::curve(&drawer_first, 0, &[100.0], &Default::default()).unwrap();
+    assert!((by_100[0].success - 0.270403325).abs() < 1e-8);
     // the final success probability is the same for every ordering
     for x in &c.candidates {
         assert!((x.root.ps - 0.4884).abs() < 1e-12);

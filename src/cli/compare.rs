@@ -74,18 +74,7 @@ pub(super) fn run(args: CompareArgs, input: &InputOptions) -> Result<(), Failure
     }
     if let Some(path) = &args.curves {
         let top: Vec<_> = cmp.candidates.iter().take(args.top).collect();
-        let trees: Vec<Tree> = top
-            .iter()
-            .map(|c| {
-                let mut t = tree.clone();
-                for (&n, o) in cmp.nodes.iter().zip(&c.orders) {
-                    if let btrel::tree::NodeKind::Fallback { children } = &mut t.nodes[n].kind {
-                        children.clone_from(o);
-                    }
-                }
-                t
-            })
-            .collect();
+        let trees: Vec<Tree> = top.iter().map(|c| cmp.reordered(&tree, c)).collect();
         let end = match t_end {
             Some(t) if t > 0.0 => t,
             Some(_) => return Err(Failure::input("--t-end must be > 0")),

@@ -131,12 +131,7 @@ pub(super) fn run(args: PlotArgs, input: &InputOptions) -> Result<(), Failure> {
             .map(|(_, c)| c)
             .collect();
         for (i, c) in shown.into_iter().enumerate() {
-            let mut t = tree.clone();
-            for (&n, o) in cmp.nodes.iter().zip(&c.orders) {
-                if let btrel::tree::NodeKind::Fallback { children } = &mut t.nodes[n].kind {
-                    children.clone_from(o);
-                }
-            }
+            let t = cmp.reordered(&tree, c);
             let mut label = btrel::report::ranking::label(&tree, &cmp, c);
             if c.given {
                 label.push_str(" (given)");
