@@ -902,3 +902,87 @@ fn elision_marker_matches_any_number_of_lines() {
     assert!(!matches(&s(&["a", "b"]), &s(&["a", "b", "c"])));
     assert!(!matches(&s(&["a"]), &s(&["a "])));
 }
+
+/// Every relative link of README.md and docs/*.md (`[text](path)` or
+/// `[text](path#anchor)`, outside code blocks) names a file or folder that
+/// exists, relative to the document; a `#anchor` into a Markdown file names
+/// one of its headings (GitHub's slugs: lower case, spaces to `-`,
+/// punctuation other than `-` and `_` dropped).
+#[test]
+fn relative_links_resolve() {
+    let slug = |heading: &str| -> String {
+        heading
+            .trim()
+            .to_lowercase()
+            .chars()
+            .filter_map(|c| match c {
+                ' ' => Some('-'),
+                c if c.is_alphanumeric() || c == '-' || c == '_' => Some(c),
+                _ => None,
+            })
+            .collect()
+    };
+    let headings = |text: &str| -> Vec<String> {
+        let mut fenced = false;
+        text.lines()
+            .filter(|l| {
+                if l.trim_start().starts_with("```") {
+                    fenced = !fenced;
+                }
+                !fenced && l.starts_with('#')
+            })
+            .map(|l| slug(l.trim_start_matches('#')))
+            .collect()
+    };
+    let mut failures = Vec::new();
+    for (name, text) in documents() {
+        let dir = root()
+            .join(&name)
+            .parent()
+            .expect("in a folder")
+            .to_path_buf();
+        let mut fenced = false;
+        for (i, line) in text.lines().enumerate() {
+            if line.trim_start().starts_with("```") {
+                fenced = !fenced;
+            }
+            if fenced {
+                continue;
+            }
+            let mut rest = line;
+            while let Some(k) = rest.find("](") {
+                let after = &rest[k + 2..];
+                let Some(end) = after.find(')') else { break };
+                let target = &after[..end];
+                rest = &after[end..];
+                if target.contains("://") || target.starts_with("mailto:") || target.is_empty() {
+                    continue;
+                }
+                let (path, anchor) = match target.split_once('#') {
+                    Some((p, a)) => (p, Some(a)),
+                    None => (target, None),
+                };
+                let file = if path.is_empty() {
+                    root().join(&name)
+                } else {
+                    dir.join(path)
+                };
+                if !file.exists() {
+                    failures.push(format!("{name}:{}: `{target}`: no such file", i + 1));
+                    continue;
+                }
+                if let (Some(a), true) = (anchor, path.is_empty() || path.ends_with(".md")) {
+                    let target_text = std::fs::read_to_string(&file).unwrap_or_default();
+                    if !headings(&target_text).iter().any(|h| h == a) {
+                        failures.push(format!("{name}:{}: `{target}`: no heading `#{a}`", i + 1));
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "broken links:\n{}",
+        failures.join("\n")
+    );
+}
