@@ -37,7 +37,7 @@
 //!
 //! **With halts** a censored episode's `log(p e^{−μc} + (1−p) e^{−νc})`
 //! couples the three (correlations ≈ 0.1 at 20% halted, up to 0.9 at 76%;
-//! README), and `btrel fit` writes the covariances of (p̂, μ̂, ν̂) as `fit:
+//! docs/LOGS.md), and `btrel fit` writes the covariances of (p̂, μ̂, ν̂) as `fit:
 //! {cov: {ps_mu, ps_nu, mu_nu}}` ([`crate::fit::covariance`]). Such a leaf's
 //! three parameters are drawn together: θ = (logit ps, ln mu, ln nu) ~
 //! N(θ̂, J Σ J), Σ the covariance of (p̂, μ̂, ν̂) (`*_se²` on its diagonal)

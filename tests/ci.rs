@@ -552,7 +552,7 @@ fn fitted_covariance_is_the_inverse_finite_difference_information() {
             cov[i][j]
         );
     }
-    // a correlation that is not small, of the sign the README states
+    // a correlation that is not small, of the sign docs/LOGS.md states
     assert!(got_cov[1].2 / (got_se[0] * got_se[2]) > 0.5, "{line}");
     // without halts: no `cov:`
     let eps = episodes(&mut rng, 400, (0.7, 0.5, 1.0), 0.0);
@@ -814,7 +814,7 @@ fn a_bad_covariance_is_a_located_error() {
 /// MTTF (exponential times only) is printed, not asserted: where `auto`
 /// picks another family for an exponential truth (a shifted or
 /// hyperexponential law in a few logs), that law's shift or mixture is
-/// held, and its coverage is a few points low (README).
+/// held, and its coverage is a few points low (docs/LOGS.md).
 #[test]
 fn auto_fitted_erlang_times_are_drawn_and_cover_the_truth() {
     let (p_a, lam, nu_a) = (0.9, 6.0, 20.0);

@@ -54,7 +54,7 @@ fn a_mixed_timing_tree_too_large_for_its_shifted_mixture_is_answered_within_the_
     // refused. Now the mixture hands over to the composed laws with atoms
     // where it exceeds the budget: a 40-leaf tree is answered under the same
     // 2 GB limit, every point written (its values: tests/law_atoms.rs and
-    // tests/mixed_timing.rs; 300 leaves take about a minute, README).
+    // tests/mixed_timing.rs; 300 leaves take about a minute, docs/BENCHMARKS.md).
     use btrel::generate::{random_tree_yaml, Shape};
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("mixed40.yaml");

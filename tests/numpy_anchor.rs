@@ -1,4 +1,4 @@
-//! The numpy Monte Carlo of `scripts/numpy_mc.py` — the anchor the README's
+//! The numpy Monte Carlo of `scripts/numpy_mc.py` — the anchor docs/BENCHMARKS.md's
 //! *Performance* table times btrel's simulator against — simulates the same
 //! trees: its estimates agree with btrel's **exact** figures (the analytic
 //! engine, not the simulator) within their standard errors, for

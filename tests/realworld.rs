@@ -39,7 +39,7 @@ const PIPELINES_NOT_ANALYSED: &[&str] = &[
 /// Parameters the first published params files predated: the probabilities
 /// of the predicates btrel reads since (Precondition's `if`, `_skipIf`,
 /// ManualSelector's `select_k`, PathLongerOnApproach's `longer`, keyed as
-/// README "Predicates" says), the robot's speed that DistanceController and
+/// docs/TREE-FORMAT.md "Predicates" says), the robot's speed that DistanceController and
 /// SpeedController read (`<node>/speed`, m/s), and blackboard values the
 /// sources fix (queue lengths, a SubTree port's default), illustrative like
 /// the published ones. The corpus' params files now carry them (INDEX.md:

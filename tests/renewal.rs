@@ -592,7 +592,7 @@ fn corpus_speed_controller_trees_match_the_closed_form_and_simulation() {
 /// One attempt of Nav2's default tree: its PipelineSequence as published
 /// (re-planning at 1 Hz with a costmap-clearing retry, raced by the
 /// follower with its own), and the corpus' params for its leaves, with the
-/// two synchronous checks of its ReactiveSequence taking no time (as README
+/// two synchronous checks of its ReactiveSequence taking no time (as docs/NAV2.md's
 /// *Nav2's default tree* does: two actions that take time there are
 /// refused). The whole tree's RoundRobin without wrap_around has no exact
 /// meaning yet.

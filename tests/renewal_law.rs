@@ -195,10 +195,10 @@ fn nav2_default_pipeline_in_its_recovery_node_tends_to_the_report() {
 }
 
 /// Nav2's default tree as published (its fixed 5 s `Wait` an atom of the
-/// composed laws) with `trees/nav2-default.params.yaml`, the README's
+/// composed laws) with `trees/nav2-default.params.yaml`, docs/NAV2.md's
 /// *Nav2's default tree*: the curve tends to `report`'s figures and agrees
 /// with simulation of the published tick semantics (|z| < 5) at the times
-/// the README quotes.
+/// docs/NAV2.md quotes.
 #[test]
 fn nav2_default_tree_as_published_has_its_curve() {
     let Some(root) = corpus() else {
