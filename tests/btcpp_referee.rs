@@ -485,7 +485,7 @@ fn reactive_nodes_with_actions_in_two_children_are_restart_loops() {
     ] {
         let t = parse(body).unwrap_or_else(|e| panic!("{body}: {e}"));
         assert!(
-            t.nodes
+            t.nodes()
                 .iter()
                 .any(|n| n.name.ends_with("/restarts") && n.kind.keyword() == looped),
             "{body}"
@@ -498,7 +498,7 @@ fn reactive_nodes_with_actions_in_two_children_are_restart_loops() {
         "<Sequence><ReactiveSequence><C1/><A1/></ReactiveSequence><ReactiveSequence><C2/><A2/></ReactiveSequence></Sequence>",
     ] {
         let t = parse(body).unwrap_or_else(|e| panic!("{body}: {e}"));
-        let kind = t.nodes[if body.starts_with("<Sequence>") { 1 } else { 0 }]
+        let kind = t.nodes()[if body.starts_with("<Sequence>") { 1 } else { 0 }]
             .kind
             .keyword();
         let want = if body.contains("<ReactiveFallback>") {

@@ -799,8 +799,8 @@ fn a_bad_covariance_is_a_located_error() {
         <TreeNodesModel><Action ID="A"/></TreeNodesModel></root>"#;
     let keyed = btrel::tree::xml::parse_xml_str_keyed(tree, "t.xml", &text, "p.yaml")
         .unwrap_or_else(|e| panic!("{e}"));
-    assert_eq!(keyed.tree.nodes.len(), 1);
-    assert_eq!(keyed.tree.nodes[0].name, "A");
+    assert_eq!(keyed.tree.nodes().len(), 1);
+    assert_eq!(keyed.tree.nodes()[0].name, "A");
 }
 
 /// Coverage with `--timing auto`: A's Success times are Erlang-3 (rate 6,
@@ -967,12 +967,17 @@ fn auto_coverage(seed: u64, reps: usize, halt: f64) -> ([usize; 4], [usize; 2], 
         let stats = read_fit_stats(&params, "p.yaml").unwrap();
         let sampler = Sampler::new(&keyed.tree, &keyed.keys, &stats);
         held += sampler.held.len();
-        let a = keyed.tree.nodes.iter().position(|n| n.name == "a").unwrap();
+        let a = keyed
+            .tree
+            .nodes()
+            .iter()
+            .position(|n| n.name == "a")
+            .unwrap();
         let ci = sampler
             .intervals(level, 400, rep as u64, |t| {
                 btrel::analyze(t, &Default::default()).map(|an| {
                     let f = an.nodes[0];
-                    let btrel::tree::NodeKind::Action(x) = &t.nodes[a].kind else {
+                    let btrel::tree::NodeKind::Action(x) = &t.nodes()[a].kind else {
                         unreachable!()
                     };
                     vec![Some(f.ps), f.mtts, f.mttf, x.failure.map(|d| d.shift())]

@@ -712,7 +712,7 @@ const JSON_NODE_KEYS: [&str; 9] = [
 fn report_every_example_tree_in_every_format() {
     for path in tree_files() {
         let tree = btrel::tree::parse_file(&path).unwrap();
-        let n = tree.nodes.len();
+        let n = tree.nodes().len();
         for method in ["exact", "book"] {
             // table
             let out = btrel()
@@ -734,7 +734,7 @@ fn report_every_example_tree_in_every_format() {
             let lines: Vec<&str> = table.lines().collect();
             assert_eq!(lines.len(), n + 2, "title, header, one row per node");
             assert!(lines[0].contains(&format!("method: {method}")), "{table}");
-            for node in &tree.nodes {
+            for node in tree.nodes() {
                 assert!(table.contains(&node.name), "{table}");
             }
 
@@ -750,7 +750,7 @@ fn report_every_example_tree_in_every_format() {
             assert!(v["tree"].is_string());
             let nodes = v["nodes"].as_array().unwrap();
             assert_eq!(nodes.len(), n);
-            for (node, j) in tree.nodes.iter().zip(nodes) {
+            for (node, j) in tree.nodes().iter().zip(nodes) {
                 for k in JSON_NODE_KEYS {
                     assert!(j.get(k).is_some(), "missing key {k} in {j}");
                 }

@@ -285,7 +285,7 @@ fn speed_controller_waits_two_over_the_rate_sum_first() {
         "<SpeedController min_rate=\"0.1\" max_rate=\"1.0\" min_speed=\"0.0\" max_speed=\"0.26\"><A/></SpeedController>",
         &format!("{A}\"SpeedController/speed\": {{value: 0.13}}\n"),
     );
-    match t.nodes[0].kind {
+    match t.nodes()[0].kind {
         btrel::tree::NodeKind::Decorator {
             decorator: btrel::tree::Decorator::Rate { first, period },
             ..

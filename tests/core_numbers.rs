@@ -167,7 +167,7 @@ fn search_and_grasp_every_node_matches_refs() {
     let refs = refs();
     let nodes = &refs["search_and_grasp"]["nodes"];
     let tree = load("trees/search-and-grasp.yaml");
-    assert_eq!(tree.nodes.len(), SEARCH_AND_GRASP_NAMES.len());
+    assert_eq!(tree.nodes().len(), SEARCH_AND_GRASP_NAMES.len());
     for method in METHODS {
         let a = run(&tree, method);
         for (rname, yname) in SEARCH_AND_GRASP_NAMES {

@@ -165,8 +165,8 @@ proptest! {
         let tree = parse(&g.yaml());
         for method in [Method::Exact, Method::Book] {
             let a = run(&tree, method);
-            prop_assert_eq!(a.nodes.len(), tree.nodes.len());
-            for (node, f) in tree.nodes.iter().zip(&a.nodes) {
+            prop_assert_eq!(a.nodes.len(), tree.nodes().len());
+            for (node, f) in tree.nodes().iter().zip(&a.nodes) {
                 prop_assert!((f.ps + f.pf - 1.0).abs() <= 1e-12,
                     "{} ({:?}): ps {} + pf {} = {}", node.name, method, f.ps, f.pf, f.ps + f.pf);
                 // rounding may leave a probability 1 ulp outside [0, 1]
@@ -189,7 +189,7 @@ proptest! {
     fn mixed_trees_match_full_phase_chain(g in mixed_tree_gen()) {
         let tree = parse(&g.yaml());
         let a = run(&tree, Method::Exact);
-        for (node, f) in tree.nodes.iter().zip(&a.nodes) {
+        for (node, f) in tree.nodes().iter().zip(&a.nodes) {
             prop_assert!((f.ps + f.pf - 1.0).abs() <= 1e-12,
                 "{}: ps {} + pf {}", node.name, f.ps, f.pf);
         }
@@ -216,7 +216,7 @@ proptest! {
         let tree = parse(&g.yaml());
         let e = run(&tree, Method::Exact);
         let b = run(&tree, Method::Book);
-        for ((node, x), y) in tree.nodes.iter().zip(&e.nodes).zip(&b.nodes) {
+        for ((node, x), y) in tree.nodes().iter().zip(&e.nodes).zip(&b.nodes) {
             prop_assert!((x.ps - y.ps).abs() <= 1e-12, "{}: ps {} vs {}", node.name, x.ps, y.ps);
             same_time(&format!("{} MTTS", node.name), x.mtts, y.mtts, 1e-9)?;
             same_time(&format!("{} MTTF", node.name), x.mttf, y.mttf, 1e-9)?;
@@ -347,7 +347,7 @@ proptest! {
         let tree = parse(&Gen::Fallback(children).yaml());
         let an = run(&tree, Method::Exact);
         if let Some(mttf) = an.nodes[0].mttf {
-            let sum: f64 = tree.nodes[0].kind.children().iter()
+            let sum: f64 = tree.nodes()[0].kind.children().iter()
                 .map(|&c| an.nodes[c].mttf.expect("every child can fail"))
                 .sum();
             prop_assert!(rel_close(mttf, sum, 1e-9), "MTTF {} vs Σ {}", mttf, sum);
@@ -378,10 +378,10 @@ fn generated_yaml_shape() {
         Gen::Sequence(vec![Gen::Condition { ps: 1.0 }]),
     ]);
     let tree = parse(&g.yaml());
-    assert_eq!(tree.nodes.len(), 4);
-    assert_eq!(tree.nodes[0].kind.keyword(), "fallback");
-    assert_eq!(tree.nodes[2].kind.keyword(), "sequence");
-    assert_eq!(tree.nodes[3].path, "0.1.0");
+    assert_eq!(tree.nodes().len(), 4);
+    assert_eq!(tree.nodes()[0].kind.keyword(), "fallback");
+    assert_eq!(tree.nodes()[2].kind.keyword(), "sequence");
+    assert_eq!(tree.nodes()[3].path, "0.1.0");
     // Fallback[A(.25), Sequence[cond 1]] always succeeds
     let f = run(&tree, Method::Exact).nodes[0];
     assert_eq!(f.ps, 1.0);

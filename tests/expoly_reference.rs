@@ -111,7 +111,7 @@ fn exact_figures_and_curves_match_the_closed_form_reference() {
 
     let (mut nodes, mut figures, mut curves, mut worst_p, mut worst_m) = (0, 0, 0, 0.0f64, 0.0f64);
     for ((yaml, t), want) in trees.iter().zip(&reference) {
-        assert_eq!(want.len(), t.nodes.len(), "node count of {yaml}");
+        assert_eq!(want.len(), t.nodes().len(), "node count of {yaml}");
         let report = btrel::analyze(t, &Default::default());
         for (id, w) in want.iter().enumerate() {
             nodes += 1;

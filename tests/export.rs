@@ -105,10 +105,10 @@ fn dot_tree_structure_symbols_and_escaping() {
     assert!(dot.starts_with("digraph"));
     assert!(balanced(&dot), "{dot}");
     assert!(dot.contains("ordering=out"));
-    for id in 0..t.nodes.len() {
+    for id in 0..t.nodes().len() {
         assert!(dot.contains(&format!("  n{id} [")), "node {id} missing");
     }
-    assert_eq!(edges(&dot), t.nodes.len() - 1);
+    assert_eq!(edges(&dot), t.nodes().len() - 1);
     for symbol in ["→", "?", "⇒ M/N = 1/2, F = 1", "◇ retry 3", "◇ inverter"] {
         assert!(dot.contains(symbol), "{symbol} missing:\n{dot}");
     }
@@ -130,7 +130,7 @@ fn dot_tree_book_parallel_has_no_f_and_analysis_annotates_control_nodes() {
     let a = analyze(&t, &Options::default()).unwrap();
     let dot = dot_tree(&t, Some(&a));
     assert!(balanced(&dot));
-    assert_eq!(edges(&dot), t.nodes.len() - 1);
+    assert_eq!(edges(&dot), t.nodes().len() - 1);
     // root: ps = 0.48840
     assert!(dot.contains("ps = 0.4884, MTTS = 169.38"), "{dot}");
     // conditions with ps = 0 have no MTTS; they are leaves, not annotated
@@ -197,7 +197,7 @@ fn mrg_of_parallel_two_of_two_uses_rate_shares() {
 fn mrg_of_leaf_or_decorator_is_an_error() {
     let t = tree(MIXED);
     let retry = t
-        .nodes
+        .nodes()
         .iter()
         .position(|n| n.kind.keyword() == "retry")
         .unwrap();
@@ -264,7 +264,7 @@ fn check_prism(t: &Tree, id: usize) -> String {
 #[test]
 fn prism_matches_phase_chains_exactly() {
     let t = search_and_grasp();
-    for id in 0..t.nodes.len() {
+    for id in 0..t.nodes().len() {
         check_prism(&t, id);
     }
     let text = check_prism(&t, 0);
@@ -279,7 +279,7 @@ fn prism_matches_phase_chains_exactly() {
         )));
     }
     let pair = tree(MIXED.replace("tau_s: 2.0", "mu: 0.5").as_str());
-    for id in 0..pair.nodes.len() {
+    for id in 0..pair.nodes().len() {
         check_prism(&pair, id);
     }
 }
@@ -415,9 +415,9 @@ fn explicit_files(chain: &btrel::solve::chain::PhaseChain) -> Vec<String> {
 fn prism_explicit_files_are_the_chain() {
     let t = search_and_grasp();
     let pair = tree(MIXED.replace("tau_s: 2.0", "mu: 0.5").as_str());
-    for (t, id) in (0..t.nodes.len())
+    for (t, id) in (0..t.nodes().len())
         .map(|i| (&t, i))
-        .chain((0..pair.nodes.len()).map(|i| (&pair, i)))
+        .chain((0..pair.nodes().len()).map(|i| (&pair, i)))
     {
         let chain = phase_chain(t, id, 1_000_000).unwrap();
         let n = chain.len();

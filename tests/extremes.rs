@@ -67,8 +67,8 @@ fn figures_match_the_high_precision_reference() {
     let r = reference();
     let a = analyze(&t, &Options::default()).expect("exact analysis");
     let refs = r["nodes"].as_object().unwrap();
-    assert_eq!(refs.len(), t.nodes.len(), "reference covers every node");
-    for (node, f) in t.nodes.iter().zip(&a.nodes) {
+    assert_eq!(refs.len(), t.nodes().len(), "reference covers every node");
+    for (node, f) in t.nodes().iter().zip(&a.nodes) {
         let want = &refs[&node.name];
         let name = &node.name;
         check_opt(name, "ps", Some(f.ps), &want["ps"]);
@@ -141,7 +141,7 @@ fn curves_match_the_high_precision_reference_up_to_1e7() {
     let times = ref_times(&r);
     assert_eq!(*times.last().unwrap(), 1e7);
     let mut worst = 0.0f64;
-    for (id, node) in t.nodes.iter().enumerate() {
+    for (id, node) in t.nodes().iter().enumerate() {
         // (timing: see `every_curve_is_fast_at_long_horizons`)
         let pts = curve(&t, id, &times, &CurveOptions::default())
             .unwrap_or_else(|e| panic!("{}: {e}", node.name));
@@ -210,7 +210,7 @@ fn book_and_deterministic_curves_are_finite() {
             timing,
             ..CurveOptions::default()
         };
-        for id in 0..t.nodes.len() {
+        for id in 0..t.nodes().len() {
             match curve(&t, id, &times, &opts) {
                 Ok(pts) => {
                     for p in pts {
@@ -219,12 +219,12 @@ fn book_and_deterministic_curves_are_finite() {
                                 .iter()
                                 .all(|x| x.is_finite() && *x >= -1e-15 && *x <= 1.0 + 1e-15),
                             "{} {method:?} {timing:?}: {p:?}",
-                            t.nodes[id].name
+                            t.nodes()[id].name
                         );
                     }
                 }
                 // a refusal is honest; a wrong number is not
-                Err(e) => eprintln!("{} {method:?} {timing:?}: {e}", t.nodes[id].name),
+                Err(e) => eprintln!("{} {method:?} {timing:?}: {e}", t.nodes()[id].name),
             }
         }
     }
@@ -364,7 +364,7 @@ fn cli_curve_simulate_compare_export_plot() {
 fn every_curve_is_fast_at_long_horizons() {
     let t = tree();
     let mut slow = Vec::new();
-    for (id, node) in t.nodes.iter().enumerate() {
+    for (id, node) in t.nodes().iter().enumerate() {
         let start = Instant::now();
         curve(&t, id, &[1e7], &CurveOptions::default()).unwrap();
         let took = start.elapsed();

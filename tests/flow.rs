@@ -359,7 +359,7 @@ fn exports_draw_or_refuse_a_flow() {
     let a = btrel::analyze(&t, &Default::default()).unwrap();
     let dot = btrel::export::dot_tree(&t, Some(&a));
     assert!(dot.contains("flow, 3 states"), "{dot}");
-    let figs: Vec<_> = t.nodes[0]
+    let figs: Vec<_> = t.nodes()[0]
         .kind
         .children()
         .iter()

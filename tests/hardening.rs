@@ -59,8 +59,8 @@ fn sane_error(e: &TreeError, input: &str) {
 }
 
 fn sane_tree(t: &Tree) {
-    assert!(!t.nodes.is_empty());
-    for n in &t.nodes {
+    assert!(!t.nodes().is_empty());
+    for n in t.nodes() {
         if let btrel::tree::NodeKind::Action(a) = n.kind {
             assert!((0.0..=1.0).contains(&a.ps) && (0.0..=1.0).contains(&a.pf));
         }

@@ -55,7 +55,7 @@ fn every_node_matches_the_reference_of(
     for ((t, want), (n, seed)) in trees.iter().zip(&reference).zip(cases) {
         assert_eq!(
             want.len(),
-            t.nodes.len(),
+            t.nodes().len(),
             "{n} leaves, seed {seed}: node count"
         );
         for (id, w) in want.iter().enumerate() {

@@ -101,7 +101,7 @@ fn bt_cpp_forms_of_the_loops() {
     let params = "Step: {ps: 0.5, mu: 1.0, nu: 2.0}\n";
     let t = btrel::tree::xml::parse_xml_str(xml, "t.xml", params, "t.params.yaml").unwrap();
     use btrel::tree::{Decorator, NodeKind};
-    let kind = |n: &str| match &t.nodes[t.find(n).unwrap()].kind {
+    let kind = |n: &str| match &t.nodes()[t.find(n).unwrap()].kind {
         NodeKind::Decorator { decorator, .. } => *decorator,
         k => panic!("{k:?}"),
     };

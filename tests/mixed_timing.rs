@@ -152,7 +152,7 @@ fn random_mixed_trees_report_and_curve_agree_on_every_node() {
         let t = tree(&yaml);
         let report = btrel::analyze(&t, &Default::default())
             .unwrap_or_else(|e| panic!("seed {seed}: report refused: {e} in {yaml}"));
-        for id in 0..t.nodes.len() {
+        for id in 0..t.nodes().len() {
             let f = report.nodes[id];
             let p = btrel::curve::curve(&t, id, &[600.0], &Default::default())
                 .unwrap_or_else(|e| panic!("seed {seed} node {id}: curve refused: {e} in {yaml}"));

@@ -504,7 +504,7 @@ fn single_trigger_and_goal_updater() {
         "<GoalUpdater><A/></GoalUpdater>",
         "A: {ps: 0.7, mu: 1, nu: 2}\n",
     );
-    assert_eq!(tree.nodes.len(), 1);
+    assert_eq!(tree.nodes().len(), 1);
 }
 
 #[test]
@@ -532,7 +532,7 @@ fn attributes_are_checked_with_their_place() {
     let t = parse_xml_str(&text(&body("hz=\"{rate}\"")), "t.xml", &with_rate, "p.yaml")
         .unwrap_or_else(|e| panic!("{e}"));
     assert!(
-        t.nodes.iter().any(|n| matches!(
+        t.nodes().iter().any(|n| matches!(
             n.kind,
             NodeKind::Decorator { decorator: Decorator::Rate { period, .. }, .. } if period == 0.5
         )),
@@ -549,7 +549,7 @@ fn attributes_are_checked_with_their_place() {
     // the default rate is Nav2's 10 Hz
     let tree = xml(&body(""), params);
     assert!(matches!(
-        tree.nodes[0].kind,
+        tree.nodes()[0].kind,
         btrel::tree::NodeKind::Decorator {
             decorator: btrel::tree::Decorator::Rate { period, first },
             ..

@@ -91,7 +91,7 @@ fn a_condition_between_the_timed_children_is_read_after_the_first_success() {
     let f = common::root_figures(&t);
     near(f.pf, 1.0);
     near(f.mttf.expect("MTTF"), 2.7);
-    assert!(t.nodes.iter().any(|n| n.name.contains("/restart/A")));
+    assert!(t.nodes().iter().any(|n| n.name.contains("/restart/A")));
     let r = common::simulate_root(&t, 200_000, &[]);
     common::assert_within_z("MTTF", r.nodes[0].mttf.as_ref().expect("runs"), 2.7);
 }
@@ -362,7 +362,7 @@ fn force_decorators_keep_the_never_returning_mass() {
             let r = sens
                 .rows
                 .iter()
-                .find(|r| t.nodes[r.leaf].name == "a" && r.param == Param::Ps)
+                .find(|r| t.nodes()[r.leaf].name == "a" && r.param == Param::Ps)
                 .expect("a row for a's ps");
             near(r.derivative, 1.0);
         }

@@ -39,7 +39,7 @@ fn a_hyperexponential_leaf_has_its_closed_form_mean_and_cdf() {
         let (s, _) = curve_at(&t, x);
         assert!((s - want).abs() < 1e-11, "{x}: {s} vs {want}");
     }
-    let NodeKind::Action(a) = t.nodes[0].kind else {
+    let NodeKind::Action(a) = t.nodes()[0].kind else {
         panic!("an action")
     };
     let d = a.success.expect("a time");
@@ -226,7 +226,7 @@ fn the_written_form_reads_back_to_the_same_law() {
         "tree: {{action: {{ps: 0.5, success_time: {{shift: 2, phase_type: \
            {{alpha: [0.3, 0.7], T: [[-2, 1], [0, -3]]}}}}, failure_time: {HYPER}}}}}"
     ));
-    let NodeKind::Action(a) = t.nodes[0].kind else {
+    let NodeKind::Action(a) = t.nodes()[0].kind else {
         panic!("an action")
     };
     let y = format!(
@@ -241,14 +241,14 @@ fn the_written_form_reads_back_to_the_same_law() {
     assert_eq!(f.family(), "hyperexponential");
     for d in [s, f] {
         let y = format!("tree: {{action: {{ps: 1, success_time: {}}}}}", d.to_yaml());
-        let NodeKind::Action(r) = tree(&y).nodes[0].kind else {
+        let NodeKind::Action(r) = tree(&y).nodes()[0].kind else {
             panic!("an action")
         };
         assert_eq!(r.success, Some(d), "{y}");
     }
     // one phase is the exponential
     let t = tree("tree: {action: {ps: 1, success_time: {phase_type: {alpha: [1], T: [[-2]]}}}}");
-    let NodeKind::Action(a) = t.nodes[0].kind else {
+    let NodeKind::Action(a) = t.nodes()[0].kind else {
         panic!("an action")
     };
     assert_eq!(a.success.expect("S").family(), "exponential");

@@ -48,7 +48,7 @@ fn script_condition_is_a_condition_from_the_params_file() {
     // condition all the same (a timing key is refused)
     let body = "<Action ID=\"ScriptCondition\" name=\"drained\" code=\"drained\"/>";
     let t = xml(body, "drained: {ps: 0.25}").unwrap();
-    assert_eq!(t.nodes[0].kind, NodeKind::Condition { ps: 0.25 });
+    assert_eq!(t.nodes()[0].kind, NodeKind::Condition { ps: 0.25 });
     let e = err(body, "drained: {ps: 0.25, mu: 1}");
     assert!(e.message.contains("a condition takes only `ps`"), "{e}");
     // listed with the other missing parameters, with its location
@@ -79,8 +79,8 @@ fn precondition_else_failure_is_a_sequence() {
     let body = "<Precondition if=\"ok\"><A/></Precondition>";
     check_figures(xml_root(body, &params), 0.4, Some(1.0), Some(0.2 / 0.6));
     let t = xml(body, &params).unwrap();
-    assert_eq!(t.nodes[1].name, "Precondition/if");
-    assert_eq!(t.nodes[1].kind, NodeKind::Condition { ps: 0.8 });
+    assert_eq!(t.nodes()[1].name, "Precondition/if");
+    assert_eq!(t.nodes()[1].kind, NodeKind::Condition { ps: 0.8 });
 }
 
 #[test]
@@ -281,7 +281,7 @@ fn a_skipped_child_of_a_sequence_is_passed_over_as_a_success() {
         Some(mttf),
     );
     let t = xml(body, &params).unwrap();
-    let names: Vec<&str> = t.nodes.iter().map(|n| n.name.as_str()).collect();
+    let names: Vec<&str> = t.nodes().iter().map(|n| n.name.as_str()).collect();
     assert_eq!(names, ["Sequence", "A/guard", "A/_while", "A", "B"]);
 }
 

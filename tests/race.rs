@@ -331,7 +331,7 @@ fn random_races_report_is_the_limit_of_the_curve_and_agrees_with_simulation() {
         let a = btrel::analyze(&t, &Default::default())
             .unwrap_or_else(|e| panic!("seed {seed}: {e} in {yaml}"));
         // the root and its children (deeper nodes are such nodes of other seeds)
-        let top = std::iter::once(0).chain(t.nodes[0].kind.children().iter().copied());
+        let top = std::iter::once(0).chain(t.nodes()[0].kind.children().iter().copied());
         for id in top {
             let pts = btrel::curve::curve(&t, id, &[150.0], &Default::default())
                 .unwrap_or_else(|e| panic!("seed {seed} node {id}: {e} in {yaml}"));

@@ -275,7 +275,7 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
                 // the tree as read has a PipelineSequence iff INDEX.md's
                 // node types (of the tree and its needs) name one
                 let has_pipe = tree
-                    .nodes
+                    .nodes()
                     .iter()
                     .any(|n| matches!(n.kind, btrel::tree::NodeKind::Pipeline { .. }));
                 assert_eq!(
@@ -293,10 +293,10 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
                         if a.nodes[0].never() > 1e-9 {
                             nevers.push((row.file.clone(), a.nodes[0].never()));
                         }
-                        let pipes: Vec<usize> = (0..tree.nodes.len())
+                        let pipes: Vec<usize> = (0..tree.nodes().len())
                             .filter(|&id| {
                                 matches!(
-                                    tree.nodes[id].kind,
+                                    tree.nodes()[id].kind,
                                     btrel::tree::NodeKind::Pipeline { .. }
                                 )
                             })
@@ -310,7 +310,7 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
                                 if let Err(e) =
                                     btrel::curve::curve(&tree, id, &[100.0], &Default::default())
                                 {
-                                    refused.push(format!("'{}': {e}", tree.nodes[id].name));
+                                    refused.push(format!("'{}': {e}", tree.nodes()[id].name));
                                 }
                             }
                             if refused.is_empty() {
@@ -332,7 +332,7 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
                         }
                         let pts = pts.unwrap_or_default();
                         common::assert_root_and_curve_within_z(&row.file, a.nodes[0], &pts, &sim);
-                        parsed.push((row.file.clone(), tree.nodes.len()));
+                        parsed.push((row.file.clone(), tree.nodes().len()));
                     }
                     // a documented limit of the engine, not of the front end
                     Err(
@@ -354,7 +354,7 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
                     Err(e) => panic!(
                         "{}: read ({} nodes) but not analysed: {e}",
                         row.file,
-                        tree.nodes.len()
+                        tree.nodes().len()
                     ),
                 }
             }
@@ -609,18 +609,15 @@ fn published_trees_with_fitted_timings() {
         .filter(|r| r.kind == "tree" && chosen(&r.file))
     {
         println!("fitted timings: {} starts", row.file);
-        let Ok(mut tree) = read(&root, row, scratch.path()) else {
+        let Ok(published) = read(&root, row, scratch.path()) else {
             continue;
         };
-        if analyze(&tree, &Options::default()).is_err() {
+        if analyze(&published, &Options::default()).is_err() {
             continue;
         }
-        for n in &mut tree.nodes {
-            if let btrel::tree::NodeKind::Action(a) = &mut n.kind {
-                a.success = fitted(a.success, true);
-                a.failure = fitted(a.failure, false);
-            }
-        }
+        let tree = published
+            .with_action_times(|_, a| (fitted(a.success, true), fitted(a.failure, false)))
+            .expect("fitted times are valid");
         let start = std::time::Instant::now();
         let times = [10.0, 100.0];
         let result = analyze(&tree, &Options::default()).and_then(|a| {

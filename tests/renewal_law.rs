@@ -65,7 +65,7 @@ fn around() -> Vec<(&'static str, Tree)> {
 }
 
 fn node(tree: &Tree, name: &str) -> usize {
-    tree.nodes
+    tree.nodes()
         .iter()
         .position(|n| n.name == name)
         .expect("the node exists")

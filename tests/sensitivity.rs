@@ -37,7 +37,7 @@ fn row(
     let r = s
         .rows
         .iter()
-        .find(|r| tree.nodes[r.leaf].name == leaf && r.param == p)
+        .find(|r| tree.nodes()[r.leaf].name == leaf && r.param == p)
         .unwrap_or_else(|| panic!("no row {leaf} {p:?}"));
     (r.derivative, r.elasticity, r.error, r.scheme)
 }
@@ -74,7 +74,7 @@ fn sequence_closed_forms() {
     close("elasticity", e.unwrap(), -0.5 / mtts);
     close("d MTTS / d ps_a", row(&s, &tree, "a", Param::Ps).0, 0.0);
     // ranked by |elasticity|: mu of a (1/mu_a is the largest share) first
-    assert_eq!(tree.nodes[s.rows[0].leaf].name, "a");
+    assert_eq!(tree.nodes()[s.rows[0].leaf].name, "a");
     assert_eq!(s.rows[0].param, Param::Mu);
 }
 
@@ -518,7 +518,7 @@ fn exact_matches_richardson_on_random_trees() {
                     assert!(
                         !std::ptr::eq(tree, &tree_exponential),
                         "seed {seed} {objective:?} {} {:?} differenced",
-                        tree.nodes[a.leaf].path,
+                        tree.nodes()[a.leaf].path,
                         a.param
                     );
                     // the same differences
@@ -536,7 +536,7 @@ fn exact_matches_richardson_on_random_trees() {
                 assert!(
                     (a.derivative - b.derivative).abs() <= 1e-7 * scale + 2.0 * b.error,
                     "seed {seed} {objective:?} {} {:?}: exact {} vs differences {} (error {})",
-                    tree.nodes[a.leaf].path,
+                    tree.nodes()[a.leaf].path,
                     a.param,
                     a.derivative,
                     b.derivative,
@@ -582,7 +582,7 @@ fn counted_parallel_matches_differences() {
                 (a.derivative - b.derivative).abs()
                     <= 1e-7 * a.derivative.abs().max(1.0) + 2.0 * b.error,
                 "{objective:?} {}: exact {} vs differences {} ({})",
-                tree.nodes[a.leaf].name,
+                tree.nodes()[a.leaf].name,
                 a.derivative,
                 b.derivative,
                 b.error

@@ -54,7 +54,7 @@ fn every_node_agrees(label: &str, t: &btrel::tree::Tree, runs: u64) {
         ..Default::default()
     };
     let sim = simulate(t, &opts, None).expect("simulates");
-    assert_eq!(sim.nodes.len(), t.nodes.len());
+    assert_eq!(sim.nodes.len(), t.nodes().len());
     for est in &sim.nodes {
         let f = exact.nodes[est.node];
         let what = format!("{label} node {} '{}'", est.node, t.node(est.node).name);

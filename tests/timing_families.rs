@@ -158,13 +158,13 @@ fn the_format_reads_every_family() {
              failure_time: {fixed: 2}}}, \
            {action: {name: c, ps: 1, success_time: {rate: 4}}}]}}",
     );
-    let NodeKind::Action(a) = t.nodes[1].kind else {
+    let NodeKind::Action(a) = t.nodes()[1].kind else {
         panic!("an action")
     };
     let (s, f) = (a.success.expect("S"), a.failure.expect("F"));
     assert_eq!((s.family(), s.mean()), ("Erlang", 6.0));
     assert_eq!((f.family(), f.mean()), ("hypoexponential", 1.5));
-    let NodeKind::Action(b) = t.nodes[2].kind else {
+    let NodeKind::Action(b) = t.nodes()[2].kind else {
         panic!("an action")
     };
     let s = b.success.expect("S");
@@ -173,7 +173,7 @@ fn the_format_reads_every_family() {
         ("shifted exponential", 10.0, 8.0)
     );
     assert_eq!(b.failure, Some(Duration::Fixed { time: 2.0 }));
-    let NodeKind::Action(c) = t.nodes[3].kind else {
+    let NodeKind::Action(c) = t.nodes()[3].kind else {
         panic!("an action")
     };
     assert_eq!(c.success, Some(Duration::Exponential { rate: 4.0 }));
@@ -181,7 +181,7 @@ fn the_format_reads_every_family() {
     for d in [a.success, a.failure, b.success, b.failure] {
         let d = d.expect("a time");
         let y = format!("tree: {{action: {{ps: 1, success_time: {}}}}}", d.to_yaml());
-        let NodeKind::Action(r) = tree(&y).nodes[0].kind else {
+        let NodeKind::Action(r) = tree(&y).nodes()[0].kind else {
             panic!("an action")
         };
         assert_eq!(r.success, Some(d), "{y}");
@@ -475,4 +475,49 @@ fn sensitivity_moves_a_shift_as_its_tau() {
         .expect("shift");
     let want = -3.0 * (-3.0f64).exp();
     assert!((row.derivative - want).abs() < 1e-7, "{row:?} vs {want}");
+}
+
+/// `Tree::with_action_times`: a variant of a validated tree with other leaf
+/// times is a new tree (the tree itself is immutable outside the crate);
+/// invalid times are refused naming the action and the outcome.
+#[test]
+fn a_tree_with_other_action_times() {
+    let t = tree(
+        "tree: {sequence: {children: [{action: {name: a, ps: 0.9, mu: 1, nu: 2}}, \
+         {action: {name: b, ps: 0.5, mu: 4, nu: 4}}]}}",
+    );
+    // a's Success takes exactly 2 s, b keeps its times: the Sequence
+    // succeeds after 2 + 1/4 s on average (a closed form), with 0.45
+    let fixed = t
+        .with_action_times(|id, a| {
+            if t.node(id).name == "a" {
+                (Some(Duration::Fixed { time: 2.0 }), a.failure)
+            } else {
+                (a.success, a.failure)
+            }
+        })
+        .unwrap();
+    let f = root_figures(&fixed);
+    assert!((f.ps - 0.45).abs() < 1e-12, "{}", f.ps);
+    assert!((f.mtts.unwrap() - 2.25).abs() < 1e-12, "{:?}", f.mtts);
+    // the original is unchanged: 1 + 1/4
+    assert!((root_figures(&t).mtts.unwrap() - 1.25).abs() < 1e-12);
+    let e = t
+        .with_action_times(|_, a| (Some(Duration::Exponential { rate: -1.0 }), a.failure))
+        .unwrap_err();
+    assert_eq!((e.node.as_str(), e.outcome), ("a", "success"));
+    assert!(e.to_string().contains("rate -1"), "{e}");
+    let e = t.with_action_times(|_, a| (a.success, None)).unwrap_err();
+    assert_eq!((e.node.as_str(), e.outcome), ("a", "failure"));
+    assert!(e.to_string().contains("is missing"), "{e}");
+    let e = t
+        .with_action_times(|_, a| {
+            let capped = Duration::TruncatedExponential {
+                rate: 1.0,
+                cap: f64::NAN,
+            };
+            (Some(capped), a.failure)
+        })
+        .unwrap_err();
+    assert!(e.to_string().contains("cap NaN"), "{e}");
 }

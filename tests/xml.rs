@@ -29,7 +29,7 @@ fn wrap(body: &str) -> String {
 }
 
 fn names(t: &Tree) -> Vec<&str> {
-    t.nodes.iter().map(|n| n.name.as_str()).collect()
+    t.nodes().iter().map(|n| n.name.as_str()).collect()
 }
 
 fn close(a: f64, b: f64) -> bool {
@@ -44,15 +44,15 @@ fn same_figures(name: &str) {
         &dir.join(format!("{name}.params.yaml")),
     )
     .unwrap_or_else(|e| panic!("{e}"));
-    assert_eq!(x.nodes.len(), y.nodes.len());
+    assert_eq!(x.nodes().len(), y.nodes().len());
     let ay = analyze(&y, &Options::default()).unwrap();
     let ax = analyze(&x, &Options::default()).unwrap();
-    for (i, n) in y.nodes.iter().enumerate() {
+    for (i, n) in y.nodes().iter().enumerate() {
         let j = x
             .find(&n.name)
             .unwrap_or_else(|| panic!("{} missing", n.name));
-        assert_eq!(x.nodes[j].path, n.path, "{}", n.name);
-        assert_eq!(x.nodes[j].kind.keyword(), n.kind.keyword(), "{}", n.name);
+        assert_eq!(x.nodes()[j].path, n.path, "{}", n.name);
+        assert_eq!(x.nodes()[j].kind.keyword(), n.kind.keyword(), "{}", n.name);
         let (fy, fx) = (ay.nodes[i], ax.nodes[j]);
         assert!(close(fx.ps, fy.ps) && close(fx.pf, fy.pf), "{}", n.name);
         for (a, b) in [(fx.mtts, fy.mtts), (fx.mttf, fy.mttf)] {
@@ -105,30 +105,30 @@ fn control_nodes_and_decorators_map() {
             "AlwaysSuccess"
         ]
     );
-    assert_eq!(t.nodes[0].kind.keyword(), "sequence");
-    assert_eq!(t.nodes[1].kind.keyword(), "sequence");
-    assert_eq!(t.nodes[3].kind.keyword(), "fallback");
-    assert_eq!(t.nodes[5].kind, NodeKind::Condition { ps: 0.0 });
-    assert_eq!(t.nodes[12].kind, NodeKind::Condition { ps: 1.0 });
+    assert_eq!(t.nodes()[0].kind.keyword(), "sequence");
+    assert_eq!(t.nodes()[1].kind.keyword(), "sequence");
+    assert_eq!(t.nodes()[3].kind.keyword(), "fallback");
+    assert_eq!(t.nodes()[5].kind, NodeKind::Condition { ps: 0.0 });
+    assert_eq!(t.nodes()[12].kind, NodeKind::Condition { ps: 1.0 });
     assert!(matches!(
-        t.nodes[10].kind,
+        t.nodes()[10].kind,
         NodeKind::Decorator {
             decorator: Decorator::Retry { attempts: 3 },
             child: 11
         }
     ));
     assert!(matches!(
-        t.nodes[11].kind,
+        t.nodes()[11].kind,
         NodeKind::Decorator {
             decorator: Decorator::Repeat { times: 2 },
             ..
         }
     ));
-    assert_eq!(t.nodes[9].path, "0.2.0.0.0");
-    assert_eq!(t.nodes[9].depth, 4);
-    assert_eq!(t.nodes[9].parent, Some(8));
-    assert_eq!(t.nodes[2].location, Some((4, 23)));
-    assert_eq!(t.title.as_deref(), Some("Main"));
+    assert_eq!(t.nodes()[9].path, "0.2.0.0.0");
+    assert_eq!(t.nodes()[9].depth, 4);
+    assert_eq!(t.nodes()[9].parent, Some(8));
+    assert_eq!(t.nodes()[2].location, Some((4, 23)));
+    assert_eq!(t.title(), Some("Main"));
     analyze(&t, &Options::default()).unwrap();
 }
 
@@ -138,7 +138,7 @@ fn parallel_counts() {
     let model = "<TreeNodesModel><Condition ID=\"A\"/></TreeNodesModel></root>";
     let par = |attrs: &str| {
         let src = wrap(&format!("<Parallel {attrs}>{leaves}</Parallel>")).replace("</root>", model);
-        match &ok(&src, "A: {ps: 0.5}").nodes[0].kind {
+        match &ok(&src, "A: {ps: 0.5}").nodes()[0].kind {
             NodeKind::Parallel {
                 success_threshold,
                 failure_threshold,
@@ -198,16 +198,16 @@ fn subtrees_expand_with_prefixed_names() {
             "one"
         ]
     );
-    assert_eq!(t.nodes[3].path, "0.0.1");
-    assert_eq!(t.nodes[3].depth, 2);
-    assert_eq!(t.nodes[3].location, Some((6, 5)));
+    assert_eq!(t.nodes()[3].path, "0.0.1");
+    assert_eq!(t.nodes()[3].depth, 2);
+    assert_eq!(t.nodes()[3].location, Some((6, 5)));
     // lookup: full name first, then name attribute, then ID
-    let ps = |i: usize| match t.nodes[i].kind {
+    let ps = |i: usize| match t.nodes()[i].kind {
         NodeKind::Action(a) => a.ps,
         _ => panic!(),
     };
     assert_eq!((ps(2), ps(5), ps(7)), (0.25, 0.5, 0.5));
-    assert_eq!(t.title.as_deref(), Some("Main"));
+    assert_eq!(t.title(), Some("Main"));
     // without main_tree_to_execute: the first tree
     let first = src.replace(" main_tree_to_execute=\"Main\"", "");
     let t = ok(&first, "Hand: {ps: 0.5, mu: 1, nu: 2}");
@@ -238,8 +238,8 @@ fn short_form_leaves_are_inferred_or_taken_from_the_model() {
         &wrap("<Sequence>\n  <Grasp/>\n  <Ready/>\n</Sequence>"),
         "Grasp: {ps: 1, mu: 1}\nReady: {ps: 0.5}",
     );
-    assert!(matches!(t.nodes[1].kind, NodeKind::Action(a) if a.ps == 1.0));
-    assert_eq!(t.nodes[2].kind, NodeKind::Condition { ps: 0.5 });
+    assert!(matches!(t.nodes()[1].kind, NodeKind::Action(a) if a.ps == 1.0));
+    assert_eq!(t.nodes()[2].kind, NodeKind::Condition { ps: 0.5 });
     // a typo of a control node with children is an unknown node
     let e = err(&wrap("<Sequense><AlwaysSuccess/></Sequense>"), "");
     assert!(e.message.contains("did you mean <Sequence>"), "{e}");
@@ -250,8 +250,8 @@ fn short_form_leaves_are_inferred_or_taken_from_the_model() {
         "<TreeNodesModel><Action ID=\"Grasp\"><input_port name=\"x\">text is fine here</input_port></Action><Condition ID=\"Ready\"/></TreeNodesModel></root>",
     );
     let t = ok(&with_model, "Grasp: {ps: 1, mu: 1}\nReady: {ps: 0.5}");
-    assert!(matches!(t.nodes[1].kind, NodeKind::Action(a) if a.ps == 1.0));
-    assert_eq!(t.nodes[2].kind, NodeKind::Condition { ps: 0.5 });
+    assert!(matches!(t.nodes()[1].kind, NodeKind::Action(a) if a.ps == 1.0));
+    assert_eq!(t.nodes()[2].kind, NodeKind::Condition { ps: 0.5 });
     let e = err(&with_model, "Grasp: {ps: 1}\nReady: {ps: 0.5}");
     assert!(e.message.contains("no success time"), "{e}");
     let custom = wrap("<MyDeco><AlwaysSuccess/></MyDeco>").replace(
@@ -424,7 +424,7 @@ fn params_are_validated_in_the_params_file() {
     }
     // hybrids are accepted, as in the YAML format
     let t = ok(&src, "A: {ps: 0.5, tau_s: 2, nu: 1}\nC: {ps: 1}");
-    assert!(matches!(t.nodes[1].kind, NodeKind::Action(a) if !a.is_markovian()));
+    assert!(matches!(t.nodes()[1].kind, NodeKind::Action(a) if !a.is_markovian()));
 }
 
 #[test]
@@ -479,7 +479,7 @@ fn deep_nesting_is_rejected() {
     assert_eq!(e.kind, TreeErrorKind::Budget, "{e}");
     assert!(e.message.contains("nested too deeply"), "{e}");
     let t = ok(&wrap(&deep(199)), "");
-    assert_eq!(t.nodes.len(), 200);
+    assert_eq!(t.nodes().len(), 200);
     // a chain of SubTrees, each adding levels, is bounded too
     let mut src = String::from("<root BTCPP_format=\"4\" main_tree_to_execute=\"T0\">");
     for i in 0..300 {
@@ -519,7 +519,7 @@ fn subtree_blowup_is_bounded() {
 // ---------------------------------------------------------------------------
 
 fn kinds(t: &Tree) -> Vec<&str> {
-    t.nodes.iter().map(|n| n.kind.keyword()).collect()
+    t.nodes().iter().map(|n| n.kind.keyword()).collect()
 }
 
 #[test]
@@ -624,8 +624,8 @@ fn explicit_forms_are_the_short_forms() {
     let (a, b) = (ok(&short, params), ok(&explicit, params));
     assert_eq!(names(&a), names(&b));
     assert_eq!(
-        a.nodes.iter().map(|n| &n.kind).collect::<Vec<_>>(),
-        b.nodes.iter().map(|n| &n.kind).collect::<Vec<_>>()
+        a.nodes().iter().map(|n| &n.kind).collect::<Vec<_>>(),
+        b.nodes().iter().map(|n| &n.kind).collect::<Vec<_>>()
     );
     assert_eq!(kinds(&a)[0], "sequence");
     // the form decides a leaf's kind: a ps-only entry for an <Action> lacks times
@@ -669,7 +669,7 @@ fn what_the_bt_cpp_parser_accepts_is_read() {
     let t = ok(src, "Say: {ps: 1, mu: 1}");
     assert_eq!(names(&t), ["Sequence", "Say", "x && y"]);
     // a lone BehaviorTree without an ID has no title
-    assert_eq!(t.title, None);
+    assert_eq!(t.title(), None);
 }
 
 #[test]
@@ -705,23 +705,23 @@ fn bt_cpp_v3_files_are_read() {
             ]
         );
         assert!(matches!(
-            t.nodes[1].kind,
+            t.nodes()[1].kind,
             NodeKind::Decorator {
                 decorator: Decorator::Retry { attempts: 3 },
                 ..
             }
         ));
         assert!(matches!(
-            t.nodes[3].kind,
+            t.nodes()[3].kind,
             NodeKind::Parallel {
                 success_threshold: 3,
                 failure_threshold: 2,
                 ..
             }
         ));
-        assert_eq!(t.nodes[7].kind, NodeKind::Condition { ps: 1.0 });
-        assert_eq!(t.nodes[8].kind, NodeKind::Condition { ps: 0.0 });
-        assert_eq!(t.nodes[8].name, "S/AlwaysFailure");
+        assert_eq!(t.nodes()[7].kind, NodeKind::Condition { ps: 1.0 });
+        assert_eq!(t.nodes()[8].kind, NodeKind::Condition { ps: 0.0 });
+        assert_eq!(t.nodes()[8].name, "S/AlwaysFailure");
     }
     // v3 has no default success_threshold; v4 names are unknown in a v3 file
     let e = err(
@@ -743,7 +743,7 @@ fn bt_cpp_v3_files_are_read() {
     // without BTCPP_format and without attributes: v4 defaults (all must succeed)
     let t = ok(&v3("", "<Parallel><A/><A/></Parallel>"), params);
     assert!(matches!(
-        t.nodes[0].kind,
+        t.nodes()[0].kind,
         NodeKind::Parallel {
             success_threshold: 2,
             failure_threshold: 1,
@@ -759,14 +759,14 @@ fn zero_time_nodes_are_immediate_successes_unless_given_parameters() {
     );
     let t = ok(&src, "");
     assert_eq!(
-        t.nodes[1..].iter().map(|n| &n.kind).collect::<Vec<_>>(),
+        t.nodes()[1..].iter().map(|n| &n.kind).collect::<Vec<_>>(),
         [&NodeKind::Condition { ps: 1.0 }; 4]
     );
     // a params entry models them (e.g. their run time)
     let t = ok(&src, "Script: {ps: 1, mu: 1000}");
-    assert!(matches!(t.nodes[1].kind, NodeKind::Action(a) if a.ps == 1.0));
-    assert!(matches!(t.nodes[4].kind, NodeKind::Action(a) if a.ps == 1.0));
-    assert_eq!(t.nodes[2].kind, NodeKind::Condition { ps: 1.0 });
+    assert!(matches!(t.nodes()[1].kind, NodeKind::Action(a) if a.ps == 1.0));
+    assert!(matches!(t.nodes()[4].kind, NodeKind::Action(a) if a.ps == 1.0));
+    assert_eq!(t.nodes()[2].kind, NodeKind::Condition { ps: 1.0 });
 }
 
 /// RecoveryNode(m, r, n) by Nav2's algorithm (recovery_node.cpp): success
@@ -806,7 +806,7 @@ fn recovery_node_is_nav2s_retry_loop() {
         // with no retry the recovery branch never runs: its entry is unused
         let params = if n == 0 { &params[..28] } else { params };
         let t = ok(&src, params);
-        assert_eq!(t.nodes.len(), (2 * n + (n + 1) + n) as usize);
+        assert_eq!(t.nodes().len(), (2 * n + (n + 1) + n) as usize);
         let a = analyze(&t, &Options::default()).unwrap();
         let (ps, mtts, mttf) = recovery_closed_form((0.6, 2.0, 0.5), (0.7, 1.0, 3.0), n);
         let root = a.nodes[0];
@@ -833,7 +833,7 @@ fn recovery_node_is_nav2s_retry_loop() {
         kinds(&t),
         ["fallback", "action", "sequence", "action", "action"]
     );
-    assert_eq!(t.nodes[4].path, "0.1.1");
+    assert_eq!(t.nodes()[4].path, "0.1.1");
     // memory in the main branch resumes instead of starting afresh: read
     // as a SequenceWithMemory whose copies share one index (a flow in the
     // analysis, `tests/sequence_memory.rs`)
@@ -842,7 +842,7 @@ fn recovery_node_is_nav2s_retry_loop() {
         params,
     );
     let slots: Vec<usize> = t
-        .nodes
+        .nodes()
         .iter()
         .filter_map(|n| match n.kind {
             btrel::tree::NodeKind::SequenceWithMemory { slot, .. } => Some(slot),

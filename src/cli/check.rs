@@ -22,7 +22,7 @@ pub(super) fn run(args: CheckArgs, input: &InputOptions) -> Result<(), Failure> 
             out,
             "{}: ok ({}, {})",
             display_path(path),
-            plural(tree.nodes.len(), "node", "nodes"),
+            plural(tree.nodes().len(), "node", "nodes"),
             plural(tree.leaf_count(), "leaf", "leaves")
         )
     })

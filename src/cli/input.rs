@@ -207,7 +207,7 @@ pub(super) fn find_nodes(
         .iter()
         .map(|n| {
             tree.find(n).ok_or_else(|| {
-                let all: Vec<&str> = tree.nodes.iter().map(|x| x.name.as_str()).collect();
+                let all: Vec<&str> = tree.nodes().iter().map(|x| x.name.as_str()).collect();
                 let hint = advice::unknown_node(n, &all);
                 Failure::input(format!(
                     "no node named '{n}' in {}; {hint}",

@@ -49,7 +49,7 @@ pub(super) fn run(args: ReportArgs, input: &InputOptions) -> Result<(), Failure>
     }
     if let Some(ci) = &ci {
         use btrel::report::intervals;
-        let sampler = ci_sampler(&tree, source.as_ref(), ci, 4 * tree.nodes.len())?;
+        let sampler = ci_sampler(&tree, source.as_ref(), ci, 4 * tree.nodes().len())?;
         let flat = sampler
             .intervals(ci.level, ci.draws, ci.seed, |t| {
                 analyze(t, &options).map(|a| {

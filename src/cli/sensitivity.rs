@@ -39,7 +39,7 @@ pub(super) fn run(args: SensitivityArgs, input: &InputOptions) -> Result<(), Fai
     let s = btrel::sensitivity::sensitivity(&tree, objective, &options).map_err(fail)?;
     // the laws whose parameters have no rows: say so
     let held: Vec<String> = tree
-        .nodes
+        .nodes()
         .iter()
         .filter_map(|n| match &n.kind {
             btrel::tree::NodeKind::Action(a) => {

@@ -741,3 +741,79 @@ impl Totals {
         }
     }
 }
+
+/// A tree no parser builds (deeper than any parse limit), made in the crate.
+#[cfg(test)]
+mod deep {
+    use super::*;
+
+    /// A chain 5,000 levels deep (beyond any parser limit): compiled and run on
+    /// big-stack threads. Level k is a Sequence (k even) or a Fallback (k odd)
+    /// of [level k + 1, condition ps .5]; the bottom is an action (.5, 1, 1), so
+    /// every run lasts the action's Exp(1) time whatever the outcome.
+    #[test]
+    fn very_deep_tree() {
+        use crate::tree::{Action, Duration, Node, NodeKind};
+        const D: usize = 5_000;
+        let node = |depth: usize, parent: Option<usize>, kind: NodeKind| Node {
+            name: format!("n{depth}"),
+            path: String::new(),
+            depth,
+            parent,
+            kind,
+            location: None,
+        };
+        // Pre-order ids: levels 0..D, the action (D), then the conditions from
+        // level D−1 up to level 0.
+        let cond_id = |k: usize| D + 1 + (D - 1 - k);
+        let mut nodes: Vec<Node> = (0..D)
+            .map(|k| {
+                let children = vec![k + 1, cond_id(k)];
+                let kind = if k % 2 == 0 {
+                    NodeKind::Sequence { children }
+                } else {
+                    NodeKind::Fallback { children }
+                };
+                node(k, k.checked_sub(1), kind)
+            })
+            .collect();
+        let exp1 = Some(Duration::Exponential { rate: 1.0 });
+        let leaf = Action {
+            ps: 0.5,
+            pf: 0.5,
+            success: exp1,
+            failure: exp1,
+        };
+        nodes.push(node(D, Some(D - 1), NodeKind::Action(leaf)));
+        for k in (0..D).rev() {
+            nodes.push(node(k + 1, Some(k), NodeKind::Condition { ps: 0.5 }));
+        }
+        let t = Tree { title: None, nodes };
+        let mut ps = 0.5;
+        for k in (0..D).rev() {
+            ps = if k % 2 == 0 {
+                ps * 0.5
+            } else {
+                ps + (1.0 - ps) * 0.5
+            };
+        }
+        let opts = SimOptions {
+            runs: 4_000,
+            per_node: false,
+            ..Default::default()
+        };
+        let r = simulate(&t, &opts, None).unwrap();
+        let root = &r.nodes[0];
+        let z = |what: &str, est: &Estimate, exact: f64| {
+            assert!(
+                (est.mean - exact).abs() < 5.0 * est.se,
+                "deep {what}: {} ± {} vs {exact}",
+                est.mean,
+                est.se
+            );
+        };
+        z("ps", &root.ps, ps);
+        z("MTTS", root.mtts.as_ref().expect("succeeds"), 1.0);
+        z("MTTF", root.mttf.as_ref().expect("fails"), 1.0);
+    }
+}

@@ -21,13 +21,27 @@ pub use stages::Stages;
 /// Index of a node in [`Tree::nodes`].
 pub type NodeId = usize;
 
-/// A validated Stochastic Behavior Tree.
+/// A validated Stochastic Behavior Tree: read from a file (or text), then
+/// immutable outside the crate ([`Tree::nodes`], [`Tree::title`]); a variant
+/// with other leaf times is a new tree ([`Tree::with_action_times`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Tree {
     /// Optional title (`name:` at the top of the file).
-    pub title: Option<String>,
+    pub(crate) title: Option<String>,
     /// Nodes in pre-order; `nodes[0]` is the root.
-    pub nodes: Vec<Node>,
+    pub(crate) nodes: Vec<Node>,
+}
+
+/// A time given to [`Tree::with_action_times`] that is not a valid duration.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("action '{node}': its {outcome} time {what}")]
+pub struct InvalidTime {
+    /// The action's name.
+    pub node: String,
+    /// `success` or `failure`.
+    pub outcome: &'static str,
+    /// What is wrong.
+    pub what: String,
 }
 
 /// A node of the tree.
@@ -412,6 +426,25 @@ pub enum Duration {
 }
 
 impl Duration {
+    /// Why this is not a valid duration (`None` when it is): a rate must be
+    /// finite and > 0, a time, cap or shift finite and >= 0 (stages are
+    /// valid by construction).
+    pub fn invalid(&self) -> Option<String> {
+        let rate = |r: f64| {
+            (!(r.is_finite() && r > 0.0)).then(|| format!("has rate {r}, not a finite number > 0"))
+        };
+        let time = |t: f64, what: &str| {
+            (!(t.is_finite() && t >= 0.0))
+                .then(|| format!("has {what} {t}, not a finite number >= 0"))
+        };
+        match *self {
+            Duration::Exponential { rate: r } => rate(r),
+            Duration::Fixed { time: t } => time(t, "time"),
+            Duration::TruncatedExponential { rate: r, cap } => rate(r).or_else(|| time(cap, "cap")),
+            Duration::PhaseType { shift, .. } => time(shift, "shift"),
+        }
+    }
+
     /// Mean of the duration.
     pub fn mean(&self) -> f64 {
         match *self {
@@ -626,6 +659,60 @@ impl Tree {
     /// The node with this id.
     pub fn node(&self, id: NodeId) -> &Node {
         &self.nodes[id]
+    }
+
+    /// Every node, in pre-order (`nodes()[0]` is the root); a node's id is
+    /// its index.
+    pub fn nodes(&self) -> &[Node] {
+        &self.nodes
+    }
+
+    /// The title (`name:` at the top of a YAML file, the main tree's ID of
+    /// an XML file).
+    pub fn title(&self) -> Option<&str> {
+        self.title.as_deref()
+    }
+
+    /// This tree with each action's Success and Failure times replaced by
+    /// `times(id, action)` (outcome probabilities and everything else kept):
+    /// e.g. the same tree with fitted timing families. Refused, naming the
+    /// action, when a time is not a valid duration (a rate that is not finite
+    /// and > 0, a time or shift that is not finite and >= 0) or an outcome
+    /// with positive probability is left without a time.
+    pub fn with_action_times(
+        &self,
+        mut times: impl FnMut(NodeId, &Action) -> (Option<Duration>, Option<Duration>),
+    ) -> Result<Tree, InvalidTime> {
+        let mut tree = self.clone();
+        for (id, node) in tree.nodes.iter_mut().enumerate() {
+            let NodeKind::Action(a) = &mut node.kind else {
+                continue;
+            };
+            let (success, failure) = times(id, a);
+            for (outcome, p, d) in [("success", a.ps, success), ("failure", a.pf, failure)] {
+                let invalid = |what: String| InvalidTime {
+                    node: node.name.clone(),
+                    outcome,
+                    what,
+                };
+                match d {
+                    None if p > 0.0 => {
+                        return Err(invalid(format!(
+                            "is missing, though the outcome has probability {p}"
+                        )))
+                    }
+                    None => {}
+                    Some(d) => {
+                        if let Some(what) = d.invalid() {
+                            return Err(invalid(what));
+                        }
+                    }
+                }
+            }
+            a.success = success;
+            a.failure = failure;
+        }
+        Ok(tree)
     }
 
     /// Finds a node by name, or by path (`0.1.2`).
