@@ -400,7 +400,22 @@ impl Interpolant {
     /// rounding, but for the panels outside each function's
     /// [`Self::support`].
     pub fn convolve_at(&self, g: &Interpolant, t: f64) -> f64 {
-        self.convolve_within(g, t, self.support(), g.support())
+        self.convolve_within(g, t, (self.support(), g.support()), (None, None))
+    }
+
+    /// Each panel's values at its own Gauss–Legendre nodes: the values a
+    /// convolution needs wherever a piece of its integral is the whole
+    /// panel (most pieces are a whole panel of one of the two functions),
+    /// computed once instead of at every time point.
+    fn gauss_values(&self) -> Vec<[f64; POINTS]> {
+        let rule = &basis().gauss;
+        (0..self.panels())
+            .map(|k| {
+                let (a, b) = (self.edges[k], self.edges[k + 1]);
+                let (c, h) = ((a + b) / 2.0, (b - a) / 2.0);
+                self.eval_block_in(k, &std::array::from_fn(|j| c + h * rule.nodes[j]))
+            })
+            .collect()
     }
 
     /// `[a, b]`: the span of the panels where the function exceeds
@@ -422,13 +437,18 @@ impl Interpolant {
     }
 
     /// [`Self::convolve_at`] with both supports given (computed once for
-    /// many points).
+    /// many points), and optionally both functions' [`Self::gauss_values`]:
+    /// a piece that is a whole panel of `self` takes its values from them
+    /// (the same numbers, the same nodes); a piece that is a whole panel of
+    /// `g`, whose nodes `t − v` are that panel's own nodes reversed (the
+    /// rule is symmetric), takes g's (nodes equal up to the rounding of
+    /// `t − v`).
     fn convolve_within(
         &self,
         g: &Interpolant,
         t: f64,
-        sf: Option<(f64, f64)>,
-        sg: Option<(f64, f64)>,
+        (sf, sg): (Option<(f64, f64)>, Option<(f64, f64)>),
+        (cf, cg): (Option<&[[f64; POINTS]]>, Option<&[[f64; POINTS]]>),
     ) -> f64 {
         let (Some(sf), Some(sg)) = (sf, sg) else {
             return 0.0;
@@ -443,54 +463,96 @@ impl Interpolant {
             return 0.0;
         }
         let rule = &basis().gauss;
-        // cuts: own edges and t − g's edges, inside (lo, hi)
-        let own = {
-            let a = self.edges.partition_point(|&e| e <= lo);
-            let b = self.edges.partition_point(|&e| e < hi);
-            &self.edges[a..b.max(a)]
-        };
-        let theirs = {
-            let a = g.edges.partition_point(|&e| e <= t - hi);
-            let b = g.edges.partition_point(|&e| e < t - lo);
-            &g.edges[a..b.max(a)]
-        };
-        let mut cuts: Vec<f64> = Vec::with_capacity(own.len() + theirs.len() + 2);
-        cuts.push(lo);
-        cuts.extend_from_slice(own);
-        cuts.extend(theirs.iter().map(|&e| t - e).filter(|&e| e > lo && e < hi));
-        cuts.push(hi);
-        cuts.sort_by(f64::total_cmp);
+        // The pieces between the cuts — own edges and t − g's edges inside
+        // (lo, hi) — merged in increasing order (own edges ascend, t − g's
+        // edges ascend as g's descend), tracking the panel of each function
+        // under the current piece instead of searching for it.
+        let (first_own, end_own) = (
+            self.edges.partition_point(|&e| e <= lo),
+            self.edges.partition_point(|&e| e < hi),
+        );
+        let (end_theirs, first_theirs) = (
+            g.edges.partition_point(|&e| e <= t - hi),
+            g.edges.partition_point(|&e| e < t - lo),
+        );
+        // panels holding v just above lo and t − v just below t − lo
+        let (mut kf, mut kg) = (first_own.max(1) - 1, first_theirs.max(1) - 1);
+        let (mut own, mut theirs) = (first_own, first_theirs);
+        let mut a = lo;
         let mut total = 0.0;
-        for w in cuts.windows(2) {
-            let (a, b) = (w[0], w[1]);
-            if b <= a {
-                continue;
+        loop {
+            let next_own = if own < end_own {
+                self.edges[own]
+            } else {
+                f64::INFINITY
+            };
+            let next_theirs = if theirs > end_theirs {
+                t - g.edges[theirs - 1]
+            } else {
+                f64::INFINITY
+            };
+            let cut = next_own.min(next_theirs);
+            let b = cut.min(hi);
+            if b > a {
+                total += self.piece(g, t, (a, b), (kf, kg), (cf, cg), rule);
+                a = b;
             }
-            let mid = (a + b) / 2.0;
-            if mid > self.end() || t - mid > g.end() {
-                continue;
+            if cut >= hi {
+                break;
             }
-            let (kf, kg) = (self.panel_of(mid), g.panel_of(t - mid));
-            if self.scale[kf] == 0.0 || g.scale[kg] == 0.0 {
-                continue;
+            if next_own <= next_theirs {
+                kf = own;
+                own += 1;
+            } else {
+                kg = theirs - 2;
+                theirs -= 1;
             }
-            let (c, h) = (mid, (b - a) / 2.0);
-            let v: [f64; POINTS] = std::array::from_fn(|j| c + h * rule.nodes[j]);
-            let fv = self.eval_block_in(kf, &v);
-            let gv = g.eval_block_in(kg, &std::array::from_fn(|j| t - v[j]));
-            let part: f64 = (0..POINTS).map(|j| rule.weights[j] * fv[j] * gv[j]).sum();
-            total += h * part;
         }
         total
     }
 
+    /// `∫_a^b self(v) g(t − v) dv` with `v` in panel `kf` of `self` and
+    /// `t − v` in panel `kg` of `g` (one Gauss–Legendre rule: exact for the
+    /// product of the two polynomials); see [`Self::convolve_within`] for
+    /// the cached values.
+    #[inline]
+    fn piece(
+        &self,
+        g: &Interpolant,
+        t: f64,
+        (a, b): (f64, f64),
+        (kf, kg): (usize, usize),
+        (cf, cg): (Option<&[[f64; POINTS]]>, Option<&[[f64; POINTS]]>),
+        rule: &GaussLegendre,
+    ) -> f64 {
+        let mid = (a + b) / 2.0;
+        if mid > self.end() || t - mid > g.end() || self.scale[kf] == 0.0 || g.scale[kg] == 0.0 {
+            return 0.0;
+        }
+        let (c, h) = (mid, (b - a) / 2.0);
+        let v: [f64; POINTS] = std::array::from_fn(|j| c + h * rule.nodes[j]);
+        let fv = match cf {
+            Some(cf) if a == self.edges[kf] && b == self.edges[kf + 1] => cf[kf],
+            _ => self.eval_block_in(kf, &v),
+        };
+        let gv = match cg {
+            Some(cg) if a == t - g.edges[kg + 1] && b == t - g.edges[kg] => {
+                std::array::from_fn(|j| cg[kg][POINTS - 1 - j])
+            }
+            _ => g.eval_block_in(kg, &std::array::from_fn(|j| t - v[j])),
+        };
+        let part: f64 = (0..POINTS).map(|j| rule.weights[j] * fv[j] * gv[j]).sum();
+        h * part
+    }
+
     /// [`Self::convolve_at`] at many times (in parallel).
     pub fn convolve_many(&self, g: &Interpolant, times: &[f64]) -> Vec<f64> {
-        let (sf, sg) = (self.support(), g.support());
+        let supports = (self.support(), g.support());
+        let (cf, cg) = (self.gauss_values(), g.gauss_values());
         times
             .par_iter()
             .with_min_len(64)
-            .map(|&t| self.convolve_within(g, t, sf, sg))
+            .map(|&t| self.convolve_within(g, t, supports, (Some(&cf), Some(&cg))))
             .collect()
     }
 }
@@ -715,6 +777,39 @@ mod tests {
             let exact = a * b / (b - a) * ((-a * t).exp() - (-b * t).exp());
             assert!((f.convolve_at(&g, t) - exact).abs() < 1e-13, "t={t}");
             assert!((g.convolve_at(&f, t) - exact).abs() < 1e-13, "t={t}");
+        }
+    }
+
+    /// The convolution at many points (whole panels' values cached, pieces
+    /// merged): the closed form of Exp(1) * Erlang-2(5) — a stiff density
+    /// on panels of its own, so pieces are whole panels of either function
+    /// or of neither — and the single-point evaluation, at points on and
+    /// between the panels' edges.
+    #[test]
+    fn convolution_at_many_points_is_the_closed_form() {
+        // f = e^{−t}, g = 25 t e^{−5t}: (f * g)(t) = 25 ∫ v e^{−5v} e^{−(t−v)} dv
+        // = 25 e^{−t} [1 − e^{−4t}(1 + 4t)] / 16
+        let f = build1(30.0, |t| (-t).exp());
+        let g = build1(30.0, |t| 25.0 * t * (-5.0 * t).exp());
+        let exact = |t: f64| 25.0 * (-t).exp() * (1.0 - (-4.0 * t).exp() * (1.0 + 4.0 * t)) / 16.0;
+        let mut times: Vec<f64> = (0..400).map(|k| k as f64 * 0.075).collect();
+        times.extend(
+            f.edges()
+                .iter()
+                .chain(g.edges())
+                .copied()
+                .filter(|&t| t <= 30.0),
+        );
+        for (fg, gf) in [(&f, &g), (&g, &f)] {
+            let many = fg.convolve_many(gf, &times);
+            for (&t, &m) in times.iter().zip(&many) {
+                assert!((m - exact(t)).abs() < 1e-13, "t={t}: {m} vs {}", exact(t));
+                let one = fg.convolve_at(gf, t);
+                assert!(
+                    (m - one).abs() <= 1e-14 * one.abs().max(1e-300) + 1e-16,
+                    "t={t}"
+                );
+            }
         }
     }
 
