@@ -102,6 +102,14 @@ pub fn panel_points(a: f64, b: f64) -> [f64; POINTS] {
     })
 }
 
+/// The supports of the two functions of a convolution
+/// ([`Interpolant::support`]).
+type Supports = (Option<(f64, f64)>, Option<(f64, f64)>);
+
+/// The two functions' values at their panels' own Gauss nodes
+/// ([`Interpolant::gauss_values`]), where computed.
+type GaussCache<'a> = (Option<&'a [[f64; POINTS]]>, Option<&'a [[f64; POINTS]]>);
+
 /// A function on `[edges[0], edges[last]]`, one polynomial per panel.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Interpolant {
@@ -447,8 +455,8 @@ impl Interpolant {
         &self,
         g: &Interpolant,
         t: f64,
-        (sf, sg): (Option<(f64, f64)>, Option<(f64, f64)>),
-        (cf, cg): (Option<&[[f64; POINTS]]>, Option<&[[f64; POINTS]]>),
+        (sf, sg): Supports,
+        (cf, cg): GaussCache<'_>,
     ) -> f64 {
         let (Some(sf), Some(sg)) = (sf, sg) else {
             return 0.0;
@@ -522,7 +530,7 @@ impl Interpolant {
         t: f64,
         (a, b): (f64, f64),
         (kf, kg): (usize, usize),
-        (cf, cg): (Option<&[[f64; POINTS]]>, Option<&[[f64; POINTS]]>),
+        (cf, cg): GaussCache<'_>,
         rule: &GaussLegendre,
     ) -> f64 {
         let mid = (a + b) / 2.0;
