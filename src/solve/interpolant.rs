@@ -553,13 +553,16 @@ impl Interpolant {
         h * part
     }
 
-    /// [`Self::convolve_at`] at many times (in parallel).
+    /// [`Self::convolve_at`] at many times (in parallel: a point costs a
+    /// piece per panel edge in the window, often milliseconds, so even the
+    /// builder's small batches — one panel's 17 points — are split; each
+    /// point's value does not depend on the split).
     pub fn convolve_many(&self, g: &Interpolant, times: &[f64]) -> Vec<f64> {
         let supports = (self.support(), g.support());
         let (cf, cg) = (self.gauss_values(), g.gauss_values());
         times
             .par_iter()
-            .with_min_len(64)
+            .with_min_len(4)
             .map(|&t| self.convolve_within(g, t, supports, (Some(&cf), Some(&cg))))
             .collect()
     }
