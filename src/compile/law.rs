@@ -1365,10 +1365,15 @@ impl Builder<'_> {
             }
         }
         let breaks = self.measure(Vec::new(), None, breaks, 0.0).breaks;
+        // both densities' supports and panel values, once for every batch
+        let convolution = match (&x.density, &y.density) {
+            (Some(g), Some(h)) => Some(g.convolution(h)),
+            _ => None,
+        };
         let density = self.density(id, &breaks, |points| {
-            let conv = match (&x.density, &y.density) {
-                (Some(g), Some(h)) => g.convolve_many(h, points),
-                _ => vec![0.0; points.len()],
+            let conv = match &convolution {
+                Some(c) => c.many(points),
+                None => vec![0.0; points.len()],
             };
             let xs = shifted_many(&x.atoms, y.density.as_ref(), points);
             let ys = shifted_many(&y.atoms, x.density.as_ref(), points);

@@ -416,13 +416,8 @@ impl Interpolant {
     /// panel (most pieces are a whole panel of one of the two functions),
     /// computed once instead of at every time point.
     fn gauss_values(&self) -> Vec<[f64; POINTS]> {
-        let rule = &basis().gauss;
         (0..self.panels())
-            .map(|k| {
-                let (a, b) = (self.edges[k], self.edges[k + 1]);
-                let (c, h) = ((a + b) / 2.0, (b - a) / 2.0);
-                self.eval_block_in(k, &std::array::from_fn(|j| c + h * rule.nodes[j]))
-            })
+            .map(|k| self.eval_block_in(k, &gauss_nodes(self.edges[k], self.edges[k + 1])))
             .collect()
     }
 
@@ -470,7 +465,6 @@ impl Interpolant {
         if hi <= lo {
             return 0.0;
         }
-        let rule = &basis().gauss;
         // The pieces between the cuts — own edges and t − g's edges inside
         // (lo, hi) — merged in increasing order (own edges ascend, t − g's
         // edges ascend as g's descend), tracking the panel of each function
@@ -502,7 +496,7 @@ impl Interpolant {
             let cut = next_own.min(next_theirs);
             let b = cut.min(hi);
             if b > a {
-                total += self.piece(g, t, (a, b), (kf, kg), (cf, cg), rule);
+                total += self.piece(g, t, (a, b), (kf, kg), (cf, cg));
                 a = b;
             }
             if cut >= hi {
@@ -531,14 +525,12 @@ impl Interpolant {
         (a, b): (f64, f64),
         (kf, kg): (usize, usize),
         (cf, cg): GaussCache<'_>,
-        rule: &GaussLegendre,
     ) -> f64 {
         let mid = (a + b) / 2.0;
         if mid > self.end() || t - mid > g.end() || self.scale[kf] == 0.0 || g.scale[kg] == 0.0 {
             return 0.0;
         }
-        let (c, h) = (mid, (b - a) / 2.0);
-        let v: [f64; POINTS] = std::array::from_fn(|j| c + h * rule.nodes[j]);
+        let v = gauss_nodes(a, b);
         let fv = match cf {
             Some(cf) if a == self.edges[kf] && b == self.edges[kf + 1] => cf[kf],
             _ => self.eval_block_in(kf, &v),
@@ -549,23 +541,58 @@ impl Interpolant {
             }
             _ => g.eval_block_in(kg, &std::array::from_fn(|j| t - v[j])),
         };
+        let rule = &basis().gauss;
         let part: f64 = (0..POINTS).map(|j| rule.weights[j] * fv[j] * gv[j]).sum();
-        h * part
+        (b - a) / 2.0 * part
     }
 
-    /// [`Self::convolve_at`] at many times (in parallel: a point costs a
-    /// piece per panel edge in the window, often milliseconds, so even the
-    /// builder's small batches — one panel's 17 points — are split; each
-    /// point's value does not depend on the split).
+    /// [`Self::convolve_at`] at many times (see [`Convolution::many`]).
     pub fn convolve_many(&self, g: &Interpolant, times: &[f64]) -> Vec<f64> {
-        let supports = (self.support(), g.support());
-        let (cf, cg) = (self.gauss_values(), g.gauss_values());
+        self.convolution(g).many(times)
+    }
+
+    /// `self * g` prepared for evaluation at many points, batch after batch
+    /// (an adaptive build samples it panel by panel).
+    pub fn convolution<'a>(&'a self, g: &'a Interpolant) -> Convolution<'a> {
+        Convolution {
+            f: self,
+            g,
+            supports: (self.support(), g.support()),
+            cached: (self.gauss_values(), g.gauss_values()),
+        }
+    }
+}
+
+/// A convolution `f * g` with what every point of it needs computed once:
+/// both supports and both functions' values at their panels' own Gauss
+/// nodes.
+pub struct Convolution<'a> {
+    f: &'a Interpolant,
+    g: &'a Interpolant,
+    supports: Supports,
+    cached: (Vec<[f64; POINTS]>, Vec<[f64; POINTS]>),
+}
+
+impl Convolution<'_> {
+    /// `(f * g)(t)` at each of `times`, in parallel: a point costs a piece
+    /// per panel edge in its window, often milliseconds, so even a batch of
+    /// one panel's 17 points is split (each value is independent of the
+    /// split).
+    pub fn many(&self, times: &[f64]) -> Vec<f64> {
+        let cached = (Some(&self.cached.0[..]), Some(&self.cached.1[..]));
         times
             .par_iter()
             .with_min_len(4)
-            .map(|&t| self.convolve_within(g, t, supports, (Some(&cf), Some(&cg))))
+            .map(|&t| self.f.convolve_within(self.g, t, self.supports, cached))
             .collect()
     }
+}
+
+/// The Gauss–Legendre nodes of `[a, b]` (the rule of [`Basis::gauss`]).
+fn gauss_nodes(a: f64, b: f64) -> [f64; POINTS] {
+    let (c, h) = ((a + b) / 2.0, (b - a) / 2.0);
+    let nodes = &basis().gauss.nodes;
+    std::array::from_fn(|j| c + h * nodes[j])
 }
 
 /// Values below this fraction of a function's largest value at either end
