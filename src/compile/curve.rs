@@ -138,14 +138,15 @@ pub const TAIL_TOLERANCE: f64 = 1e-13;
 /// answered from its figures.
 ///
 /// `S(t) + F(t)` only grows, to `P(S) + P(F)`: once the mass still to
-/// return at some `t*` — `(P(S) − S(t*)) + (P(F) − F(t*))` — is below
-/// [`TAIL_TOLERANCE`], every `t ≥ t*` has `|S(t) − P(S)|` and
-/// `|F(t) − P(F)|` below it too, and is answered `(P(S), P(F))`. `t*` is
-/// searched at 16 × the node's longest mean time, doubling, and only while
-/// it is before the last time asked (and only when that is past 16 × the
-/// sum of its actions' mean times): a curve to `t = 10⁷` of a node that
-/// returns within seconds costs a curve to about a minute. Without figures
-/// (a node whose figures the engine does not answer) every time is computed.
+/// return after some `t*` is below [`TAIL_TOLERANCE`], every `t ≥ t*` has
+/// `|S(t) − P(S)|` and `|F(t) − P(F)|` below it too, and is answered
+/// `(P(S), P(F))`. `t*` comes from a bound on the node's return time's
+/// moment generating function ([`super::tail`]: from the tree's structure,
+/// before any law is built), so a curve to `t = 10⁷` of a node that returns
+/// within seconds costs its figures and the curve before `t*`. It is asked
+/// only when the last time is past 16 × the sum of the node's actions' mean
+/// times; without figures (a node whose figures the engine does not
+/// answer) or a finite bound every time is computed.
 fn with_tail(
     plan: &Plan,
     id: NodeId,
@@ -155,14 +156,14 @@ fn with_tail(
     let last = times.iter().copied().fold(0.0, f64::max);
     // the figures are asked only for times far past one run of every leaf
     // below (a cheap scale: a loop's may be longer)
-    if last <= 16.0 * leaf_time_scale(plan.tree(), id) {
+    let leaves = leaf_time_scale(plan.tree(), id);
+    if last <= 16.0 * leaves {
         return plan.curve(id, times, options);
     }
-    let figures = match subtree_figures(plan, id) {
-        Some(f) => f,
-        None => return plan.curve(id, times, options),
+    let Ok(all) = compile::subtree_figures(plan, id) else {
+        return plan.curve(id, times, options);
     };
-    let scale = figures.mtts.unwrap_or(0.0).max(figures.mttf.unwrap_or(0.0));
+    let figures = all[0];
     let limit = |t: f64| CurvePoint {
         t,
         success: figures.ps,
@@ -173,20 +174,16 @@ fn with_tail(
         // it never returns
         return Ok(times.iter().map(|&t| limit(t)).collect());
     }
-    let mut probe = 16.0 * scale;
-    let mut tail = f64::INFINITY;
-    while probe.is_finite() && probe < last && scale > 0.0 {
-        let p = plan.curve(id, &[probe], options)?[0];
-        let remaining = (figures.ps - p.success).abs() + (figures.pf - p.failure).abs();
-        if remaining <= TAIL_TOLERANCE {
-            tail = probe;
-            break;
-        }
-        probe *= 2.0;
-    }
-    if tail.is_infinite() {
+    let scale = figures
+        .mtts
+        .unwrap_or(0.0)
+        .max(figures.mttf.unwrap_or(0.0))
+        .max(leaves);
+    let known: Vec<_> = all.into_iter().map(Some).collect();
+    let Some(tail) = super::tail::settled_after(plan.tree(), id, &known, scale, TAIL_TOLERANCE)
+    else {
         return plan.curve(id, times, options);
-    }
+    };
     let before: Vec<f64> = times.iter().copied().filter(|&t| t < tail).collect();
     let mut computed = plan.curve(id, &before, options)?.into_iter();
     Ok(times
@@ -213,25 +210,6 @@ fn leaf_time_scale(tree: &Tree, id: NodeId) -> f64 {
             _ => 0.0,
         })
         .sum()
-}
-
-/// The figures of node `id` from its subtree's, bottom-up; `None` where the
-/// engine does not answer them.
-pub(super) fn subtree_figures(plan: &Plan, id: NodeId) -> Option<compile::Figures> {
-    let tree = plan.tree();
-    let range = tree.subtree(id);
-    let mut figs: Vec<Option<compile::Figures>> = vec![None; range.len()];
-    for n in range.clone().rev() {
-        let child_figs: Vec<compile::Figures> = tree
-            .node(n)
-            .kind
-            .children()
-            .iter()
-            .map(|&c| figs[c - range.start])
-            .collect::<Option<_>>()?;
-        figs[n - range.start] = Some(plan.figures(n, &child_figs).ok()?);
-    }
-    figs[0]
 }
 
 /// `π(t)` of a loop without a bound over a child with a phase chain: the

@@ -31,6 +31,7 @@ mod renewal;
 mod renewal_curve;
 mod renewal_law;
 pub(crate) mod shifted;
+mod tail;
 
 use crate::solve::chain::{AbsorbingChain, Edge, Target};
 use crate::solve::{solve_absorbing, Absorption};
@@ -312,32 +313,7 @@ pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError
         None => (tree, None),
     };
     let plan = Plan::new(tree, options.method, options.max_states);
-    let mut figures: Vec<Option<Figures>> = vec![None; tree.nodes.len()];
-    // a subtree's figures depend on it alone: a copy of an analysed subtree
-    // (a RecoveryNode's retries, a re-run's copies) takes its figures
-    let prints = tree.fingerprints();
-    let mut seen: std::collections::HashMap<u64, NodeId> = std::collections::HashMap::new();
-    // pre-order: children come after their parent, so reverse order is bottom-up
-    for id in (0..tree.nodes.len()).rev() {
-        if let Some(&twin) = seen.get(&prints[id]) {
-            if tree.same_subtree(twin, id) {
-                figures[id] = figures[twin];
-                continue;
-            }
-        }
-        seen.entry(prints[id]).or_insert(id);
-        let child_figs: Vec<Figures> = tree
-            .node(id)
-            .kind
-            .children()
-            .iter()
-            .map(|&c| figures[c].expect("children are analysed first"))
-            .collect();
-        let f = plan.figures(id, &child_figs)?;
-        check(&f, &tree.node(id).name)?;
-        figures[id] = Some(f);
-    }
-    let mut nodes: Vec<Figures> = figures.into_iter().flatten().collect();
+    let mut nodes = subtree_figures(&plan, 0)?;
     // the original tree's nodes, each as the node standing for it
     if let Some(image) = image {
         nodes = image.iter().map(|&i| nodes[i]).collect();
@@ -346,6 +322,45 @@ pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError
         method: options.method,
         nodes,
     })
+}
+
+/// The figures of every node of `id`'s subtree (`[k]`: node `id + k`),
+/// bottom-up, each from its planned representation. A subtree's figures
+/// depend on it alone: a copy of an analysed subtree (a RecoveryNode's
+/// retries, a re-run's copies) takes its figures.
+pub(crate) fn subtree_figures(plan: &Plan, id: NodeId) -> Result<Vec<Figures>, AnalysisError> {
+    let tree = plan.tree();
+    let range = tree.subtree(id);
+    let base = range.start;
+    let mut figures: Vec<Option<Figures>> = vec![None; range.len()];
+    let prints = tree.fingerprints();
+    let mut seen: std::collections::HashMap<u64, NodeId> = std::collections::HashMap::new();
+    // pre-order: children come after their parent, so reverse order is bottom-up
+    for n in range.rev() {
+        if let Some(f) = plan.known_figures(n) {
+            figures[n - base] = Some(f);
+            continue;
+        }
+        if let Some(&twin) = seen.get(&prints[n]) {
+            if tree.same_subtree(twin, n) {
+                figures[n - base] = figures[twin - base];
+                continue;
+            }
+        }
+        seen.entry(prints[n]).or_insert(n);
+        let child_figs: Vec<Figures> = tree
+            .node(n)
+            .kind
+            .children()
+            .iter()
+            .map(|&c| figures[c - base].expect("children are analysed first"))
+            .collect();
+        let f = plan.figures(n, &child_figs)?;
+        check(&f, &tree.node(n).name)?;
+        plan.remember_figures(n, f);
+        figures[n - base] = Some(f);
+    }
+    Ok(figures.into_iter().flatten().collect())
 }
 
 /// Updates `analysis` after the children of the nodes in `changed` were

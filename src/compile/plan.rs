@@ -211,6 +211,8 @@ pub struct Plan<'t> {
     /// Races against a renewal process whose loop's series is long:
     /// `(race, process)`, in pre-order.
     long_renewals: OnceCell<Vec<(NodeId, NodeId)>>,
+    /// Every node's figures, once computed ([`super::subtree_figures`]).
+    figures: Vec<OnceCell<Figures>>,
 }
 
 impl<'t> Plan<'t> {
@@ -229,7 +231,19 @@ impl<'t> Plan<'t> {
             laws: law::LawMemo::default(),
             book: OnceCell::new(),
             long_renewals: OnceCell::new(),
+            figures: (0..tree.nodes.len()).map(|_| OnceCell::new()).collect(),
         }
+    }
+
+    /// The figures of node `id` if they were computed
+    /// ([`super::subtree_figures`] keeps them).
+    pub(crate) fn known_figures(&self, id: NodeId) -> Option<Figures> {
+        self.figures[id].get().copied()
+    }
+
+    /// Keeps the figures of node `id`.
+    pub(crate) fn remember_figures(&self, id: NodeId, figures: Figures) {
+        let _ = self.figures[id].set(figures);
     }
 
     /// The tree planned.

@@ -51,6 +51,7 @@ use super::shifted::{self, ShiftedLaw};
 use super::{counts, AnalysisError, Figures, Plan, Representation};
 use crate::solve::chain::PhaseChain;
 use crate::solve::quadrature::GaussLegendre;
+use crate::solve::transient::uniformization_work;
 use crate::tree::nav2::MAX_RERUN_TERMS;
 use crate::tree::same_instant;
 use crate::tree::{Duration, NodeId, NodeKind};
@@ -97,6 +98,20 @@ pub(crate) enum Racer {
 /// probabilities are held there: the race's figures change by at most
 /// this, its mean times by this times the node's time scale).
 const LAW_TAIL: f64 = 1e-13;
+
+/// Numerical error a [`Racer::Law`] may have in its returned mass where
+/// its horizon is past its tail bound: the interpolation's error
+/// estimates (1e-15 of mass per panel) over thousands of panels and
+/// convolutions.
+const LAW_ERROR: f64 = 1e-11;
+
+/// Most work (operations) of one uniformization pass of a race's chains
+/// to the time by which it has returned, as the curve's default limit: its
+/// figures take a few such passes (one per round of adaptive panels). An
+/// upper bound (the tail bound's time can be several times the one the
+/// integration stops at, and the solver skips zero entries): MoveIt Pro's
+/// satellite tree, estimated at 2e10, is answered in 1.7 s.
+const MAX_PASS_WORK: f64 = super::curve::DEFAULT_MAX_WORK;
 
 /// Most phases (over all components) of a shifted mixture that a race
 /// samples: every row of it is one transient pass per component, so a
@@ -237,8 +252,12 @@ impl Racer {
     /// The composed law of `id` ([`Racer::Law`]) on `[0, horizon]`, or,
     /// for all time, on a horizon doubled from 32 times its mean time
     /// until all but [`LAW_TAIL`] of its returning mass is within it (its
-    /// figures say how much returns). `refusal`: the error where the
-    /// subtree's figures are not known.
+    /// figures say how much returns). Past the time by which the subtree's
+    /// structure bounds its unreturned mass below `LAW_TAIL / 2`
+    /// ([`super::tail`]) a longer horizon cannot help: a deficit left there
+    /// is the interpolation's error, accepted up to [`LAW_ERROR`] and
+    /// refused beyond. `refusal`: the error where the subtree's figures are
+    /// not known.
     fn law(
         plan: &Plan,
         id: NodeId,
@@ -250,9 +269,10 @@ impl Racer {
             let law = HorizonLaw::build(tree, id, horizon, max_states)?;
             return Ok(Racer::Law(Box::new(law)));
         }
-        let Some(figures) = super::curve::subtree_figures(plan, id) else {
+        let Ok(all) = super::subtree_figures(plan, id) else {
             return Err(refusal());
         };
+        let figures = all[0];
         let returns = figures.ps + figures.pf;
         let scale = figures.mtts.unwrap_or(0.0).max(figures.mttf.unwrap_or(0.0));
         let mut end = 32.0 * scale.max(f64::MIN_POSITIVE);
@@ -260,17 +280,53 @@ impl Racer {
             // it never returns, or returns at once
             end = end.max(1.0);
         }
+        let known: Vec<_> = all.into_iter().map(Some).collect();
+        let settled = super::tail::settled_after(tree, id, &known, scale, LAW_TAIL / 2.0);
         for _ in 0..LAW_DOUBLINGS {
             let law = HorizonLaw::build(tree, id, end, max_states)?;
-            if returns - law.mass() <= LAW_TAIL {
+            let deficit = returns - law.mass();
+            if deficit <= LAW_TAIL {
                 return Ok(Racer::Law(Box::new(law)));
             }
-            end *= 2.0;
+            if let Some(settled) = settled.filter(|&s| end >= s) {
+                if deficit <= LAW_ERROR {
+                    return Ok(Racer::Law(Box::new(law)));
+                }
+                return Err(numerical(
+                    &tree.node(id).name,
+                    &format!(
+                        "its composed law misses {deficit:.1e} of its mass by {end:.4e} s, \
+                         where all but {:.0e} has returned (by {settled:.4e} s)",
+                        LAW_TAIL / 2.0
+                    ),
+                ));
+            }
+            end = match settled {
+                Some(s) if s > end && s < 2.0 * end => s,
+                _ => 2.0 * end,
+            };
         }
         Err(numerical(
             &tree.node(id).name,
             "its composed law did not return its mass within 2^12 times its mean time",
         ))
+    }
+
+    /// [`Race::pass_work`] of this racer.
+    fn pass_work(&self, end: f64) -> f64 {
+        match self {
+            Racer::Chain(c) => uniformization_work(c, &[end]),
+            Racer::Shifted(l) => l
+                .success
+                .iter()
+                .chain(&l.failure)
+                .map(|c| uniformization_work(&c.chain, &[(end - c.shift).max(0.0)]))
+                .sum(),
+            Racer::Counted { children, .. } => children.iter().map(|c| c.pass_work(end)).sum(),
+            Racer::Race(r) => r.pass_work(end),
+            // budgeted where they are built
+            Racer::Renewal(_) | Racer::Law(_) => 0.0,
+        }
     }
 
     /// Instants at which the subtree may return with positive probability.
@@ -623,6 +679,13 @@ impl Race {
     /// never return may leave both thresholds unmet for ever): the tail
     /// is integrated until the running probability is within rounding of
     /// that limit, not of zero.
+    /// The work of one uniformization pass of every chain the race
+    /// samples (its children's, its shifted mixtures' components, those of
+    /// races and counts below) up to `end`.
+    fn pass_work(&self, end: f64) -> f64 {
+        self.children.iter().map(|c| c.pass_work(end)).sum()
+    }
+
     fn limits(&self, scale: f64, ends: &[Figures]) -> Result<[f64; 4], AnalysisError> {
         let never = if ends.len() == self.children.len() {
             // a composed-law child holds its probabilities past its horizon:
@@ -1028,7 +1091,24 @@ pub(crate) fn figures(
     if let Some(moments) = super::law::deadline_figures(tree, id, max_states)? {
         return Ok(Figures::from_moments(moments));
     }
-    limits(race_of(plan, id)?)
+    let race = race_of(plan, id)?;
+    // its integration runs to where it has returned: every pass of its
+    // chains' uniformization is counted before the first
+    let known: Vec<Option<Figures>> = tree
+        .subtree(id)
+        .map(|n| (n != id).then(|| plan.known_figures(n)).flatten())
+        .collect();
+    if let Some(end) = super::tail::settled_after(tree, id, &known, scale, LAW_TAIL) {
+        let work = race.pass_work(end);
+        if work > MAX_PASS_WORK {
+            return Err(AnalysisError::Stiff {
+                node: tree.node(id).name.clone(),
+                work,
+                limit: MAX_PASS_WORK,
+            });
+        }
+    }
+    limits(race)
 }
 
 /// `π(t)` of race `id` at `times` (module docs).
