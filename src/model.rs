@@ -57,13 +57,32 @@ pub enum Error {
 /// A tree analysed once: every node's figures, and its curves on demand.
 ///
 /// The engine plans each node's representation once (`compile::plan`:
-/// one table of rules, bottom-up) and answers every query from it, so
-/// figures and curves of a node always come from the same law.
-#[derive(Debug, Clone)]
+/// one table of rules, bottom-up) and answers every query from that plan,
+/// which the model owns with what it has built (figures, chains, composed
+/// laws): figures and curves of a node come from the same law, and a
+/// second query reuses the first one's work.
 pub struct Model {
     tree: Tree,
     options: Options,
     analysis: Analysis,
+    /// The plan of the primitive tree (the tree itself when it has no
+    /// Nav2 node to lower).
+    plan: compile::Plan<'static>,
+    /// The node of the planned tree standing for each node of `tree`.
+    image: Option<Vec<NodeId>>,
+    /// The plan of the deterministic version (curves with
+    /// [`Timing::Deterministic`]), made on first use.
+    deterministic: std::cell::OnceCell<compile::Plan<'static>>,
+}
+
+impl std::fmt::Debug for Model {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Model")
+            .field("tree", &self.tree.title())
+            .field("nodes", &self.tree.nodes().len())
+            .field("method", &self.options.method)
+            .finish_non_exhaustive()
+    }
 }
 
 impl Model {
@@ -75,11 +94,19 @@ impl Model {
     /// Analyses `tree` under `options` (strategy: exact or the book's; the
     /// state budget).
     pub fn with_options(tree: &Tree, options: Options) -> Result<Model, Error> {
-        let analysis = compile::analyze(tree, &options)?;
+        let (planned, image) = match compile::primitive_view(tree)? {
+            Some(v) => (v.tree, Some(v.image)),
+            None => (tree.clone(), None),
+        };
+        let plan = compile::Plan::owned(planned, options.method, options.max_states);
+        let analysis = compile::analysis_of(&plan, image.as_deref())?;
         Ok(Model {
             tree: tree.clone(),
             options,
             analysis,
+            plan,
+            image,
+            deterministic: std::cell::OnceCell::new(),
         })
     }
 
@@ -97,6 +124,11 @@ impl Model {
     /// come from the tree).
     pub fn figures(&self, id: NodeId) -> Figures {
         self.analysis.nodes[id]
+    }
+
+    /// The analysis: every node's figures and the strategy.
+    pub fn analysis(&self) -> &Analysis {
+        &self.analysis
     }
 
     /// Figures of every node, indexed by node id.
@@ -127,26 +159,38 @@ impl Model {
         }
         let options = CurveOptions {
             method: self.options.method,
-            timing,
+            timing: Timing::AsGiven,
             max_states: self.options.max_states,
             ..CurveOptions::default()
         };
-        Ok(crate::curve::curve(&self.tree, id, times, &options)?)
+        let plan = match timing {
+            Timing::AsGiven => &self.plan,
+            Timing::Deterministic => self.deterministic.get_or_init(|| {
+                compile::Plan::owned(
+                    crate::curve::deterministic_version(self.plan.tree()),
+                    self.options.method,
+                    self.options.max_states,
+                )
+            }),
+        };
+        Ok(crate::compile::curve::with_tail(
+            plan,
+            self.planned(id),
+            times,
+            &options,
+        )?)
     }
 
     /// How the engine represents node `id`'s outcome law (for Nav2 nodes:
     /// the node standing for it in the lowered tree).
     pub fn representation(&self, id: NodeId) -> Result<Representation, Error> {
         self.check_node(id)?;
-        let view = compile::primitive_view(&self.tree)?;
-        let (tree, id) = match &view {
-            Some(v) => (&v.tree, v.image[id]),
-            None => (&self.tree, id),
-        };
-        Ok(
-            compile::Plan::new(tree, self.options.method, self.options.max_states)
-                .representation(id)?,
-        )
+        Ok(self.plan.representation(self.planned(id))?)
+    }
+
+    /// The node of the planned tree standing for node `id`.
+    fn planned(&self, id: NodeId) -> NodeId {
+        self.image.as_ref().map_or(id, |image| image[id])
     }
 
     fn check_node(&self, id: NodeId) -> Result<(), Error> {

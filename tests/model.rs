@@ -226,3 +226,48 @@ fn first_return_races_inside_sequences_agree_with_simulation() {
     let far = m.curve(Tree::ROOT, &[200.0]).unwrap()[0];
     assert!((far.success - root.ps).abs() < 1e-9 && (far.failure - root.pf).abs() < 1e-9);
 }
+
+/// The model keeps its plan: on a tree with Nav2 nodes (planned as their
+/// lowering) every node's curve, asked twice, with both timings, equals
+/// the curve planned afresh for that one query, and the root's curve past
+/// its return is its figures (the curve then reuses the model's figures).
+#[test]
+fn the_model_answers_from_its_own_plan() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("trees");
+    let t = btrel::tree::xml::parse_xml_files(
+        &dir.join("nav2-default-attempt.xml"),
+        &dir.join("nav2-default-attempt.params.yaml"),
+        &[],
+    )
+    .expect("the attempt parses");
+    let m = Model::new(&t).expect("analysed");
+    let times = [0.5, 3.0, 20.0];
+    for timing in [
+        btrel::curve::Timing::AsGiven,
+        btrel::curve::Timing::Deterministic,
+    ] {
+        let options = btrel::curve::CurveOptions {
+            timing,
+            ..Default::default()
+        };
+        for id in 0..t.nodes().len() {
+            let fresh = btrel::curve::curve(&t, id, &times, &options).expect("a curve");
+            for _ in 0..2 {
+                let kept = m.curve_with(id, &times, timing).expect("a curve");
+                for (a, b) in kept.iter().zip(&fresh) {
+                    assert_eq!((a.success, a.failure), (b.success, b.failure), "node {id}");
+                }
+            }
+        }
+    }
+    let root = m.figures(Tree::ROOT);
+    let far = m.curve(Tree::ROOT, &[1e7]).expect("a curve")[0];
+    assert!(
+        (far.success - root.ps).abs() <= 1e-13,
+        "{far:?} vs {root:?}"
+    );
+    assert!(
+        (far.failure - root.pf).abs() <= 1e-13,
+        "{far:?} vs {root:?}"
+    );
+}

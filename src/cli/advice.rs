@@ -63,6 +63,15 @@ pub(super) fn or_list(items: &[String]) -> String {
 }
 
 /// An analysis error with advice naming only the options of `cmd`.
+/// [`analysis_failure`] for the library's [`btrel::Model`]: its analysis
+/// errors get the same advice; any other is stated as it is.
+pub(super) fn model_failure(cmd: Cmd, method: Method) -> impl Fn(btrel::Error) -> Failure {
+    move |e| match e {
+        btrel::Error::Analysis(e) => analysis_failure(cmd, method)(e),
+        other => Failure::analysis(other),
+    }
+}
+
 pub(super) fn analysis_failure(cmd: Cmd, method: Method) -> impl Fn(AnalysisError) -> Failure {
     move |e| {
         let exact = method == Method::Exact;

@@ -3,8 +3,9 @@
 use btrel::compile::{analyze, Options};
 use btrel::report::{Format, Report};
 use btrel::tree::Tree;
+use btrel::Model;
 
-use super::advice::{analysis_failure, Cmd};
+use super::advice::{analysis_failure, model_failure, Cmd};
 use super::args::{FormatArg, ReportArgs};
 use super::ci::ci_sampler;
 use super::input::{warn_endless, InputOptions};
@@ -30,9 +31,9 @@ pub(super) fn run(args: ReportArgs, input: &InputOptions) -> Result<(), Failure>
     let sim = mc
         .map(|runs| sim_options(&args.sim.sim(), runs, Vec::new(), true))
         .transpose()?;
-    let analysis =
-        analyze(&tree, &options).map_err(analysis_failure(Cmd::Report, options.method))?;
-    let report = Report::new(&tree, &analysis);
+    let model =
+        Model::with_options(&tree, options).map_err(model_failure(Cmd::Report, options.method))?;
+    let report = Report::new(&tree, model.analysis());
     let simulated = match &sim {
         Some(o) => Some(run_simulation(&tree, Tree::ROOT, o)?),
         None => None,

@@ -147,7 +147,7 @@ pub const TAIL_TOLERANCE: f64 = 1e-13;
 /// only when the last time is past 16 × the sum of the node's actions' mean
 /// times; without figures (a node whose figures the engine does not
 /// answer) or a finite bound every time is computed.
-fn with_tail(
+pub(crate) fn with_tail(
     plan: &Plan,
     id: NodeId,
     times: &[f64],

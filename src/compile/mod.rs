@@ -309,17 +309,26 @@ impl Analysis {
 pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError> {
     let view = primitive_view(tree)?;
     let (tree, image) = match &view {
-        Some(v) => (&v.tree, Some(&v.image)),
+        Some(v) => (&v.tree, Some(&v.image[..])),
         None => (tree, None),
     };
-    let plan = Plan::new(tree, options.method, options.max_states);
-    let mut nodes = subtree_figures(&plan, 0)?;
+    analysis_of(&Plan::new(tree, options.method, options.max_states), image)
+}
+
+/// Every node's figures from `plan` (of a primitive tree), for the nodes
+/// of the original tree (`image`: the node standing for each, when the
+/// plan's tree is its [`primitive_view`]).
+pub(crate) fn analysis_of(
+    plan: &Plan,
+    image: Option<&[NodeId]>,
+) -> Result<Analysis, AnalysisError> {
+    let mut nodes = subtree_figures(plan, 0)?;
     // the original tree's nodes, each as the node standing for it
     if let Some(image) = image {
         nodes = image.iter().map(|&i| nodes[i]).collect();
     }
     Ok(Analysis {
-        method: options.method,
+        method: plan.method(),
         nodes,
     })
 }

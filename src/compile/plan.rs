@@ -192,10 +192,20 @@ fn book_thresholds(kind: &NodeKind) -> bool {
     thresholds(kind).is_some_and(|(m, f, n)| f > n - m)
 }
 
+impl Plan<'static> {
+    /// [`Plan::new`] owning its tree (a plan kept beside the tree it was
+    /// made from, as the `Model` keeps it).
+    pub fn owned(tree: Tree, method: Method, max_states: usize) -> Plan<'static> {
+        Plan::with_tree(std::borrow::Cow::Owned(tree), method, max_states)
+    }
+}
+
 /// The planned model of one tree under one strategy: every node's
 /// representation, decided once, and the queries on it.
 pub struct Plan<'t> {
-    tree: &'t Tree,
+    /// The primitive tree: borrowed, or owned by a plan that outlives its
+    /// caller's tree ([`Plan::owned`], the `Model`'s).
+    tree: std::borrow::Cow<'t, Tree>,
     method: Method,
     max_states: usize,
     shapes: Vec<Shape>,
@@ -220,19 +230,29 @@ impl<'t> Plan<'t> {
     /// [`super::primitive_view`]) under `method`, with at most `max_states`
     /// states in any chain.
     pub fn new(tree: &'t Tree, method: Method, max_states: usize) -> Plan<'t> {
+        Plan::with_tree(std::borrow::Cow::Borrowed(tree), method, max_states)
+    }
+
+    fn with_tree(tree: std::borrow::Cow<'t, Tree>, method: Method, max_states: usize) -> Plan<'t> {
+        let n = tree.nodes.len();
         Plan {
+            shapes: shapes(&tree),
             tree,
             method,
             max_states,
-            shapes: shapes(tree),
-            representations: (0..tree.nodes.len()).map(|_| OnceCell::new()).collect(),
+            representations: (0..n).map(|_| OnceCell::new()).collect(),
             chains: RefCell::default(),
             over_budget: RefCell::default(),
             laws: law::LawMemo::default(),
             book: OnceCell::new(),
             long_renewals: OnceCell::new(),
-            figures: (0..tree.nodes.len()).map(|_| OnceCell::new()).collect(),
+            figures: (0..n).map(|_| OnceCell::new()).collect(),
         }
+    }
+
+    /// The tree planned.
+    pub fn tree(&self) -> &Tree {
+        &self.tree
     }
 
     /// The figures of node `id` if they were computed
@@ -246,9 +266,9 @@ impl<'t> Plan<'t> {
         let _ = self.figures[id].set(figures);
     }
 
-    /// The tree planned.
-    pub fn tree(&self) -> &'t Tree {
-        self.tree
+    /// The strategy planned for.
+    pub fn method(&self) -> Method {
+        self.method
     }
 
     /// The largest chain (or number of atoms) the plan builds.
@@ -335,7 +355,7 @@ impl<'t> Plan<'t> {
         }
         let node = self.tree.node(id);
         if node.kind.children().is_empty() {
-            return phase::chain_of(self.tree, id, self.max_states);
+            return phase::chain_of(&self.tree, id, self.max_states);
         }
         let children = node
             .kind
@@ -343,7 +363,7 @@ impl<'t> Plan<'t> {
             .iter()
             .map(|&c| self.chain(c))
             .collect::<Result<Vec<_>, _>>()?;
-        let chain = phase::combine(self.tree, id, children, self.max_states)?;
+        let chain = phase::combine(&self.tree, id, children, self.max_states)?;
         if thresholds(&node.kind).is_some() {
             self.chains.borrow_mut().insert(id, chain.clone());
         }
@@ -385,7 +405,7 @@ impl<'t> Plan<'t> {
             }
             Representation::Chain => self.chain(id)?.jump_chain(),
             Representation::Atoms => {
-                let a = atoms::atoms(self.tree, id, self.max_states)?
+                let a = atoms::atoms(&self.tree, id, self.max_states)?
                     .expect("a deterministic subtree has atoms");
                 return Ok(atoms::figures(&a));
             }
@@ -443,7 +463,7 @@ impl<'t> Plan<'t> {
                 NodeKind::Parallel { .. } | NodeKind::Sequence { .. }
             )
         {
-            if let Some(points) = super::renewal_curve::curve(self.tree, id, times, options)? {
+            if let Some(points) = super::renewal_curve::curve(&self.tree, id, times, options)? {
                 return Ok(points);
             }
         }
@@ -482,7 +502,7 @@ impl<'t> Plan<'t> {
             leaf,
         };
         let budget = refusal(self.mixed_leaf(id));
-        law::curve_by_laws(self.tree, id, times, options, budget).map_err(|e| match e {
+        law::curve_by_laws(&self.tree, id, times, options, budget).map_err(|e| match e {
             AnalysisError::MixedTiming { leaf, .. } => refusal(leaf),
             e => e,
         })
@@ -524,10 +544,10 @@ impl<'t> Plan<'t> {
                 let NodeKind::Decorator { decorator, child } = node.kind else {
                     unreachable!("a loop is a decorator")
                 };
-                curve_query::loop_curve(self.tree, id, child, decorator, times, options)
+                curve_query::loop_curve(&self.tree, id, child, decorator, times, options)
             }
             Representation::Atoms => {
-                let a = atoms::atoms(self.tree, id, self.max_states)?
+                let a = atoms::atoms(&self.tree, id, self.max_states)?
                     .expect("a deterministic subtree has atoms");
                 Ok(points(&|t| atoms::cumulative(&a, t)))
             }
@@ -548,19 +568,20 @@ impl<'t> Plan<'t> {
                 // distinct sum of fixed times is a component) the composed
                 // laws are the faster exact answer
                 let first = self.max_states.min(SHIFTED_FIRST);
-                match super::shifted::shifted_law(self.tree, id, first) {
+                match super::shifted::shifted_law(&self.tree, id, first) {
                     Ok(Some(law)) => {
                         curve_query::curve_by_shifted(&law, times, options, &node.name)
                     }
                     // a form the mixture cannot hold
-                    Ok(None) => law::curve_by_laws(self.tree, id, times, options, mixed),
+                    Ok(None) => law::curve_by_laws(&self.tree, id, times, options, mixed),
                     // too many components: where the composed laws cannot
                     // hold the node either, the mixture within the whole
                     // budget, and the budget is what stops it
                     Err(budget @ AnalysisError::StateBudget { .. }) => {
-                        match law::curve_by_laws(self.tree, id, times, options, mixed.clone()) {
+                        match law::curve_by_laws(&self.tree, id, times, options, mixed.clone()) {
                             Err(AnalysisError::MixedTiming { .. }) if first < self.max_states => {
-                                match super::shifted::shifted_law(self.tree, id, self.max_states)? {
+                                match super::shifted::shifted_law(&self.tree, id, self.max_states)?
+                                {
                                     Some(law) => curve_query::curve_by_shifted(
                                         &law, times, options, &node.name,
                                     ),
@@ -583,7 +604,7 @@ impl<'t> Plan<'t> {
                         Ok(_) => unreachable!("a node with a chain is planned as a chain"),
                     },
                 };
-                law::curve_by_laws(self.tree, id, times, options, budget)
+                law::curve_by_laws(&self.tree, id, times, options, budget)
             }
             Representation::Book => {
                 let figs = self.book_figures()?;
@@ -619,7 +640,7 @@ impl<'t> Plan<'t> {
         } else {
             self.tree.subtree(id).find(|&n| {
                 matches!(self.tree.node(n).kind, NodeKind::Parallel { .. })
-                    && super::renewal::parts(self.tree, n).is_some()
+                    && super::renewal::parts(&self.tree, n).is_some()
             })?
         };
         Some(match self.tree.node(race).parent {
@@ -640,7 +661,7 @@ impl<'t> Plan<'t> {
             (0..self.tree.nodes.len())
                 .filter(|&id| matches!(self.tree.node(id).kind, NodeKind::Parallel { .. }))
                 .filter_map(|id| {
-                    let (process, terms) = super::renewal::series(self.tree, id, self.max_states)?;
+                    let (process, terms) = super::renewal::series(&self.tree, id, self.max_states)?;
                     (terms > MAX_RERUN_TERMS as f64).then_some((id, process))
                 })
                 .collect()
