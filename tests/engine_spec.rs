@@ -203,3 +203,27 @@ fn a_sequence_above_a_mixed_race_is_answered() {
         panic!("{e}\n{}", node.yaml());
     }
 }
+
+/// Survey tree 272 to t = 100: its loops' composed laws hold about 150
+/// panels a second (the fixed times' sums jump on a 0.125 s lattice), so
+/// the convolutions' work grows with the square of the horizon; refused
+/// once the next convolution would pass the budget, naming the node and
+/// the horizon, instead of running for many minutes (t = 10 is answered,
+/// with about 1.8e7 of the 4e7 allowed).
+#[test]
+fn a_long_horizon_over_a_lattice_of_jumps_is_refused_on_its_work() {
+    let yaml = random_tree(272, 10).yaml();
+    let tree = btrel::parse_str(&yaml, "spec.yaml").expect("a valid tree");
+    match curve(&tree, 0, &[100.0], &CurveOptions::default()) {
+        Err(btrel::AnalysisError::ConvolutionWork {
+            horizon,
+            work,
+            limit,
+            ..
+        }) => {
+            assert_eq!(horizon, 100.0);
+            assert!(work > limit, "{work} {limit}");
+        }
+        other => panic!("{other:?}"),
+    }
+}

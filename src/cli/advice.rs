@@ -114,7 +114,7 @@ pub(super) fn analysis_failure(cmd: Cmd, method: Method) -> impl Fn(AnalysisErro
                     );
                 }
             }
-            AnalysisError::Stiff { .. } => {
+            AnalysisError::Stiff { .. } | AnalysisError::ConvolutionWork { .. } => {
                 match cmd {
                     Cmd::Curve => {
                         fixes.push("fewer or earlier time points (--times, --t-end)".into())

@@ -194,6 +194,23 @@ pub enum AnalysisError {
         /// The limit.
         limit: f64,
     },
+    /// The composed outcome laws would need too much work: the
+    /// convolutions of densities interpolated on many panels (a long horizon
+    /// over a subtree whose densities jump or kink often).
+    #[error(
+        "node '{node}': its composed outcome law on [0, {horizon}] needs about {work:.2e} \
+         panel-piece evaluations in its convolutions, more than the limit of {limit:.2e}"
+    )]
+    ConvolutionWork {
+        /// The node whose law was being built.
+        node: String,
+        /// The horizon of the law (s).
+        horizon: f64,
+        /// Estimated work, counted before each convolution.
+        work: f64,
+        /// The limit.
+        limit: f64,
+    },
     /// A loop decorator whose child can never end the loop.
     #[error("node '{node}' never returns: it repeats its child until {until}, and the child never returns {until}")]
     NeverReturns {
