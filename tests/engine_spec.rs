@@ -71,7 +71,7 @@ fn random_trees_of_every_kind_and_timing_are_answered_and_agree_with_simulation(
     let survey: Option<u64> = std::env::var("BTREL_SPEC_SURVEY")
         .ok()
         .and_then(|s| s.parse().ok());
-    let n = survey.unwrap_or(60);
+    let n = survey.unwrap_or(200);
     let from: u64 = std::env::var("BTREL_SPEC_FROM")
         .ok()
         .and_then(|s| s.parse().ok())
