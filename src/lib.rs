@@ -21,7 +21,7 @@
 //!     "example.yaml",
 //! )?;
 //! let model = btrel::Model::new(&tree)?;
-//! let root = model.figures(btrel::Tree::ROOT);
+//! let root = model.figures(btrel::Tree::ROOT)?;
 //! assert!((root.ps - 0.75).abs() < 1e-12);
 //! // MTTF = 1/nu + 1/nu (eq. 9.75)
 //! assert!((root.mttf.unwrap() - 1.0).abs() < 1e-12);

@@ -9,7 +9,7 @@
 //!     "example.yaml",
 //! )?;
 //! let model = Model::new(&tree)?;
-//! let root = model.figures(Tree::ROOT);
+//! let root = model.figures(Tree::ROOT)?;
 //! assert!((root.ps - 0.72).abs() < 1e-12);
 //! // MTTS of a Sequence: the sum of its children's (1/mu + tau_s)
 //! assert!((root.mtts.unwrap() - 4.0).abs() < 1e-12);
@@ -54,17 +54,19 @@ pub enum Error {
     },
 }
 
-/// A tree analysed once: every node's figures, and its curves on demand.
+/// A tree planned once: every node's figures and curves on demand.
 ///
 /// The engine plans each node's representation once (`compile::plan`:
 /// one table of rules, bottom-up) and answers every query from that plan,
 /// which the model owns with what it has built (figures, chains, composed
 /// laws): figures and curves of a node come from the same law, and a
-/// second query reuses the first one's work.
+/// second query reuses the first one's work. Every node's figures are
+/// computed at the first query that needs them (a curve at near times does
+/// not), once.
 pub struct Model {
     tree: Tree,
     options: Options,
-    analysis: Analysis,
+    analysis: std::cell::OnceCell<Result<Analysis, AnalysisError>>,
     /// The plan of the primitive tree (the tree itself when it has no
     /// Nav2 node to lower).
     plan: compile::Plan<'static>,
@@ -86,24 +88,25 @@ impl std::fmt::Debug for Model {
 }
 
 impl Model {
-    /// Analyses `tree` exactly, with the default budget.
+    /// Plans `tree` for the exact analysis, with the default budget.
     pub fn new(tree: &Tree) -> Result<Model, Error> {
         Model::with_options(tree, Options::default())
     }
 
-    /// Analyses `tree` under `options` (strategy: exact or the book's; the
-    /// state budget).
+    /// Plans `tree` under `options` (strategy: exact or the book's; the
+    /// state budget). Fails where the tree cannot be lowered to the
+    /// engine's primitives (a Nav2 node without an exact meaning); the
+    /// figures are computed by the first query that needs them.
     pub fn with_options(tree: &Tree, options: Options) -> Result<Model, Error> {
         let (planned, image) = match compile::primitive_view(tree)? {
             Some(v) => (v.tree, Some(v.image)),
             None => (tree.clone(), None),
         };
         let plan = compile::Plan::owned(planned, options.method, options.max_states);
-        let analysis = compile::analysis_of(&plan, image.as_deref())?;
         Ok(Model {
             tree: tree.clone(),
             options,
-            analysis,
+            analysis: std::cell::OnceCell::new(),
             plan,
             image,
             deterministic: std::cell::OnceCell::new(),
@@ -120,20 +123,24 @@ impl Model {
         self.options.method
     }
 
-    /// Figures of node `id` (panics if `id` is not a node of the tree: ids
-    /// come from the tree).
-    pub fn figures(&self, id: NodeId) -> Figures {
-        self.analysis.nodes[id]
+    /// Figures of node `id`.
+    pub fn figures(&self, id: NodeId) -> Result<Figures, Error> {
+        self.check_node(id)?;
+        Ok(self.analysis()?.nodes[id])
     }
 
-    /// The analysis: every node's figures and the strategy.
-    pub fn analysis(&self) -> &Analysis {
-        &self.analysis
+    /// The analysis: every node's figures (computed at the first call,
+    /// bottom-up) and the strategy.
+    pub fn analysis(&self) -> Result<&Analysis, Error> {
+        self.analysis
+            .get_or_init(|| compile::analysis_of(&self.plan, self.image.as_deref()))
+            .as_ref()
+            .map_err(|e| Error::Analysis(e.clone()))
     }
 
     /// Figures of every node, indexed by node id.
-    pub fn all_figures(&self) -> &[Figures] {
-        &self.analysis.nodes
+    pub fn all_figures(&self) -> Result<&[Figures], Error> {
+        Ok(&self.analysis()?.nodes)
     }
 
     /// `π(t)` of node `id` at `times` (finite, ≥ 0, any order), exactly.

@@ -22,7 +22,7 @@ fn figures_and_curve_of_a_mixed_sequence_in_closed_form() {
          {action: {ps: 0.8, tau_s: 3.0, nu: 0.5}}]}}",
     );
     let m = Model::new(&t).unwrap();
-    let root = m.figures(Tree::ROOT);
+    let root = m.figures(Tree::ROOT).expect("figures");
     // P(S) = 0.9 · 0.8; MTTS = 1/mu + tau_s
     assert!((root.ps - 0.72).abs() < 1e-15);
     assert!((root.mtts.unwrap() - 4.0).abs() < 1e-12);
@@ -89,7 +89,7 @@ fn the_planner_table_row_by_row() {
         let m = Model::new(&tree(yaml)).unwrap();
         assert_eq!(rep(&m, Tree::ROOT), *expected, "{yaml}");
         // whatever the representation, the curve's limit is the figures
-        let root = m.figures(Tree::ROOT);
+        let root = m.figures(Tree::ROOT).expect("figures");
         let far = m.curve(Tree::ROOT, &[200.0]).unwrap()[0];
         assert!(
             (far.success - root.ps).abs() < 1e-9,
@@ -181,7 +181,7 @@ fn a_timeout_inside_a_sequence_has_an_exact_curve() {
         );
     }
     // the limit is the report's
-    let root = m.figures(Tree::ROOT);
+    let root = m.figures(Tree::ROOT).expect("figures");
     assert!((pi[7].success - root.ps).abs() < 1e-10);
 }
 
@@ -222,7 +222,7 @@ fn first_return_races_inside_sequences_agree_with_simulation() {
             );
         }
     }
-    let root = m.figures(Tree::ROOT);
+    let root = m.figures(Tree::ROOT).expect("figures");
     let far = m.curve(Tree::ROOT, &[200.0]).unwrap()[0];
     assert!((far.success - root.ps).abs() < 1e-9 && (far.failure - root.pf).abs() < 1e-9);
 }
@@ -260,7 +260,7 @@ fn the_model_answers_from_its_own_plan() {
             }
         }
     }
-    let root = m.figures(Tree::ROOT);
+    let root = m.figures(Tree::ROOT).expect("figures");
     let far = m.curve(Tree::ROOT, &[1e7]).expect("a curve")[0];
     assert!(
         (far.success - root.ps).abs() <= 1e-13,

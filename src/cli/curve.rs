@@ -1,9 +1,11 @@
 //! `btrel curve`: π(t) of nodes as CSV, with `--mc` or `--ci` columns.
 
-use btrel::curve::{CurveOptions, Timing};
+use btrel::compile::Options;
+use btrel::curve::Timing;
 use btrel::tree::Tree;
+use btrel::Model;
 
-use super::advice::{analysis_failure, Cmd};
+use super::advice::{analysis_error, analysis_failure, model_failure, Cmd};
 use super::args::{CurveArgs, MethodArg, TimingArg};
 use super::ci::{ci_notes, ci_sampler};
 use super::input::{find_nodes, warn_endless, InputOptions};
@@ -27,15 +29,17 @@ pub(super) fn run(args: CurveArgs, input: &InputOptions) -> Result<(), Failure> 
     } else {
         find_nodes(&tree, &args.nodes, &args.tree)?
     };
-    let options = CurveOptions {
+    let options = Options {
         method: method(args.method),
-        timing: match args.timing {
-            TimingArg::AsGiven => Timing::AsGiven,
-            TimingArg::Deterministic => Timing::Deterministic,
-        },
         max_states: args.max_states,
-        ..CurveOptions::default()
     };
+    let timing = match args.timing {
+        TimingArg::AsGiven => Timing::AsGiven,
+        TimingArg::Deterministic => Timing::Deterministic,
+    };
+    let failure = model_failure(Cmd::Curve, options.method);
+    // one plan for every node asked (and its figures, if far times need them)
+    let model = Model::with_options(&tree, options).map_err(&failure)?;
     let mc = optional_count("--mc", &args.mc)?;
     let sim = mc
         .map(|runs| sim_options(&args.sim.sim(), runs, times.clone(), false))
@@ -43,8 +47,7 @@ pub(super) fn run(args: CurveArgs, input: &InputOptions) -> Result<(), Failure> 
     let mut curves = Vec::with_capacity(nodes.len());
     for &id in &nodes {
         let spinner = Spinner::start(format!("computing π(t) of '{}'", tree.node(id).name));
-        let points = btrel::curve::curve(&tree, id, &times, &options)
-            .map_err(analysis_failure(Cmd::Curve, options.method))?;
+        let points = model.curve_with(id, &times, timing).map_err(&failure)?;
         drop(spinner);
         let simulated = match &sim {
             Some(o) => Some(run_simulation(&tree, id, o)?.curve),
@@ -59,8 +62,12 @@ pub(super) fn run(args: CurveArgs, input: &InputOptions) -> Result<(), Failure> 
             let flat = sampler
                 .intervals(ci.level, ci.draws, ci.seed, |t| {
                     let mut v = Vec::with_capacity(3 * times.len() * nodes.len());
+                    let model = Model::with_options(t, options).map_err(analysis_error)?;
                     for &id in &nodes {
-                        for p in btrel::curve::curve(t, id, &times, &options)? {
+                        for p in model
+                            .curve_with(id, &times, timing)
+                            .map_err(analysis_error)?
+                        {
                             v.extend([Some(p.success), Some(p.failure), Some(p.running)]);
                         }
                     }

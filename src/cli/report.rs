@@ -31,9 +31,9 @@ pub(super) fn run(args: ReportArgs, input: &InputOptions) -> Result<(), Failure>
     let sim = mc
         .map(|runs| sim_options(&args.sim.sim(), runs, Vec::new(), true))
         .transpose()?;
-    let model =
-        Model::with_options(&tree, options).map_err(model_failure(Cmd::Report, options.method))?;
-    let report = Report::new(&tree, model.analysis());
+    let failure = model_failure(Cmd::Report, options.method);
+    let model = Model::with_options(&tree, options).map_err(&failure)?;
+    let report = Report::new(&tree, model.analysis().map_err(&failure)?);
     let simulated = match &sim {
         Some(o) => Some(run_simulation(&tree, Tree::ROOT, o)?),
         None => None,
