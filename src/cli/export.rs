@@ -2,10 +2,11 @@
 
 use std::path::PathBuf;
 
-use btrel::compile::{analyze, Options};
+use btrel::compile::Options;
 use btrel::tree::Tree;
+use btrel::Model;
 
-use super::advice::{analysis_failure, with_article, write_error, Cmd};
+use super::advice::{analysis_error, analysis_failure, with_article, write_error, Cmd};
 use super::args::{ExportArgs, ExportFormat, MethodArg};
 use super::input::{find_nodes, InputOptions};
 use super::options::{method, parse_time};
@@ -66,7 +67,9 @@ pub(super) fn run(args: ExportArgs, input: &InputOptions) -> Result<(), Failure>
     };
     let text = match args.to {
         ExportFormat::Dot => {
-            let analysis = analyze(&tree, &options);
+            let analysis = Model::with_options(&tree, options)
+                .and_then(|m| m.analysis().cloned())
+                .map_err(analysis_error);
             match &args.mrg {
                 None => btrel::export::dot_tree(&tree, analysis.as_ref().ok()),
                 Some(_) => {
