@@ -118,6 +118,12 @@ fn curves(c: &mut Criterion) {
         group.bench_function("nav2_fitted_1000_points", |b| {
             b.iter(|| curve(&fitted, 0, &times, &CurveOptions::default()).expect("curve"))
         });
+        // a time far past its return: answered from its figures past the
+        // tail bound (it was found by computing the curve at 16 × its mean
+        // time, doubling)
+        group.bench_function("nav2_fitted_far_time", |b| {
+            b.iter(|| curve(&fitted, 0, &[1e7], &CurveOptions::default()).expect("curve"))
+        });
     } else {
         eprintln!("nav2_default_published_1000_points skipped: ../shared/realworld is absent");
     }
