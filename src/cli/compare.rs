@@ -2,10 +2,11 @@
 
 use std::io;
 
-use btrel::curve::{CurveOptions, Timing};
+use btrel::curve::Timing;
 use btrel::tree::Tree;
+use btrel::Model;
 
-use super::advice::{self, analysis_failure, compare_failure, write_error, Cmd};
+use super::advice::{self, compare_failure, model_failure, write_error, Cmd};
 use super::args::{CompareArgs, FormatArg, ObjectiveArg};
 use super::input::{find_nodes, InputOptions};
 use super::options::{method, optional_time};
@@ -91,14 +92,16 @@ pub(super) fn run(args: CompareArgs, input: &InputOptions) -> Result<(), Failure
             }
         };
         let times: Vec<f64> = (0..=200).map(|k| end * k as f64 / 200.0).collect();
-        let curve_options = CurveOptions {
-            method: options.method,
-            ..CurveOptions::default()
-        };
+        let failure = model_failure(Cmd::Compare, options.method);
         let mut rows = Vec::new();
         for (c, t) in top.iter().zip(&trees) {
-            let points = btrel::curve::curve(t, Tree::ROOT, &times, &curve_options)
-                .map_err(analysis_failure(Cmd::Compare, options.method))?;
+            let model_options = btrel::Options {
+                method: options.method,
+                ..btrel::Options::default()
+            };
+            let points = Model::with_options(t, model_options)
+                .and_then(|m| m.curve(Tree::ROOT, &times))
+                .map_err(&failure)?;
             rows.push((ranking::label(&tree, &cmp, c), points));
         }
         let root = &tree.node(Tree::ROOT).name;

@@ -6,7 +6,7 @@ use btrel::curve::{CurveOptions, Timing};
 use btrel::report::number::full;
 use btrel::tree::Tree;
 
-use super::advice::{self, analysis_failure, compare_failure, Cmd};
+use super::advice::{self, analysis_error, analysis_failure, compare_failure, Cmd};
 use super::args::{ImageFormatArg, PlotArgs, PlotTiming};
 use super::input::{find_nodes, warn_endless, InputOptions};
 use super::options::{method, optional_count, optional_time, sim_options};
@@ -200,7 +200,13 @@ pub(super) fn run(args: PlotArgs, input: &InputOptions) -> Result<(), Failure> {
             ..base
         };
         let spinner = Spinner::start(format!("computing π(t) of '{}'", t.node(*id).name));
-        let computed = btrel::curve::curve(t, *id, &times, &options);
+        let model_options = btrel::Options {
+            method: options.method,
+            max_states: options.max_states,
+        };
+        let computed = btrel::Model::with_options(t, model_options)
+            .and_then(|m| m.curve_with(*id, &times, *timing))
+            .map_err(analysis_error);
         drop(spinner);
         match computed {
             Ok(points) => {
