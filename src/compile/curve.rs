@@ -179,7 +179,7 @@ pub(crate) fn with_tail(
         .unwrap_or(0.0)
         .max(figures.mttf.unwrap_or(0.0))
         .max(leaves);
-    let known: Vec<_> = all.into_iter().map(Some).collect();
+    let known = plan.known_subtree_figures(id);
     let Some(tail) = super::tail::settled_after(plan.tree(), id, &known, scale, TAIL_TOLERANCE)
     else {
         return plan.curve(id, times, options);

@@ -370,6 +370,9 @@ pub(crate) fn subtree_figures(plan: &Plan, id: NodeId) -> Result<Vec<Figures>, A
         if let Some(&twin) = seen.get(&prints[n]) {
             if tree.same_subtree(twin, n) {
                 figures[n - base] = figures[twin - base];
+                if let Some(f) = figures[n - base] {
+                    plan.remember_figures(n, f);
+                }
                 continue;
             }
         }

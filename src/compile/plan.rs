@@ -261,6 +261,15 @@ impl<'t> Plan<'t> {
         self.figures[id].get().copied()
     }
 
+    /// The figures of every node of `id`'s subtree (`[k]`: node `id + k`)
+    /// that were computed, `None` for the others (the tail bound's input).
+    pub(crate) fn known_subtree_figures(&self, id: NodeId) -> Vec<Option<Figures>> {
+        self.tree
+            .subtree(id)
+            .map(|n| self.known_figures(n))
+            .collect()
+    }
+
     /// Keeps the figures of node `id`.
     pub(crate) fn remember_figures(&self, id: NodeId, figures: Figures) {
         let _ = self.figures[id].set(figures);

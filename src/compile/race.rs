@@ -280,7 +280,7 @@ impl Racer {
             // it never returns, or returns at once
             end = end.max(1.0);
         }
-        let known: Vec<_> = all.into_iter().map(Some).collect();
+        let known = plan.known_subtree_figures(id);
         let settled = super::tail::settled_after(tree, id, &known, scale, LAW_TAIL / 2.0);
         for _ in 0..LAW_DOUBLINGS {
             let law = HorizonLaw::build(tree, id, end, max_states)?;
@@ -1094,10 +1094,8 @@ pub(crate) fn figures(
     let race = race_of(plan, id)?;
     // its integration runs to where it has returned: every pass of its
     // chains' uniformization is counted before the first
-    let known: Vec<Option<Figures>> = tree
-        .subtree(id)
-        .map(|n| (n != id).then(|| plan.known_figures(n)).flatten())
-        .collect();
+    // (its own figures are what is being computed: not known yet)
+    let known = plan.known_subtree_figures(id);
     if let Some(end) = super::tail::settled_after(tree, id, &known, scale, LAW_TAIL) {
         let work = race.pass_work(end);
         if work > MAX_PASS_WORK {
