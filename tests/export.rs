@@ -7,7 +7,7 @@ use common::tree;
 use btrel::compile::phase::phase_chain;
 use btrel::compile::{analyze, Options};
 use btrel::export::{dot_mrg, dot_tree, prism_ctmc, prism_model, PRISM_PROPERTIES};
-use btrel::tree::{parse_file, Tree};
+use btrel::tree::{parse_file, NodeKind, Tree};
 use btrel::Figures;
 
 fn search_and_grasp() -> Tree {
@@ -224,7 +224,51 @@ fn commands(text: &str) -> Vec<(usize, f64, usize)> {
         .collect()
 }
 
+/// A Parallel's PRISM model: one module per child, whose commands are the
+/// child's phase chain, rates bit for bit, guarded by the node running.
+fn check_prism_modules(t: &Tree, id: usize) -> String {
+    let text = prism_ctmc(t, id, 1_000_000).unwrap();
+    assert!(text.contains("module outcome\n  o : [0..2];"), "{text}");
+    assert!(
+        text.contains("formula p0_run = o=0 & !p0_s & !p0_f;"),
+        "{text}"
+    );
+    for (k, &child) in t.node(id).kind.children().iter().enumerate() {
+        let chain = phase_chain(t, child, 1_000_000).unwrap();
+        let n = chain.len();
+        assert!(text.contains(&format!("module c{k}\n  s{k} : [0..{}];", n + 1)));
+        let mut expected = Vec::new();
+        for i in 0..n {
+            for &(j, r) in &chain.transitions[i] {
+                expected.push((i, r, j));
+            }
+            for (r, to) in [(chain.exit_success[i], n), (chain.exit_failure[i], n + 1)] {
+                if r > 0.0 {
+                    expected.push((i, r, to));
+                }
+            }
+        }
+        let prefix = format!("[] p0_run & s{k}=");
+        let var = format!(" : (s{k}'=");
+        let found: Vec<(usize, f64, usize)> = text
+            .lines()
+            .filter_map(|l| {
+                let l = l.trim().strip_prefix(prefix.as_str())?;
+                let (from, rest) = l.split_once(" -> ")?;
+                let (rate, rest) = rest.split_once(var.as_str())?;
+                let to = rest.strip_suffix(");")?;
+                Some((from.parse().ok()?, rate.parse().ok()?, to.parse().ok()?))
+            })
+            .collect();
+        assert_eq!(found, expected, "child {k}:\n{text}");
+    }
+    text
+}
+
 fn check_prism(t: &Tree, id: usize) -> String {
+    if matches!(t.node(id).kind, NodeKind::Parallel { .. }) {
+        return check_prism_modules(t, id);
+    }
     let chain = phase_chain(t, id, 1_000_000).unwrap();
     let text = prism_ctmc(t, id, 1_000_000).unwrap();
     let n = chain.len();

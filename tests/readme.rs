@@ -773,10 +773,18 @@ fn clean(word: &str) -> &str {
 #[test]
 fn synopsis_lists_every_option_and_no_other() {
     let cli = Cli::get();
-    let (name, text) = documents()
+    // exactly one synopsis, so that no second copy can drift unchecked
+    let mut with_synopsis: Vec<(String, String)> = documents()
         .into_iter()
-        .find(|(_, t)| t.lines().any(|l| l.trim_end() == "## Commands"))
-        .expect("README.md or a docs/*.md has a `## Commands` section");
+        .filter(|(_, t)| t.lines().any(|l| l.trim_end() == "## Commands"))
+        .collect();
+    let names: Vec<&str> = with_synopsis.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(
+        names.len(),
+        1,
+        "exactly one of README.md and docs/*.md has a `## Commands` synopsis: {names:?}"
+    );
+    let (name, text) = with_synopsis.remove(0);
     let lines: Vec<&str> = text.lines().collect();
     let start = lines
         .iter()

@@ -7,7 +7,8 @@
 //! * [`dot_mrg`]: a Sequence/Fallback/Parallel node's MRG with the DTMC
 //!   probability of every event (the book's Figs. 9.8–9.10);
 //! * [`prism_ctmc`]: a node's exact phase chain as a PRISM `ctmc` model, to
-//!   be checked with the properties in [`PRISM_PROPERTIES`];
+//!   be checked with the properties in [`PRISM_PROPERTIES`] (a Parallel as
+//!   one module per child, `prism_parallel.rs`);
 //! * [`write_prism_explicit`]: the same chain as PRISM's explicit model
 //!   files (`.tra`, `.sta`, `.lab`, `.srew`), for large chains;
 //! * [`write_drn`]: the same chain in Storm's explicit DRN format.
@@ -16,6 +17,7 @@ pub mod dot;
 pub mod drn;
 pub mod explicit;
 pub mod prism;
+mod prism_parallel;
 
 pub use dot::{dot_mrg, dot_tree};
 pub use drn::write_drn;

@@ -108,16 +108,21 @@ pub fn prism_number(x: f64) -> String {
     }
 }
 
-fn comment(text: &str) -> String {
+pub(super) fn comment(text: &str) -> String {
     text.replace(['\n', '\r'], " ")
 }
 
 /// The exact phase chain of node `node` as a PRISM CTMC (see the module
-/// documentation for the format and the initial distribution).
+/// documentation for the format and the initial distribution). A Parallel
+/// is written as one module per child ([`super::prism_parallel`]): PRISM
+/// builds its product, which is not built here.
 ///
 /// Errors like [`phase_chain`]: non-exponential leaves, or more than
-/// `max_states` phases.
+/// `max_states` phases (for a Parallel: in one child's chain).
 pub fn prism_ctmc(tree: &Tree, node: NodeId, max_states: usize) -> Result<String, AnalysisError> {
+    if let Some(model) = super::prism_parallel::parallel_model(tree, node, max_states)? {
+        return Ok(model);
+    }
     let chain = phase_chain(tree, node, max_states)?;
     let n = tree.node(node);
     let what = format!("node '{}' ({})", comment(&n.name), n.kind.keyword());
@@ -365,8 +370,9 @@ pub fn prism_properties(times: &[f64]) -> String {
     out
 }
 
-/// A time as it appears in a property's name: as the user wrote it, in
-/// Rust's shortest form (`100`, `2.5`, `1e-7`).
+/// A time as it appears in a property's name, which PRISM reads as an
+/// identifier: Rust's shortest decimal form with `p` for the point (`100`,
+/// `2p5`, `0p0000001`).
 fn times_label(t: f64) -> String {
-    format!("{t}")
+    format!("{t}").replace('.', "p")
 }
