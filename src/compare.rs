@@ -262,7 +262,7 @@ pub enum CompareError {
 }
 
 /// The value minimised (success-by is negated).
-pub fn objective_value(objective: Objective, c: &Candidate) -> f64 {
+pub(crate) fn objective_value(objective: Objective, c: &Candidate) -> f64 {
     match objective {
         Objective::MeanTime => c.root.mean_time(),
         Objective::Mtts => c.root.mtts.unwrap_or(f64::INFINITY),

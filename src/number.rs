@@ -53,7 +53,7 @@ pub fn full(x: f64) -> String {
 }
 
 /// Formats an optional figure; undefined values are an em dash.
-pub fn significant_or_dash(x: Option<f64>, digits: usize) -> String {
+pub(crate) fn significant_or_dash(x: Option<f64>, digits: usize) -> String {
     x.map_or_else(|| "—".to_string(), |v| significant(v, digits))
 }
 

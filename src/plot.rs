@@ -249,9 +249,9 @@ pub struct PlotSpec {
 }
 
 /// Default image width in pixels.
-pub const DEFAULT_WIDTH: u32 = 960;
+pub(crate) const DEFAULT_WIDTH: u32 = 960;
 /// Default image height in pixels.
-pub const DEFAULT_HEIGHT: u32 = 600;
+pub(crate) const DEFAULT_HEIGHT: u32 = 600;
 /// Smallest accepted width.
 pub const MIN_WIDTH: u32 = 400;
 /// Smallest accepted height.

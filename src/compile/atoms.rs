@@ -24,7 +24,7 @@ use crate::tree::{Duration, Flow, FlowNext, NodeId, NodeKind, Tree};
 
 /// One possible return of a node: at `time`, with `outcome`, with probability `prob`.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Atom {
+pub(crate) struct Atom {
     /// When the node returns (s).
     pub time: f64,
     /// What it returns.
@@ -317,7 +317,11 @@ fn chain<'a>(
 /// the instants at which each state is entered are carried forward, state
 /// by state, shifted by the state's child's atoms. Fails with the number of
 /// atoms if it would exceed `max_atoms`.
-pub fn flow_atoms(flow: &Flow, children: &[Vec<Atom>], max_atoms: usize) -> Result<Vec<Atom>, f64> {
+pub(crate) fn flow_atoms(
+    flow: &Flow,
+    children: &[Vec<Atom>],
+    max_atoms: usize,
+) -> Result<Vec<Atom>, f64> {
     // entry instants of each state, as atoms whose outcome is irrelevant
     let mut entered: Vec<Vec<Atom>> = vec![Vec::new(); flow.states.len()];
     entered[0].push(Atom {

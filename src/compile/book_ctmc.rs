@@ -37,7 +37,7 @@ impl Entry {
 /// retry and repeat are a Fallback and a Sequence of fresh copies; an
 /// inverter or a force decorator maps the child's one exponential phase
 /// (rate 1/SJ) to its outcomes.
-pub fn book_decorator(decorator: Decorator, child: Figures) -> PhaseChain {
+pub(crate) fn book_decorator(decorator: Decorator, child: Figures) -> PhaseChain {
     let (policy, n) = match decorator {
         Decorator::Retry { attempts } => (Policy::Fallback, attempts),
         Decorator::Repeat { times } => (Policy::Sequence, times),

@@ -97,7 +97,11 @@ pub fn status_by_counts(points: &[(f64, f64)], m: usize, f_cap: usize) -> (f64, 
 /// multilinear in the children's inputs, so it is run in dual numbers
 /// (value, derivative): a child's running probability `1 − S_h − F_h` has
 /// derivative `−s_h − f_h`.
-pub fn status_and_densities_by_counts(points: &[[f64; 4]], m: usize, f_cap: usize) -> [f64; 4] {
+pub(crate) fn status_and_densities_by_counts(
+    points: &[[f64; 4]],
+    m: usize,
+    f_cap: usize,
+) -> [f64; 4] {
     let width = f_cap + 1;
     // (value, derivative) per cell
     let mut dp = vec![(0.0f64, 0.0f64); (m + 1) * width];

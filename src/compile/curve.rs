@@ -35,11 +35,11 @@ pub enum Timing {
 }
 
 /// Error bound accepted from the dense stiff solver.
-pub const DENSE_TOLERANCE: f64 = 1e-10;
+pub(crate) const DENSE_TOLERANCE: f64 = 1e-10;
 
 /// Default limit on uniformization work (vector operations × nonzeros; an
 /// upper bound, since the solver skips zero entries: about a few seconds).
-pub const DEFAULT_MAX_WORK: f64 = 1e11;
+pub(crate) const DEFAULT_MAX_WORK: f64 = 1e11;
 
 /// Options of a curve computation.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -23,7 +23,7 @@ pub mod counts;
 pub mod curve;
 pub(crate) mod flow;
 pub(crate) mod law;
-pub mod mrg;
+pub(crate) mod mrg;
 pub mod phase;
 pub(crate) mod plan;
 pub(crate) mod race;
@@ -398,7 +398,7 @@ pub(crate) fn subtree_figures(plan: &Plan, id: NodeId) -> Result<Vec<Figures>, A
 /// shape (same node ids) and `options.method` must match; a tree with Nav2
 /// nodes must be passed as its [`primitive_view`]'s tree, with the analysis
 /// of that tree.
-pub fn reanalyze(
+pub(crate) fn reanalyze(
     tree: &Tree,
     analysis: &mut Analysis,
     changed: &[NodeId],
@@ -424,7 +424,7 @@ pub fn reanalyze(
 }
 
 /// Figures of an action, identical under both methods.
-pub fn leaf_figures(kind: &NodeKind) -> Option<Figures> {
+pub(crate) fn leaf_figures(kind: &NodeKind) -> Option<Figures> {
     match kind {
         NodeKind::Action(a) => Some(Figures {
             ps: a.ps,
@@ -521,7 +521,7 @@ pub(crate) fn parallel_by_counts(
 /// Uniformization steps over 32 × the longest child mean beyond which a
 /// counted Parallel's mean times come from composed laws rather than the
 /// certified quadrature ([`counts`] module docs).
-pub const STIFF_STEPS: f64 = 1e5;
+pub(crate) const STIFF_STEPS: f64 = 1e5;
 
 /// Figures of a counted Parallel from composed laws: P(S), P(F) by counting
 /// the children's exact figures, the mean times as first moments of the
@@ -551,7 +551,7 @@ fn means_from_laws(
 /// `1 − P(F)`, never returns: a child that never fails (`pf = 0`) makes the
 /// loop run forever (`ps = 1`), or a run of the child that never returns
 /// (a defective child law). `None` for other decorators.
-pub fn loop_figures(
+pub(crate) fn loop_figures(
     decorator: Decorator,
     child: Figures,
     _name: &str,
@@ -594,7 +594,7 @@ pub fn loop_figures(
 ///   with the child's mean time `E[T]`;
 /// * retry N: a Fallback of N fresh copies; repeat N: a Sequence of N copies,
 ///   solved over their MRG like any Fallback/Sequence.
-pub fn decorator_figures(decorator: Decorator, child: Figures) -> Result<Figures, String> {
+pub(crate) fn decorator_figures(decorator: Decorator, child: Figures) -> Result<Figures, String> {
     let decorator = decorator.as_primitive();
     Ok(match decorator {
         Decorator::Inverter => Figures {
@@ -690,7 +690,7 @@ pub(crate) fn mrg_chain(g: &Mrg, children: &[Figures], competing: bool) -> Absor
 
 /// An MRG event with its DTMC probability and mean duration.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct WeightedEvent {
+pub(crate) struct WeightedEvent {
     /// The event.
     pub event: mrg::Event,
     /// Its probability from its marking (0 for a child pre-empted by a
@@ -705,7 +705,11 @@ pub struct WeightedEvent {
 /// only feasible child (or `competing` is false), otherwise the share
 /// (9.38)–(9.39) of rates `1/SJ_h` and the marking's mean sojourn (9.40);
 /// zero-duration children return first.
-pub fn weighted_events(g: &Mrg, children: &[Figures], competing: bool) -> Vec<WeightedEvent> {
+pub(crate) fn weighted_events(
+    g: &Mrg,
+    children: &[Figures],
+    competing: bool,
+) -> Vec<WeightedEvent> {
     let sojourn = |h: usize| children[h].mean_time();
     let mut out = Vec::with_capacity(g.events.len());
     let mut start = 0;

@@ -35,7 +35,7 @@ pub enum Status {
 
 /// The execution policy of a control node.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Policy {
+pub(crate) enum Policy {
     /// Sequence (→).
     Sequence,
     /// Fallback (?).
@@ -93,7 +93,7 @@ impl Policy {
 /// An event of the MRG: `child` returns `outcome` at marking `from`,
 /// which moves the node to marking `to`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Event {
+pub(crate) struct Event {
     /// Marking before the event.
     pub from: usize,
     /// The child (0-based position) that returns.
@@ -106,7 +106,7 @@ pub struct Event {
 
 /// The marking reachability graph of a control node.
 #[derive(Debug, Clone)]
-pub struct Mrg {
+pub(crate) struct Mrg {
     /// The node's policy.
     pub policy: Policy,
     /// Number of children N.
@@ -230,9 +230,16 @@ impl Mrg {
         self.status.len()
     }
 
-    /// Whether the graph has no markings (never: marking 0 always exists).
-    pub fn is_empty(&self) -> bool {
-        self.status.is_empty()
+    /// Children feasible at marking `i` (eqs. 9.33–9.35; the tests check
+    /// the graph against the book's).
+    #[cfg(test)]
+    fn feasible(&self, i: usize) -> impl Iterator<Item = usize> + '_ {
+        let start = self.events.partition_point(|e| e.from < i);
+        self.events[start..]
+            .iter()
+            .take_while(move |e| e.from == i)
+            .filter(|e| e.outcome == Outcome::Success)
+            .map(|e| e.child)
     }
 
     /// The marking vector of marking `i` (eq. 9.29).
@@ -255,16 +262,6 @@ impl Mrg {
             m[k] = -cont;
         }
         m
-    }
-
-    /// Children feasible at marking `i` (eqs. 9.33–9.35).
-    pub fn feasible(&self, i: usize) -> impl Iterator<Item = usize> + '_ {
-        let start = self.events.partition_point(|e| e.from < i);
-        self.events[start..]
-            .iter()
-            .take_while(move |e| e.from == i)
-            .filter(|e| e.outcome == Outcome::Success)
-            .map(|e| e.child)
     }
 }
 

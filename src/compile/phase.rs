@@ -129,7 +129,7 @@ pub(crate) fn chain_of(
 /// child order): concatenation for Sequence/Fallback, the decorator's
 /// transformation, or the Parallel product. Lets a caller substitute a
 /// child's chain (e.g. by a marker, see [`crate::compile::curve`]).
-pub fn combine(
+pub(crate) fn combine(
     tree: &Tree,
     id: NodeId,
     chains: Vec<PhaseChain>,

@@ -68,7 +68,7 @@ const MAX_INSTANT_WORK: f64 = 1e9;
 
 /// Whether a Parallel with these thresholds is a race (both thresholds can
 /// be met), rather than a count with the book's thresholds.
-pub fn is_race(n: usize, m: usize, f: usize) -> bool {
+pub(crate) fn is_race(n: usize, m: usize, f: usize) -> bool {
     f.min(n + 1 - m) < n + 1 - m
 }
 

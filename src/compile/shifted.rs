@@ -48,7 +48,7 @@ use crate::tree::{Decorator, Duration, Flow, FlowNext, NodeId, NodeKind, Tree};
 
 /// One term `weight · (δ_shift ⊛ PH(chain))` of an outcome's law.
 #[derive(Debug, Clone)]
-pub struct Component {
+pub(crate) struct Component {
     /// Deterministic delay before the chain starts (s).
     pub shift: f64,
     /// Signed weight.
@@ -59,7 +59,7 @@ pub struct Component {
 
 /// A node's outcome law: the components of its Success and its Failure.
 #[derive(Debug, Clone, Default)]
-pub struct ShiftedLaw {
+pub(crate) struct ShiftedLaw {
     /// Components of the Success sub-distribution.
     pub success: Vec<Component>,
     /// Components of the Failure sub-distribution.

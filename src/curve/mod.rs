@@ -4,7 +4,4 @@
 //! counted Parallels, composed outcome laws, cyclic loop chains, or the
 //! book's CTMC).
 
-pub use crate::compile::curve::{
-    curve, deterministic_version, CurveOptions, CurvePoint, Timing, DEFAULT_MAX_WORK,
-    DENSE_TOLERANCE,
-};
+pub use crate::compile::curve::{curve, deterministic_version, CurveOptions, CurvePoint, Timing};

@@ -39,7 +39,7 @@ pub fn absorbing_rate(chain: &PhaseChain) -> f64 {
 /// The initial distribution over states: `(state, probability)` with
 /// positive probabilities, sorted by state, duplicates merged; instantaneous
 /// Success and Failure are mass on states `n` and `n + 1`.
-pub fn initial_weights(chain: &PhaseChain) -> Vec<(usize, f64)> {
+pub(crate) fn initial_weights(chain: &PhaseChain) -> Vec<(usize, f64)> {
     let n = chain.len();
     let mut weights: Vec<(usize, f64)> = chain
         .initial
@@ -89,7 +89,7 @@ pub fn row(chain: &PhaseChain, i: usize, absorbing: f64) -> Vec<(usize, f64)> {
 
 /// Number of transitions over all states, self-loops of the absorbing
 /// states included (the `.tra` header's count).
-pub fn transition_count(chain: &PhaseChain) -> usize {
+pub(crate) fn transition_count(chain: &PhaseChain) -> usize {
     (0..chain.len())
         .map(|i| row(chain, i, 1.0).len())
         .sum::<usize>()

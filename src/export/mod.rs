@@ -13,11 +13,12 @@
 //!   files (`.tra`, `.sta`, `.lab`, `.srew`), for large chains;
 //! * [`write_drn`]: the same chain in Storm's explicit DRN format.
 
-pub mod dot;
-pub mod drn;
-pub mod explicit;
+pub(crate) mod dot;
+pub(crate) mod drn;
+pub(crate) mod explicit;
 pub mod prism;
 mod prism_parallel;
+mod prism_text;
 
 pub use dot::{dot_mrg, dot_tree};
 pub use drn::write_drn;
@@ -28,7 +29,7 @@ pub use prism::{
 
 /// Escapes text for a double-quoted DOT string: backslashes and quotes are
 /// escaped, line breaks become DOT's `\n`.
-pub fn dot_escape(text: &str) -> String {
+pub(crate) fn dot_escape(text: &str) -> String {
     let mut out = String::with_capacity(text.len());
     for c in text.chars() {
         match c {

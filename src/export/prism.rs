@@ -62,6 +62,8 @@ use std::fmt::Write as _;
 use std::io::{self, Write};
 
 use super::explicit::{absorbing_rate, initial_weights, row, transition_count};
+use super::prism_text::comment;
+pub use super::prism_text::prism_number;
 use crate::compile::phase::phase_chain;
 use crate::compile::AnalysisError;
 use crate::solve::chain::PhaseChain;
@@ -90,27 +92,6 @@ const double T;
 // Mean execution time E[T] = ps*MTTS + pf*MTTF
 "mean_time": filter(+, w_init * R{"time"}=? [ F "done" ], "init");
 "#;
-
-/// A number PRISM parses back to exactly `x` (`x ≥ 0`, finite).
-pub fn prism_number(x: f64) -> String {
-    let a = x.abs();
-    if x == 0.0 {
-        "0.0".to_string()
-    } else if (1e-4..1e15).contains(&a) {
-        let s = format!("{x}");
-        if s.contains('.') {
-            s
-        } else {
-            format!("{s}.0")
-        }
-    } else {
-        format!("{x:e}")
-    }
-}
-
-pub(super) fn comment(text: &str) -> String {
-    text.replace(['\n', '\r'], " ")
-}
 
 /// The exact phase chain of node `node` as a PRISM CTMC (see the module
 /// documentation for the format and the initial distribution). A Parallel

@@ -45,7 +45,7 @@
 use std::fmt::Write as _;
 
 use super::explicit::initial_weights;
-use super::prism::{comment, prism_number};
+use super::prism_text::{comment, prism_number};
 use crate::compile::phase::chain_of;
 use crate::compile::AnalysisError;
 use crate::solve::chain::PhaseChain;

@@ -17,7 +17,7 @@ pub struct Covariance {
 }
 
 /// A symmetric 3×3 matrix, rows and columns in the order (ps, mu, nu).
-pub type Matrix = [[f64; 3]; 3];
+pub(crate) type Matrix = [[f64; 3]; 3];
 
 impl Covariance {
     /// The off-diagonal entries of a symmetric matrix (the mean of the two
@@ -73,7 +73,7 @@ pub fn cholesky(m: &Matrix) -> Result<Matrix, NotPsd> {
 
 /// [`cholesky`] of a square matrix of any size (rows of equal length; a
 /// row of another length is [`NotPsd::NotFinite`]).
-pub fn cholesky_n(m: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, NotPsd> {
+pub(crate) fn cholesky_n(m: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, NotPsd> {
     let n = m.len();
     if m.iter().any(|r| r.len() != n) || m.iter().flatten().any(|x| !x.is_finite()) {
         return Err(NotPsd::NotFinite);
@@ -105,7 +105,7 @@ pub fn cholesky_n(m: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, NotPsd> {
 
 /// The inverse of a symmetric positive definite matrix (by its Cholesky
 /// factor); None when it is not positive definite.
-pub fn inverse_pd(m: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
+pub(crate) fn inverse_pd(m: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
     let n = m.len();
     let l = cholesky_n(m).ok()?;
     if (0..n).any(|j| l[j][j].partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)) {
@@ -132,7 +132,7 @@ pub fn inverse_pd(m: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
 
 /// Whether `m` is positive definite (every pivot of its Cholesky factor
 /// positive).
-pub fn positive_definite(m: &Matrix) -> bool {
+pub(crate) fn positive_definite(m: &Matrix) -> bool {
     cholesky(m).is_ok_and(|l| (0..3).all(|j| l[j][j] > 0.0))
 }
 

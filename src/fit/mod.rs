@@ -40,8 +40,8 @@
 
 use crate::logs::{Declared, End, Episode};
 
-pub mod covariance;
-pub mod information;
+pub(crate) mod covariance;
+pub(crate) mod information;
 pub mod timing;
 
 pub use covariance::Covariance;
@@ -59,12 +59,12 @@ pub enum TimingMode {
 }
 
 /// z of a two-sided 95% interval.
-pub const Z95: f64 = 1.959963984540054;
+pub(crate) const Z95: f64 = 1.959963984540054;
 /// Figures resting on fewer episodes than this get a warning.
-pub const FEW: usize = 30;
+pub(crate) const FEW: usize = 30;
 /// Deterministic timing: at least this many completed episodes of an
 /// outcome, all within [`DET_SPREAD`] of their mean (or 2 µs).
-pub const DET_MIN: usize = 3;
+pub(crate) const DET_MIN: usize = 3;
 /// Relative spread (max − min over the mean) below which durations are one
 /// fixed time.
 pub const DET_SPREAD: f64 = 0.01;
@@ -298,7 +298,7 @@ pub fn mle_exponential(c: &Counts) -> Option<Mle> {
 }
 
 /// P(Success draw | still running at c).
-pub fn posterior_success(p: f64, mu: f64, nu: f64, c: f64) -> f64 {
+pub(crate) fn posterior_success(p: f64, mu: f64, nu: f64, c: f64) -> f64 {
     // p e^{-mu c} / (p e^{-mu c} + (1-p) e^{-nu c}), computed without underflow
     let d = (mu - nu) * c;
     if d >= 0.0 {

@@ -52,7 +52,7 @@ pub const MAX_K: u32 = 20;
 pub const FAMILY_MIN: usize = 10;
 /// Stephens' 5% critical value of the modified KS statistic (exponential,
 /// estimated rate).
-pub const KS_CRITICAL_5: f64 = 1.094;
+pub(crate) const KS_CRITICAL_5: f64 = 1.094;
 
 /// A fitted duration law.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -213,7 +213,7 @@ fn log_sum_exp(a: f64, b: f64) -> f64 {
 }
 
 /// Most EM iterations of [`fit_hyperexponential`] per start.
-pub const HYPER_EM_ITERATIONS: usize = 500;
+pub(crate) const HYPER_EM_ITERATIONS: usize = 500;
 
 /// The hyperexponential-2 maximum of the likelihood by EM, from `start`
 /// (`(p, rate1, rate2)`) when given, else from a few starts (the modes
@@ -376,7 +376,7 @@ impl Side<'_> {
 }
 
 /// The exponential's maximum: events over exposure.
-pub fn fit_exponential(s: &Side) -> Option<Family> {
+pub(crate) fn fit_exponential(s: &Side) -> Option<Family> {
     let n = s.events.len() as f64;
     let exposure = s.events.iter().sum::<f64>() + s.exposure_beyond(0.0);
     (n > 0.0 && exposure > 0.0).then(|| Family::Exponential { rate: n / exposure })
@@ -384,7 +384,7 @@ pub fn fit_exponential(s: &Side) -> Option<Family> {
 
 /// The shifted exponential's maximum: `δ` the shortest completed duration,
 /// then events over the exposure beyond `δ`.
-pub fn fit_shifted(s: &Side) -> Option<Family> {
+pub(crate) fn fit_shifted(s: &Side) -> Option<Family> {
     let shift = s.events.iter().copied().fold(f64::INFINITY, f64::min);
     let n = s.events.len() as f64;
     let exposure: f64 = s.events.iter().map(|t| t - shift).sum::<f64>() + s.exposure_beyond(shift);
@@ -397,7 +397,7 @@ pub fn fit_shifted(s: &Side) -> Option<Family> {
 /// The Erlang-k maximum in λ: closed (`n k / Σ t`) without halts, else the
 /// root of the (decreasing) score `n k/λ − Σ t − Σ w c h(k, λc)` by
 /// bisection on `ln λ`.
-pub fn fit_erlang(s: &Side, k: u32) -> Option<Family> {
+pub(crate) fn fit_erlang(s: &Side, k: u32) -> Option<Family> {
     let n = s.events.len() as f64;
     let total: f64 = s.events.iter().sum();
     if n == 0.0 || total <= 0.0 {
@@ -459,7 +459,7 @@ pub struct Ks {
 }
 
 /// KS distance of `sample` to `Exp(rate)` and Stephens' modified statistic.
-pub fn ks_exponential(sample: &[f64], rate: f64) -> Option<Ks> {
+pub(crate) fn ks_exponential(sample: &[f64], rate: f64) -> Option<Ks> {
     let n = sample.len();
     if n == 0 {
         return None;
@@ -553,7 +553,7 @@ pub fn choose(s: &Side, n_bic: f64, deterministic: Option<f64>) -> Option<SideFi
 }
 
 /// Refits `family` (same kind, same k) to weighted data.
-pub fn refit(s: &Side, family: &Family) -> Option<Family> {
+pub(crate) fn refit(s: &Side, family: &Family) -> Option<Family> {
     match family {
         Family::Deterministic { .. } => Some(*family),
         Family::Exponential { .. } => fit_exponential(s),

@@ -15,9 +15,9 @@ use super::{Declared, End, Episode, LeafLog, Log, LogError};
 use crate::tree::xml::{scan_elements, XmlElement};
 
 /// The file's first bytes.
-pub const MAGIC: &[u8] = b"BTCPP4-FileLogger2";
+pub(crate) const MAGIC: &[u8] = b"BTCPP4-FileLogger2";
 /// The protocol version this reader knows.
-pub const PROTOCOL: u8 = 1;
+pub(crate) const PROTOCOL: u8 = 1;
 /// Bytes per transition record.
 pub const RECORD: usize = 9;
 
@@ -28,7 +28,7 @@ pub const RECORD: usize = 9;
 /// order, a few µs to ms apart; such a record keeps its own timestamp (each
 /// node's transitions stay in their order). A larger step means a mixed-up
 /// file.
-pub const MAX_STEP_BACK_US: u64 = 100_000;
+pub(crate) const MAX_STEP_BACK_US: u64 = 100_000;
 
 /// Leaves BT.CPP runs itself in zero time (btrel models them without a
 /// params entry); they are not fitted.

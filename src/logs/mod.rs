@@ -14,11 +14,11 @@
 //! going through RUNNING (IDLE → SUCCESS/FAILURE) is an *instant*: a
 //! zero-duration episode, as conditions always are.
 
-pub mod btlog;
+pub(crate) mod btlog;
 pub mod csv;
 pub mod rosbag;
 mod rosbag_map;
-pub mod sqlite;
+pub(crate) mod sqlite;
 
 use std::fmt;
 use std::path::Path;

@@ -54,11 +54,11 @@ use super::rosbag_map::{BagTree, Replay};
 use super::{cannot_read, checked_len, Log, LogError, LogHint};
 
 /// The message type of Nav2's behavior tree log.
-pub const MESSAGE_TYPE: &str = "nav2_msgs/msg/BehaviorTreeLog";
+pub(crate) const MESSAGE_TYPE: &str = "nav2_msgs/msg/BehaviorTreeLog";
 /// The default topic's last name component (any namespace).
 pub const TOPIC: &str = "behavior_tree_log";
 /// The first 8 bytes of an MCAP file.
-pub const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
+pub(crate) const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
 
 /// Which `BehaviorTreeStatusChange` layout the bag holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -33,7 +33,7 @@ use super::{End, Episode, LeafLog, Log, LogError};
 use crate::tree::xml::scan_elements;
 
 /// The first 16 bytes of every SQLite 3 database.
-pub const MAGIC: &[u8] = b"SQLite format 3\0";
+pub(crate) const MAGIC: &[u8] = b"SQLite format 3\0";
 
 /// One session being read.
 struct Session {

@@ -8,7 +8,7 @@ use crate::number::full;
 
 /// Header `name,path,kind,depth,ps,pf,mtts,mttf,mu,nu`.
 #[derive(Debug, Clone, Copy, Default)]
-pub struct CsvExporter;
+pub(crate) struct CsvExporter;
 
 fn cell(x: Option<f64>) -> String {
     x.map_or_else(String::new, full)
@@ -16,7 +16,7 @@ fn cell(x: Option<f64>) -> String {
 
 /// A CSV error as the I/O error it wraps (so a closed pipe stays a
 /// `BrokenPipe`), or as a generic I/O error.
-pub fn io_error(e: csv::Error) -> io::Error {
+pub(crate) fn io_error(e: csv::Error) -> io::Error {
     match e.into_kind() {
         csv::ErrorKind::Io(e) => e,
         other => io::Error::other(format!("{other:?}")),

@@ -12,7 +12,7 @@ use crate::number::{full, significant, significant_or_dash};
 use crate::uncertainty::METHOD;
 
 /// An interval, `None` where the figure is undefined in every draw.
-pub type Interval = Option<(f64, f64)>;
+pub(crate) type Interval = Option<(f64, f64)>;
 
 /// The intervals of a report's figures and how they were made.
 #[derive(Debug, Clone, PartialEq)]

@@ -10,7 +10,7 @@ use super::{Exporter, Report};
 /// "mttf", "mu", "nu"}]}`; undefined figures are `null`. When some node
 /// may never return, every node also has `"never"` (P(never returns)).
 #[derive(Debug, Clone, Copy, Default)]
-pub struct JsonExporter;
+pub(crate) struct JsonExporter;
 
 /// The report as a JSON value.
 pub fn report_value(report: &Report) -> Value {

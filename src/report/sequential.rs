@@ -11,9 +11,9 @@ use crate::sim::Estimate;
 use crate::tree::Tree;
 
 /// The rule of the probabilities, in words.
-pub const PROBABILITY_RULE: &str = "Okamoto (Chernoff–Hoeffding) bound, pre-computed";
+pub(crate) const PROBABILITY_RULE: &str = "Okamoto (Chernoff–Hoeffding) bound, pre-computed";
 /// The rule of the mean times, in words.
-pub const TIME_RULE: &str = "Chow–Robbins fixed-width sequential interval";
+pub(crate) const TIME_RULE: &str = "Chow–Robbins fixed-width sequential interval";
 
 fn percent(level: f64) -> String {
     super::intervals::percent(level)
@@ -44,7 +44,7 @@ fn pm(mean: Option<f64>, i: &Interval) -> String {
 }
 
 /// The sentence on the rules and the runs, without a final newline.
-pub fn rules_line(r: &PrecisionResult) -> String {
+pub(crate) fn rules_line(r: &PrecisionResult) -> String {
     let mut parts = Vec::new();
     if let (Some(eps), Some(n)) = (r.precision.probability, r.okamoto_runs) {
         parts.push(format!(

@@ -261,7 +261,10 @@ impl Check {
 
 /// The checks of one node: ps, mu = 1/MTTS and nu = 1/MTTF (standard errors
 /// of the rates by the delta method, se(1/X) ≈ se(X)/X²), as in Table 9.1.
-pub fn node_checks(report: &super::NodeReport, mc: &NodeEstimate) -> Vec<(&'static str, Check)> {
+pub(crate) fn node_checks(
+    report: &super::NodeReport,
+    mc: &NodeEstimate,
+) -> Vec<(&'static str, Check)> {
     let f = &report.figures;
     let mut out = vec![(
         "ps",

@@ -8,11 +8,11 @@ use super::{Exporter, Report};
 use crate::number::significant_or_dash;
 
 /// Significant digits in the table.
-pub const DIGITS: usize = 5;
+pub(crate) const DIGITS: usize = 5;
 
 /// P(never returns) above which the table shows a `never` column (below,
 /// `1 − ps − pf` is rounding).
-pub const NEVER_SHOWN: f64 = 1e-12;
+pub(crate) const NEVER_SHOWN: f64 = 1e-12;
 
 /// One row per node, names indented by depth, 5 significant digits,
 /// undefined figures shown as `—`.

@@ -267,7 +267,7 @@ impl From<AnalysisError> for SensitivityError {
 }
 
 /// The root's objective for a tree.
-pub fn objective_value(
+pub(crate) fn objective_value(
     tree: &Tree,
     objective: Objective,
     options: &Options,
@@ -296,7 +296,7 @@ pub fn objective_value(
 
 /// The parameters of a leaf and their values (a parameter that has no
 /// meaning for it, e.g. `mu` of an action that never succeeds, is absent).
-pub fn params_of(kind: &NodeKind) -> Vec<(Param, f64)> {
+pub(crate) fn params_of(kind: &NodeKind) -> Vec<(Param, f64)> {
     match kind {
         NodeKind::Condition { ps } => vec![(Param::Ps, *ps)],
         NodeKind::Action(a) => {
@@ -331,7 +331,7 @@ pub fn params_of(kind: &NodeKind) -> Vec<(Param, f64)> {
 
 /// `tree` with leaf `id`'s parameter set to `x` (see the module docs for
 /// what moves with it).
-pub fn with_param(tree: &Tree, id: NodeId, param: Param, x: f64) -> Tree {
+pub(crate) fn with_param(tree: &Tree, id: NodeId, param: Param, x: f64) -> Tree {
     let mut t = tree.clone();
     match &mut t.nodes[id].kind {
         NodeKind::Condition { ps } => *ps = x,
@@ -577,7 +577,7 @@ fn exact_derivative(
 /// The change a sentence describes for a row: ps by ±0.1 (within [0, 1]),
 /// a hyperexponential's branch probability by ±0.1 (within (0, 1)), other
 /// parameters by +10%.
-pub fn step_for(row: &Row) -> f64 {
+pub(crate) fn step_for(row: &Row) -> f64 {
     match row.param {
         Param::Ps if row.value <= 0.9 => (row.value + 0.1).min(1.0),
         Param::Ps => row.value - 0.1,

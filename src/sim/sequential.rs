@@ -59,7 +59,7 @@ pub const SEQ_CHUNK: u64 = 4096;
 
 /// Runs of a chunk of a sequential test of a requirement (smaller: a test
 /// often decides in a few thousand runs).
-pub const TEST_CHUNK: u64 = 512;
+pub(crate) const TEST_CHUNK: u64 = 512;
 
 /// Default cap on the runs of [`simulate_to_precision`] and of the tests
 /// (10^8).
@@ -70,7 +70,7 @@ pub const MIN_MEAN_SAMPLES: u64 = 30;
 
 /// The standard normal quantile `Φ⁻¹(p)`, `0 < p < 1` (Acklam's rational
 /// approximation, relative error below 1.2e-9).
-pub fn normal_quantile(p: f64) -> f64 {
+pub(crate) fn normal_quantile(p: f64) -> f64 {
     const A: [f64; 6] = [
         -3.969_683_028_665_376e1,
         2.209_460_984_245_205e2,
@@ -132,14 +132,14 @@ pub fn okamoto_runs(eps: f64, confidence: f64) -> u64 {
 }
 
 /// Half-width of the Okamoto interval after `n` runs: `√(ln(2/δ)/(2n))`.
-pub fn okamoto_half_width(n: u64, confidence: f64) -> f64 {
+pub(crate) fn okamoto_half_width(n: u64, confidence: f64) -> f64 {
     let delta = 1.0 - confidence;
     ((2.0 / delta).ln() / (2.0 * n as f64)).sqrt()
 }
 
 /// Whether the Chow–Robbins rule stops with `m` values of sample variance
 /// `var`: `m ≥ MIN_MEAN_SAMPLES` and `z²(var + 1/m) ≤ m·eps²`.
-pub fn chow_robbins_stops(m: u64, var: f64, z: f64, eps: f64) -> bool {
+pub(crate) fn chow_robbins_stops(m: u64, var: f64, z: f64, eps: f64) -> bool {
     let mf = m as f64;
     m >= MIN_MEAN_SAMPLES && z * z * (var + 1.0 / mf) <= mf * eps * eps
 }
@@ -156,7 +156,7 @@ pub fn chunk_seed(seed: u64, k: u64) -> u64 {
 
 /// Count, mean and sum of squared deviations of some durations.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct MeanAcc {
+pub(crate) struct MeanAcc {
     /// Number of values.
     pub n: u64,
     /// Their mean.
@@ -214,7 +214,7 @@ impl MeanAcc {
 
 /// One node's sums over the chunks so far.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct NodeAcc {
+pub(crate) struct NodeAcc {
     /// The node.
     pub node: NodeId,
     /// Runs that returned Success.
@@ -229,7 +229,7 @@ pub struct NodeAcc {
 
 /// The sums of a sequential run so far.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Acc {
+pub(crate) struct Acc {
     /// Runs per node.
     pub runs: u64,
     /// The simulated node first, then (per node) the rest of its subtree.
@@ -299,7 +299,7 @@ impl Acc {
 
 /// How a sequential run makes its chunks.
 #[derive(Debug, Clone, Copy)]
-pub struct Chunking {
+pub(crate) struct Chunking {
     /// Runs of the first chunk (run on its own).
     pub first: u64,
     /// Fewest runs of every later chunk.
@@ -326,7 +326,7 @@ impl Chunking {
 /// `stop` after each chunk, in order, until it returns `true` or
 /// `chunking.max_runs` runs are done. Returns the sums and whether `stop`
 /// ended the run.
-pub fn run_until(
+pub(crate) fn run_until(
     tree: &Tree,
     node: NodeId,
     base: &SimOptions,
@@ -433,7 +433,7 @@ pub struct Missed {
 }
 
 /// A figure's interval.
-pub type Interval = Option<(f64, f64)>;
+pub(crate) type Interval = Option<(f64, f64)>;
 
 /// The result of [`simulate_to_precision`].
 #[derive(Debug, Clone, PartialEq)]

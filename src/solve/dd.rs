@@ -10,7 +10,7 @@ use std::ops::{Add, Mul};
 
 /// A double-double number.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Dd {
+pub(crate) struct Dd {
     /// Leading part.
     pub hi: f64,
     /// Trailing part.

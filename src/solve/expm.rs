@@ -139,7 +139,7 @@ pub(crate) fn exponential_matrix(chain: &PhaseChain, h: f64) -> (Vec<Dd>, f64) {
 /// uniformization: one exponential (28 Taylor products and `s` squarings
 /// of an upper-triangular m × m double-double matrix, ~m³/6 multiply-adds
 /// each, ~20 flops apiece) per distinct interval, and m²/2 per time point.
-pub fn dense_work(chain: &PhaseChain, times: &[f64]) -> f64 {
+pub(crate) fn dense_work(chain: &PhaseChain, times: &[f64]) -> f64 {
     let m = (chain.len() + 2) as f64;
     let lambda = (0..chain.len())
         .map(|i| chain.total_rate(i))
@@ -197,7 +197,7 @@ pub fn transient_dense(chain: &PhaseChain, times: &[f64]) -> (Vec<CurvePoint>, f
 /// exponentials: at each time `[S(t), F(t), π(t)·h₁, ...]` for the weight
 /// vectors `h` (non-negative), and the rigorous bound on the error of the
 /// probabilities (an entry `π(t)·h` is within that times `max h`).
-pub fn transient_dense_weighted(
+pub(crate) fn transient_dense_weighted(
     chain: &PhaseChain,
     times: &[f64],
     weights: &[&[f64]],

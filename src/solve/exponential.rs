@@ -35,7 +35,7 @@ fn rule() -> &'static GaussLegendre {
 
 /// `z = λe^{−λ·} ⊛ μ`, ready to evaluate.
 #[derive(Debug, Clone)]
-pub struct ExponentialConvolution<'a> {
+pub(crate) struct ExponentialConvolution<'a> {
     rate: f64,
     density: Option<&'a Interpolant>,
     /// Checkpoints, increasing.

@@ -21,11 +21,11 @@
 //! every result is checked to be finite.
 
 pub mod chain;
-pub mod dd;
-pub mod expm;
-pub mod exponential;
-pub mod interpolant;
-pub mod quadrature;
+pub(crate) mod dd;
+pub(crate) mod expm;
+pub(crate) mod exponential;
+pub(crate) mod interpolant;
+pub(crate) mod quadrature;
 pub mod transient;
 
 use chain::{AbsorbingChain, Target};

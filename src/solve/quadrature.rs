@@ -17,7 +17,7 @@
 
 /// Nodes and weights of the `n`-point Gauss–Legendre rule on `[-1, 1]`.
 #[derive(Debug, Clone, PartialEq)]
-pub struct GaussLegendre {
+pub(crate) struct GaussLegendre {
     /// Nodes, increasing.
     pub nodes: Vec<f64>,
     /// Weights (positive, summing to 2).
@@ -63,11 +63,6 @@ impl GaussLegendre {
         self.nodes.len()
     }
 
-    /// Whether the rule has no points (never: `new` needs `n ≥ 1`).
-    pub fn is_empty(&self) -> bool {
-        self.nodes.is_empty()
-    }
-
     /// The bound above on `[a, b]` with half-width `h`, for `|f| ≤ m` on the
     /// scaled ellipse of parameter `rho > 1`.
     pub fn error_bound(&self, h: f64, rho: f64, m: f64) -> f64 {
@@ -94,7 +89,7 @@ fn legendre(n: usize, x: f64) -> (f64, f64) {
 
 /// The Bernstein ellipse of parameter `rho` around the panel `[a, b]`.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Ellipse {
+pub(crate) struct Ellipse {
     /// Centre (real).
     pub centre: f64,
     /// Semi-axis along the real line, `h (ρ + 1/ρ)/2`.
@@ -117,11 +112,6 @@ impl Ellipse {
     /// Leftmost real point.
     pub fn left(&self) -> f64 {
         self.centre - self.semi_major
-    }
-
-    /// Rightmost real point (also the largest `|z|` when the centre is ≥ 0).
-    pub fn right(&self) -> f64 {
-        self.centre + self.semi_major
     }
 
     /// An upper bound on `|z| − Re z` over the ellipse: at most `|Im z|`
@@ -201,6 +191,6 @@ mod tests {
     fn largest_rho_reaches_the_gap() {
         let rho = Ellipse::largest_rho(1.0, 3.0, 0.5);
         let e = Ellipse::new(1.0, 3.0, rho);
-        assert!((e.left() - 0.5).abs() < 1e-12 && (e.right() - 3.5).abs() < 1e-12);
+        assert!((e.left() - 0.5).abs() < 1e-12 && (e.centre + e.semi_major - 3.5).abs() < 1e-12);
     }
 }

@@ -37,7 +37,7 @@ pub struct CurvePoint {
 }
 
 /// Error budget of the truncated Poisson sums, in total.
-pub const DEFAULT_TOLERANCE: f64 = 1e-13;
+pub(crate) const DEFAULT_TOLERANCE: f64 = 1e-13;
 
 /// A window of Poisson(λ) weights with a rigorous bound on the mass outside.
 #[derive(Debug, Clone, PartialEq)]
@@ -141,7 +141,7 @@ fn ln_factorial(k: usize) -> f64 {
 
 /// Work estimate of [`transient`] (vector-matrix products × nonzeros), to
 /// refuse problems too stiff for uniformization before starting.
-pub fn uniformization_work(chain: &PhaseChain, times: &[f64]) -> f64 {
+pub(crate) fn uniformization_work(chain: &PhaseChain, times: &[f64]) -> f64 {
     let lambda = max_rate(chain);
     let horizon = times.iter().copied().fold(0.0, f64::max);
     let lt = lambda * horizon;
@@ -407,7 +407,7 @@ pub fn absorption_by_phase(chain: &PhaseChain) -> PhaseAbsorption {
 /// non-negative terms, so small values keep their relative accuracy (no
 /// cancellation as in `P(S) − S(t)`). `None` if the horizon needs more than
 /// [`MAX_SINGLE_PASS_STEPS`].
-pub fn transient_split(
+pub(crate) fn transient_split(
     chain: &PhaseChain,
     times: &[f64],
     tolerance: f64,
@@ -442,7 +442,7 @@ pub fn transient_split(
 /// per-phase weight vectors (e.g. exit rates, for the outcome densities).
 /// The truncation error of `π(t)·h` is at most `2·tolerance·sup_k |π₀Pᵏ·h|`.
 /// `None` if the horizon needs more than [`MAX_SINGLE_PASS_STEPS`].
-pub fn transient_weighted(
+pub(crate) fn transient_weighted(
     chain: &PhaseChain,
     times: &[f64],
     tolerance: f64,

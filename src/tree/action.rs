@@ -11,7 +11,7 @@ use super::stages::MAX_GENERAL_PHASES;
 use super::{Action, Duration, Stages};
 
 /// Tolerance on `ps + pf = 1`.
-pub const PROBABILITY_SUM_TOLERANCE: f64 = 1e-9;
+pub(crate) const PROBABILITY_SUM_TOLERANCE: f64 = 1e-9;
 
 /// A 1-based (line, column).
 pub(crate) type Loc = (usize, usize);

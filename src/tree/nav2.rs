@@ -121,7 +121,7 @@ pub fn outcomes(tree: &Tree, id: NodeId) -> (bool, bool) {
 
 /// Whether every run of the subtree takes zero time (all its leaves are
 /// conditions or actions whose times are all fixed at 0).
-pub fn zero_time(tree: &Tree, id: NodeId) -> bool {
+pub(crate) fn zero_time(tree: &Tree, id: NodeId) -> bool {
     tree.subtree(id).all(|n| match &tree.nodes[n].kind {
         NodeKind::Action(a) => [a.success, a.failure]
             .iter()
@@ -132,7 +132,7 @@ pub fn zero_time(tree: &Tree, id: NodeId) -> bool {
 }
 
 /// What a re-tick of `id` does (see the module documentation).
-pub fn retick(tree: &Tree, id: NodeId) -> Retick {
+pub(crate) fn retick(tree: &Tree, id: NodeId) -> Retick {
     match &tree.nodes[id].kind {
         NodeKind::Action(_) | NodeKind::Condition { .. } => Retick::Inert,
         NodeKind::Decorator {
@@ -782,7 +782,7 @@ fn memory_matters(tree: &Tree, id: NodeId) -> bool {
 }
 
 /// The most states of the flow that follows a RoundRobin's index.
-pub const MAX_INDEX_STATES: usize = 1 << 16;
+pub(crate) const MAX_INDEX_STATES: usize = 1 << 16;
 
 /// The RoundRobins that need a flow over their index, each by the node
 /// that becomes that flow: the lowest common ancestor of the copies of one

@@ -120,7 +120,11 @@ fn too_large(file: &str, len: usize, limits: &ParseLimits) -> TreeError {
 }
 
 /// Parses a tree from YAML text within `limits`.
-pub fn parse_str_with(source: &str, file: &str, limits: ParseLimits) -> Result<Tree, TreeError> {
+pub(crate) fn parse_str_with(
+    source: &str,
+    file: &str,
+    limits: ParseLimits,
+) -> Result<Tree, TreeError> {
     if source.len() > limits.max_bytes {
         return Err(too_large(file, source.len(), &limits));
     }

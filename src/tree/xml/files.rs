@@ -20,7 +20,7 @@ pub(super) struct Source {
 }
 
 /// Most XML files (the main file and everything it includes).
-pub const MAX_FILES: usize = 10_000;
+pub(crate) const MAX_FILES: usize = 10_000;
 
 /// The XML files of a tree, read and parsed.
 pub(super) struct Files {

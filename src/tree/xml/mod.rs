@@ -168,20 +168,20 @@ use lower::*;
 use params::*;
 use types::*;
 
-pub use files::MAX_FILES;
 pub use lex::{scan_elements, XmlElement};
-pub use types::{is_unsupported, MAX_FLOW_STATES, MAX_RECOVERY_RETRIES, UNSUPPORTED};
+pub use types::is_unsupported;
+pub(crate) use types::{MAX_FLOW_STATES, MAX_RECOVERY_RETRIES, UNSUPPORTED};
 
 /// Largest XML or params file, in bytes.
-pub const MAX_BYTES: usize = 256 << 20;
+pub(crate) const MAX_BYTES: usize = 256 << 20;
 /// Deepest tree after SubTree expansion (the root is level 1).
-pub const MAX_DEPTH: usize = 200;
+pub(crate) const MAX_DEPTH: usize = 200;
 /// Deepest XML element nesting: `root`, `BehaviorTree`, then the tree.
-pub const MAX_XML_DEPTH: usize = MAX_DEPTH + 2;
+pub(crate) const MAX_XML_DEPTH: usize = MAX_DEPTH + 2;
 /// Most nodes after SubTree expansion.
-pub const MAX_NODES: usize = 5_000_000;
+pub(crate) const MAX_NODES: usize = 5_000_000;
 /// Most bytes of node names after SubTree expansion.
-pub const MAX_NAME_BYTES: usize = 256 << 20;
+pub(crate) const MAX_NAME_BYTES: usize = 256 << 20;
 
 /// Parses a BehaviorTree.CPP XML tree (format 3 or 4) with its params file.
 /// `file` and `params_file` name the sources in error messages. The text

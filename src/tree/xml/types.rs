@@ -39,7 +39,7 @@ pub(super) enum LeafKind {
 
 /// The first line of the error that lists nodes without a stochastic
 /// meaning; [`is_unsupported`] tells such refusals from invalid input.
-pub const UNSUPPORTED: &str = "btrel has no stochastic meaning yet for";
+pub(crate) const UNSUPPORTED: &str = "btrel has no stochastic meaning yet for";
 
 /// Whether `e` refuses a tree only because it uses node types (or
 /// pre-condition attributes) that btrel has no stochastic meaning for yet,
@@ -133,10 +133,10 @@ pub(super) const BUILTINS: &[&str] = &[
 
 /// Most states of a flow built from BT.CPP nodes (a RetryUntilSuccessful
 /// over a SequenceWithMemory has attempts × children states).
-pub const MAX_FLOW_STATES: usize = 1_000_000;
+pub(crate) const MAX_FLOW_STATES: usize = 1_000_000;
 
 /// Most retries of a RecoveryNode (each adds two levels to the tree).
-pub const MAX_RECOVERY_RETRIES: u64 = 1000;
+pub(crate) const MAX_RECOVERY_RETRIES: u64 = 1000;
 
 /// BT.CPP v3 spellings and their v4 names.
 pub(super) fn canonical(ty: &str) -> &str {
