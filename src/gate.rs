@@ -35,8 +35,7 @@
 
 use std::fmt;
 
-use crate::compile::{analyze, AnalysisError, Options};
-use crate::curve::CurveOptions;
+use crate::compile::Options;
 use crate::number::significant;
 use crate::sim::sequential::{
     chow_robbins_stops, chunk_seed, normal_quantile, run_until, Acc, Chunking, Decision, Sprt,
@@ -44,6 +43,7 @@ use crate::sim::sequential::{
 };
 use crate::sim::{SimError, SimOptions};
 use crate::tree::{NodeId, Tree};
+use crate::Model;
 
 /// A figure a requirement is about.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -452,26 +452,15 @@ pub fn parse(text: &str, tree: &Tree) -> Result<Requirement, ExprError> {
 }
 
 /// The exact value of each requirement's figure (`None` where undefined:
-/// the MTTS of a node that never succeeds). One analysis of the tree, one
-/// curve per node with `success_by` / `failure_by` figures.
+/// the MTTS of a node that never succeeds), from one [`Model`] of the tree:
+/// every node's figures when a requirement needs them, one curve per node
+/// with `success_by` / `failure_by` figures (all its times at once).
 pub fn exact_values(
     tree: &Tree,
     reqs: &[Requirement],
     options: &Options,
-) -> Result<Vec<Option<f64>>, AnalysisError> {
-    let needs_analysis = reqs
-        .iter()
-        .any(|r| !matches!(r.figure, Figure::SuccessBy(_) | Figure::FailureBy(_)));
-    let analysis = if needs_analysis {
-        Some(analyze(tree, options)?)
-    } else {
-        None
-    };
-    let curve_options = CurveOptions {
-        method: options.method,
-        max_states: options.max_states,
-        ..CurveOptions::default()
-    };
+) -> Result<Vec<Option<f64>>, crate::Error> {
+    let model = Model::with_options(tree, *options)?;
     let mut out = vec![None; reqs.len()];
     // curves: all the times of a node at once
     let mut nodes: Vec<NodeId> = reqs
@@ -495,7 +484,7 @@ pub fn exact_values(
                 _ => unreachable!("curve figures only"),
             })
             .collect();
-        let points = crate::curve::curve(tree, node, &times, &curve_options)?;
+        let points = model.curve(node, &times)?;
         for (&i, p) in idx.iter().zip(&points) {
             out[i] = Some(match reqs[i].figure {
                 Figure::SuccessBy(_) => p.success,
@@ -503,18 +492,20 @@ pub fn exact_values(
             });
         }
     }
-    if let Some(a) = &analysis {
-        for (i, r) in reqs.iter().enumerate() {
-            let f = &a.nodes[r.node];
-            match r.figure {
-                Figure::Ps => out[i] = Some(f.ps),
-                Figure::Pf => out[i] = Some(f.pf),
-                Figure::Never => out[i] = Some(f.never()),
-                Figure::Mtts => out[i] = f.mtts,
-                Figure::Mttf => out[i] = f.mttf,
-                Figure::SuccessBy(_) | Figure::FailureBy(_) => {}
-            }
+    for (i, r) in reqs.iter().enumerate() {
+        if matches!(r.figure, Figure::SuccessBy(_) | Figure::FailureBy(_)) {
+            continue;
         }
+        // every node's figures, computed at the first of these
+        let f = model.figures(r.node)?;
+        out[i] = match r.figure {
+            Figure::Ps => Some(f.ps),
+            Figure::Pf => Some(f.pf),
+            Figure::Never => Some(f.never()),
+            Figure::Mtts => f.mtts,
+            Figure::Mttf => f.mttf,
+            Figure::SuccessBy(_) | Figure::FailureBy(_) => unreachable!("skipped above"),
+        };
     }
     Ok(out)
 }

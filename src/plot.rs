@@ -43,9 +43,9 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use crate::compile::{analyze, Method, Options};
-use crate::curve::{curve, CurveOptions, Timing};
+use crate::curve::Timing;
 use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
+use crate::Model;
 
 /// Which probability a series shows; fixes its colour.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -428,42 +428,31 @@ pub fn nice_ceil(x: f64) -> f64 {
 /// The default horizon of a plot of `node` of each tree (with its timing):
 /// the first time at which every curve's running probability is at most
 /// [`SETTLED`] — searched on a geometric grid from the node's time scale
-/// (its MTTS and MTTF from the analysis when the tree can be analysed, else
-/// [`time_scale`]) — plus 5%, rounded up with [`nice_ceil`]. A curve that
-/// cannot be computed contributes three times its time scale; a node that
-/// takes no time gives 1 s.
-pub fn default_horizon(items: &[(&Tree, NodeId, Timing)], method: Method) -> f64 {
+/// (its MTTS and MTTF from the tree's [`Model`], else [`time_scale`]) —
+/// plus 5%, rounded up with [`nice_ceil`]. Each item is the tree's model
+/// (whose plan the plot's own curves then reuse), or the tree where it has
+/// none. A curve that cannot be computed contributes three times its time
+/// scale; a node that takes no time gives 1 s.
+pub fn default_horizon(items: &[(Result<&Model, &Tree>, NodeId, Timing)]) -> f64 {
     let mut end: f64 = 0.0;
-    for &(tree, node, timing) in items {
-        let figures = analyze(
-            tree,
-            &Options {
-                method,
-                ..Options::default()
-            },
-        )
-        .ok()
-        .map(|a| a.nodes[node]);
-        let scale = match figures {
-            Some(f) => f.mtts.unwrap_or(0.0).max(f.mttf.unwrap_or(0.0)),
-            None => time_scale(tree, node),
+    for &(model, node, timing) in items {
+        let figures = model.ok().and_then(|m| m.figures(node).ok());
+        let scale = match (figures, model) {
+            (Some(f), _) => f.mtts.unwrap_or(0.0).max(f.mttf.unwrap_or(0.0)),
+            (None, Ok(m)) => time_scale(m.tree(), node),
+            (None, Err(tree)) => time_scale(tree, node),
         };
         if !(scale.is_finite() && scale > 0.0) {
             continue;
         }
         // scale · 1.1^k, k = -24..=160 (1.1^160 ≈ 4e6)
         let times: Vec<f64> = (-24..=160).map(|k| scale * 1.1f64.powi(k)).collect();
-        let options = CurveOptions {
-            method,
-            timing,
-            ..CurveOptions::default()
-        };
-        let settled = match curve(tree, node, &times, &options) {
-            Ok(points) => points
+        let settled = match model.map(|m| m.curve_with(node, &times, timing)) {
+            Ok(Ok(points)) => points
                 .iter()
                 .find(|p| p.running <= SETTLED)
                 .map_or(times[times.len() - 1], |p| p.t),
-            Err(_) => 3.0 * scale,
+            _ => 3.0 * scale,
         };
         end = end.max(settled);
     }

@@ -146,7 +146,11 @@ fn default_horizon_of_a_fixed_and_random_parallel() {
     let running = |t: f64| 0.9 * (0.8 * (-t / 2.0).exp() + 0.2 * (-t).exp());
     let settled = 13.16;
     assert!(running(settled) < 1.001e-3 && running(settled - 0.05) > 1e-3);
-    let h = default_horizon(&[(&tree, Tree::ROOT, Timing::AsGiven)], Default::default());
+    let h = default_horizon(&[(
+        Ok(&btrel::Model::new(&tree).unwrap()),
+        Tree::ROOT,
+        Timing::AsGiven,
+    )]);
     assert!(h >= settled && h <= 2.0 * settled, "horizon {h}");
     // the curve agrees with the closed form there
     let p = curve(&tree, Tree::ROOT, &[h], &CurveOptions::default()).unwrap();
@@ -178,11 +182,19 @@ fn default_horizon_of_a_fixed_and_random_parallel() {
 #[test]
 fn default_horizon_ends_after_the_last_instant_and_where_curves_settle() {
     let tree = parse_str(FIXED, "fixed.yaml").unwrap();
-    let h = default_horizon(&[(&tree, Tree::ROOT, Timing::AsGiven)], Default::default());
+    let h = default_horizon(&[(
+        Ok(&btrel::Model::new(&tree).unwrap()),
+        Tree::ROOT,
+        Timing::AsGiven,
+    )]);
     assert!((7.5..=7.5 * 1.6).contains(&h), "horizon {h}");
     // search and grasp: settled (running ≤ 1e-3) by the horizon, not at half of it
     let sg = btrel::tree::parse_file(std::path::Path::new("trees/search-and-grasp.yaml")).unwrap();
-    let h = default_horizon(&[(&sg, Tree::ROOT, Timing::AsGiven)], Default::default());
+    let h = default_horizon(&[(
+        Ok(&btrel::Model::new(&sg).unwrap()),
+        Tree::ROOT,
+        Timing::AsGiven,
+    )]);
     let p = curve(&sg, Tree::ROOT, &[h / 2.0, h], &CurveOptions::default()).unwrap();
     assert!(
         p[1].running <= 1e-3 && p[0].running > 1e-3,
@@ -191,7 +203,11 @@ fn default_horizon_ends_after_the_last_instant_and_where_curves_settle() {
     // a tree that takes no time
     let zero = parse_str("tree: {condition: {name: c, ps: 0.5}}", "c.yaml").unwrap();
     assert_eq!(
-        default_horizon(&[(&zero, Tree::ROOT, Timing::AsGiven)], Default::default()),
+        default_horizon(&[(
+            Ok(&btrel::Model::new(&zero).unwrap()),
+            Tree::ROOT,
+            Timing::AsGiven
+        )]),
         1.0
     );
 }

@@ -2,7 +2,7 @@
 
 use btrel::compile::{Method, Options};
 
-use super::advice::{self, analysis_failure, Cmd};
+use super::advice::{self, model_failure, Cmd};
 use super::args::{CheckArgs, CiArgs};
 use super::ci::{ci_notes, ci_sampler};
 use super::input::{display_path, plural, warn_endless, InputOptions};
@@ -130,7 +130,7 @@ fn check_requirements(args: CheckArgs, input: &InputOptions) -> Result<(), Failu
         }
     } else {
         let values = gate::exact_values(&tree, &reqs, &options)
-            .map_err(analysis_failure(Cmd::Check, options.method))?;
+            .map_err(model_failure(Cmd::Check, options.method))?;
         let bounds = match &ci {
             None => None,
             Some(ci) => {
@@ -139,7 +139,7 @@ fn check_requirements(args: CheckArgs, input: &InputOptions) -> Result<(), Failu
                     .intervals(ci.level, ci.draws, ci.seed, |t| {
                         gate::exact_values(t, &reqs, &options)
                     })
-                    .map_err(analysis_failure(Cmd::Check, options.method))?;
+                    .map_err(model_failure(Cmd::Check, options.method))?;
                 ci_notes(ci, &sampler);
                 Some(b)
             }

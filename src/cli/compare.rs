@@ -76,15 +76,25 @@ pub(super) fn run(args: CompareArgs, input: &InputOptions) -> Result<(), Failure
     if let Some(path) = &args.curves {
         let top: Vec<_> = cmp.candidates.iter().take(args.top).collect();
         let trees: Vec<Tree> = top.iter().map(|c| cmp.reordered(&tree, c)).collect();
+        let model_options = btrel::Options {
+            method: options.method,
+            ..btrel::Options::default()
+        };
+        let failure = model_failure(Cmd::Compare, options.method);
+        let models = trees
+            .iter()
+            .map(|t| Model::with_options(t, model_options))
+            .collect::<Result<Vec<Model>, _>>()
+            .map_err(&failure)?;
         let end = match t_end {
             Some(t) if t > 0.0 => t,
             Some(_) => return Err(Failure::input("--t-end must be > 0")),
             None => {
-                let items: Vec<(&Tree, usize, Timing)> = trees
+                let items: Vec<_> = models
                     .iter()
-                    .map(|t| (t, Tree::ROOT, Timing::AsGiven))
+                    .map(|m| (Ok(m), Tree::ROOT, Timing::AsGiven))
                     .collect();
-                let h = btrel::plot::default_horizon(&items, options.method);
+                let h = btrel::plot::default_horizon(&items);
                 match deadline {
                     Some(d) if d * 1.1 > h => btrel::plot::nice_ceil(d * 1.1),
                     _ => h,
@@ -92,16 +102,9 @@ pub(super) fn run(args: CompareArgs, input: &InputOptions) -> Result<(), Failure
             }
         };
         let times: Vec<f64> = (0..=200).map(|k| end * k as f64 / 200.0).collect();
-        let failure = model_failure(Cmd::Compare, options.method);
         let mut rows = Vec::new();
-        for (c, t) in top.iter().zip(&trees) {
-            let model_options = btrel::Options {
-                method: options.method,
-                ..btrel::Options::default()
-            };
-            let points = Model::with_options(t, model_options)
-                .and_then(|m| m.curve(Tree::ROOT, &times))
-                .map_err(&failure)?;
+        for (c, m) in top.iter().zip(&models) {
+            let points = m.curve(Tree::ROOT, &times).map_err(&failure)?;
             rows.push((ranking::label(&tree, &cmp, c), points));
         }
         let root = &tree.node(Tree::ROOT).name;

@@ -102,8 +102,10 @@ pub(super) fn run(args: PlotArgs, input: &InputOptions) -> Result<(), Failure> {
         max_states: args.max_states,
         ..CurveOptions::default()
     };
-    // the trees to draw: (label, tree, node, style, timing)
-    let mut drawn: Vec<(String, Tree, usize, Style, Timing)> = Vec::new();
+    // the trees, and the curves to draw: (label, tree index, node, style,
+    // timing); one model per tree serves all its curves and the horizon
+    let mut trees: Vec<Tree> = Vec::new();
+    let mut drawn: Vec<(String, usize, usize, Style, Timing)> = Vec::new();
     if let Some(name) = &args.compare {
         let node = find_nodes(&tree, std::slice::from_ref(name), &args.tree)?[0];
         let mut cmp = btrel::compare::compare(
@@ -136,9 +138,17 @@ pub(super) fn run(args: PlotArgs, input: &InputOptions) -> Result<(), Failure> {
             if c.given {
                 label.push_str(" (given)");
             }
-            drawn.push((label, t, Tree::ROOT, Style::overlay(i), Timing::AsGiven));
+            trees.push(t);
+            drawn.push((
+                label,
+                trees.len() - 1,
+                Tree::ROOT,
+                Style::overlay(i),
+                Timing::AsGiven,
+            ));
         }
     } else {
+        trees.push(tree.clone());
         for (i, &id) in nodes.iter().enumerate() {
             let name = if nodes.len() > 1 {
                 tree.node(id).name.clone()
@@ -170,19 +180,27 @@ pub(super) fn run(args: PlotArgs, input: &InputOptions) -> Result<(), Failure> {
                     .copied()
                     .collect::<Vec<_>>()
                     .join(", ");
-                drawn.push((label, tree.clone(), id, Style::overlay(i * k + j), timing));
+                drawn.push((label, 0, id, Style::overlay(i * k + j), timing));
             }
         }
     }
+    let model_options = btrel::Options {
+        method: base.method,
+        max_states: base.max_states,
+    };
+    let models: Vec<Result<btrel::Model, btrel::Error>> = trees
+        .iter()
+        .map(|t| btrel::Model::with_options(t, model_options))
+        .collect();
     let end = match t_end {
         Some(t) if t > 0.0 => t,
         Some(_) => return Err(Failure::input("--t-end must be > 0")),
         None => {
-            let items: Vec<(&Tree, usize, Timing)> = drawn
+            let items: Vec<_> = drawn
                 .iter()
-                .map(|(_, t, id, _, tm)| (t, *id, *tm))
+                .map(|&(_, k, id, _, tm)| (models[k].as_ref().map_err(|_| &trees[k]), id, tm))
                 .collect();
-            let h = default_horizon(&items, base.method);
+            let h = default_horizon(&items);
             match deadline {
                 Some(d) if d * 1.1 > h => btrel::plot::nice_ceil(d * 1.1),
                 _ => h,
@@ -194,19 +212,14 @@ pub(super) fn run(args: PlotArgs, input: &InputOptions) -> Result<(), Failure> {
         .collect();
     let mut series: Vec<Series> = Vec::new();
     let mut exact_drawn = false;
-    for (label, t, id, style, timing) in &drawn {
-        let options = CurveOptions {
-            timing: *timing,
-            ..base
-        };
+    for (label, k, id, style, timing) in &drawn {
+        let t = &trees[*k];
         let spinner = Spinner::start(format!("computing π(t) of '{}'", t.node(*id).name));
-        let model_options = btrel::Options {
-            method: options.method,
-            max_states: options.max_states,
-        };
-        let computed = btrel::Model::with_options(t, model_options)
-            .and_then(|m| m.curve_with(*id, &times, *timing))
-            .map_err(analysis_error);
+        let computed = match &models[*k] {
+            Ok(m) => m.curve_with(*id, &times, *timing),
+            Err(e) => Err(e.clone()),
+        }
+        .map_err(analysis_error);
         drop(spinner);
         match computed {
             Ok(points) => {
@@ -232,7 +245,8 @@ pub(super) fn run(args: PlotArgs, input: &InputOptions) -> Result<(), Failure> {
         let mc_times: Vec<f64> = (0..41).map(|k| end * k as f64 / 40.0).collect();
         let o = sim_options(&args.sim.sim(), runs, mc_times, false)?;
         let mut i = 0;
-        for (label, t, id, _, timing) in &drawn {
+        for (label, k, id, _, timing) in &drawn {
+            let t = &trees[*k];
             if *timing == Timing::Deterministic {
                 continue;
             }
