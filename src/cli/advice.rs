@@ -62,20 +62,6 @@ pub(super) fn or_list(items: &[String]) -> String {
     }
 }
 
-/// An analysis error with advice naming only the options of `cmd`.
-/// The analysis error inside a [`btrel::Error`] from a model query (a
-/// model built by the command has checked its node ids and times: any
-/// other error is a fault of the command, stated as a numerical failure).
-pub(super) fn analysis_error(e: btrel::Error) -> AnalysisError {
-    match e {
-        btrel::Error::Analysis(e) => e,
-        other => AnalysisError::Numerical {
-            node: String::new(),
-            what: other.to_string(),
-        },
-    }
-}
-
 /// [`analysis_failure`] for the library's [`btrel::Model`]: its analysis
 /// errors get the same advice; any other is stated as it is.
 pub(super) fn model_failure(cmd: Cmd, method: Method) -> impl Fn(btrel::Error) -> Failure {
@@ -85,6 +71,7 @@ pub(super) fn model_failure(cmd: Cmd, method: Method) -> impl Fn(btrel::Error) -
     }
 }
 
+/// An analysis error with advice naming only the options of `cmd`.
 pub(super) fn analysis_failure(cmd: Cmd, method: Method) -> impl Fn(AnalysisError) -> Failure {
     move |e| {
         let exact = method == Method::Exact;

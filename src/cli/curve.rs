@@ -5,7 +5,7 @@ use btrel::curve::Timing;
 use btrel::tree::Tree;
 use btrel::Model;
 
-use super::advice::{analysis_error, analysis_failure, model_failure, Cmd};
+use super::advice::{model_failure, Cmd};
 use super::args::{CurveArgs, MethodArg, TimingArg};
 use super::ci::{ci_notes, ci_sampler};
 use super::input::{find_nodes, warn_endless, InputOptions};
@@ -62,18 +62,15 @@ pub(super) fn run(args: CurveArgs, input: &InputOptions) -> Result<(), Failure> 
             let flat = sampler
                 .intervals(ci.level, ci.draws, ci.seed, |t| {
                     let mut v = Vec::with_capacity(3 * times.len() * nodes.len());
-                    let model = Model::with_options(t, options).map_err(analysis_error)?;
+                    let model = Model::with_options(t, options)?;
                     for &id in &nodes {
-                        for p in model
-                            .curve_with(id, &times, timing)
-                            .map_err(analysis_error)?
-                        {
+                        for p in model.curve_with(id, &times, timing)? {
                             v.extend([Some(p.success), Some(p.failure), Some(p.running)]);
                         }
                     }
                     Ok(v)
                 })
-                .map_err(analysis_failure(Cmd::Curve, options.method))?;
+                .map_err(model_failure(Cmd::Curve, options.method))?;
             ci_notes(ci, &sampler);
             Some(flat)
         }

@@ -6,7 +6,7 @@ use btrel::compile::Options;
 use btrel::tree::Tree;
 use btrel::Model;
 
-use super::advice::{analysis_error, analysis_failure, with_article, write_error, Cmd};
+use super::advice::{analysis_failure, model_failure, with_article, write_error, Cmd};
 use super::args::{ExportArgs, ExportFormat, MethodArg};
 use super::input::{find_nodes, InputOptions};
 use super::options::{method, parse_time};
@@ -67,9 +67,7 @@ pub(super) fn run(args: ExportArgs, input: &InputOptions) -> Result<(), Failure>
     };
     let text = match args.to {
         ExportFormat::Dot => {
-            let analysis = Model::with_options(&tree, options)
-                .and_then(|m| m.analysis().cloned())
-                .map_err(analysis_error);
+            let analysis = Model::with_options(&tree, options).and_then(|m| m.analysis().cloned());
             match &args.mrg {
                 None => btrel::export::dot_tree(&tree, analysis.as_ref().ok()),
                 Some(_) => {
@@ -89,7 +87,7 @@ pub(super) fn run(args: ExportArgs, input: &InputOptions) -> Result<(), Failure>
                         )));
                     }
                     let analysis = analysis.map_err(|e| {
-                        let f = analysis_failure(Cmd::ExportDot, options.method)(e);
+                        let f = model_failure(Cmd::ExportDot, options.method)(e);
                         Failure::analysis(format!(
                             "the tree cannot be analysed, so its MRG cannot be labelled: {}",
                             f.message

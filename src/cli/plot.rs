@@ -6,7 +6,7 @@ use btrel::curve::{CurveOptions, Timing};
 use btrel::report::number::full;
 use btrel::tree::Tree;
 
-use super::advice::{self, analysis_error, analysis_failure, compare_failure, Cmd};
+use super::advice::{self, compare_failure, model_failure, Cmd};
 use super::args::{ImageFormatArg, PlotArgs, PlotTiming};
 use super::input::{find_nodes, warn_endless, InputOptions};
 use super::options::{method, optional_count, optional_time, sim_options};
@@ -218,8 +218,7 @@ pub(super) fn run(args: PlotArgs, input: &InputOptions) -> Result<(), Failure> {
         let computed = match &models[*k] {
             Ok(m) => m.curve_with(*id, &times, *timing),
             Err(e) => Err(e.clone()),
-        }
-        .map_err(analysis_error);
+        };
         drop(spinner);
         match computed {
             Ok(points) => {
@@ -231,7 +230,7 @@ pub(super) fn run(args: PlotArgs, input: &InputOptions) -> Result<(), Failure> {
                 t.node(*id).name
             ),
             Err(e) => {
-                let mut f = analysis_failure(Cmd::Plot, base.method)(e);
+                let mut f = model_failure(Cmd::Plot, base.method)(e);
                 f.message = format!(
                     "cannot plot the exact curves of '{}': {}",
                     t.node(*id).name,

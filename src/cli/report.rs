@@ -5,7 +5,7 @@ use btrel::report::{Format, Report};
 use btrel::tree::Tree;
 use btrel::Model;
 
-use super::advice::{analysis_error, analysis_failure, model_failure, Cmd};
+use super::advice::{model_failure, Cmd};
 use super::args::{FormatArg, ReportArgs};
 use super::ci::ci_sampler;
 use super::input::{warn_endless, InputOptions};
@@ -53,14 +53,14 @@ pub(super) fn run(args: ReportArgs, input: &InputOptions) -> Result<(), Failure>
         let sampler = ci_sampler(&tree, source.as_ref(), ci, 4 * tree.nodes().len())?;
         let flat = sampler
             .intervals(ci.level, ci.draws, ci.seed, |t| {
-                let model = Model::with_options(t, options).map_err(analysis_error)?;
-                let figures = model.all_figures().map_err(analysis_error)?;
+                let model = Model::with_options(t, options)?;
+                let figures = model.all_figures()?;
                 Ok(figures
                     .iter()
                     .flat_map(|f| [Some(f.ps), Some(f.pf), f.mtts, f.mttf])
                     .collect())
             })
-            .map_err(analysis_failure(Cmd::Report, options.method))?;
+            .map_err(model_failure(Cmd::Report, options.method))?;
         let intervals = intervals::Intervals {
             level: ci.level,
             draws: ci.draws,
