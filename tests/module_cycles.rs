@@ -23,8 +23,6 @@ const KNOWN: &[&str] = &[
     "crate::compile::law",
     "crate::compile::plan",
     "crate::compile::race",
-    "crate::compile::renewal_curve",
-    "crate::compile::renewal_law",
 ];
 
 fn files(dir: &Path, out: &mut Vec<PathBuf>) {

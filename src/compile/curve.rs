@@ -16,57 +16,13 @@
 //! * **`Timing::Deterministic`**: every exponential time becomes a fixed
 //!   time `τ = 1/rate` first (the book's Figs. 9.20–9.21 comparison).
 
-use crate::compile::{self, atoms, counts, phase, shifted, AnalysisError, Method, Plan};
-use crate::solve::chain::PhaseChain;
+use super::chain_curve::curve_by_shifted;
+use crate::compile::{self, atoms, counts, phase, shifted, AnalysisError, Plan};
+use crate::solve::quadrature;
 use crate::solve::transient::{self, uniformization_work};
-use crate::solve::{expm, quadrature};
 use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
 
-pub use crate::solve::transient::CurvePoint;
-
-/// How action times are taken.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Timing {
-    /// As written in the tree file.
-    #[default]
-    AsGiven,
-    /// Every exponential time replaced by a fixed time `1/rate`.
-    Deterministic,
-}
-
-/// Error bound accepted from the dense stiff solver.
-pub(crate) const DENSE_TOLERANCE: f64 = 1e-10;
-
-/// Default limit on uniformization work (vector operations × nonzeros; an
-/// upper bound, since the solver skips zero entries: about a few seconds).
-pub(crate) const DEFAULT_MAX_WORK: f64 = 1e11;
-
-/// Options of a curve computation.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CurveOptions {
-    /// exact or book.
-    pub method: Method,
-    /// Times as given or made deterministic.
-    pub timing: Timing,
-    /// Largest chain or number of atoms.
-    pub max_states: usize,
-    /// Bound on the absolute error of the truncated series.
-    pub tolerance: f64,
-    /// Largest uniformization effort before refusing.
-    pub max_work: f64,
-}
-
-impl Default for CurveOptions {
-    fn default() -> Self {
-        CurveOptions {
-            method: Method::Exact,
-            timing: Timing::AsGiven,
-            max_states: compile::DEFAULT_MAX_STATES,
-            tolerance: transient::DEFAULT_TOLERANCE,
-            max_work: DEFAULT_MAX_WORK,
-        }
-    }
-}
+pub use super::curve_options::{CurveOptions, CurvePoint, Timing};
 
 /// The tree with every random time replaced by its mean (`τ = 1/rate`; an
 /// Erlang, hypo-, hyperexponential, phase-type or shifted time by its mean).
@@ -293,98 +249,6 @@ pub(super) fn loop_curve(
     if until_success {
         for p in &mut points {
             std::mem::swap(&mut p.success, &mut p.failure);
-        }
-    }
-    Ok(points)
-}
-
-/// `π(t)` from a shifted phase-type law ([`shifted`]): each outcome's
-/// `Σ w · A(t − τ)`, every component's chain solved like any chain.
-pub(super) fn curve_by_shifted(
-    law: &shifted::ShiftedLaw,
-    times: &[f64],
-    options: &CurveOptions,
-    name: &str,
-) -> Result<Vec<CurvePoint>, AnalysisError> {
-    let mut sums = vec![[0.0f64; 2]; times.len()];
-    for (o, part) in [&law.success, &law.failure].into_iter().enumerate() {
-        for c in part {
-            let (idx, local): (Vec<usize>, Vec<f64>) = times
-                .iter()
-                .enumerate()
-                .filter(|&(_, &t)| t >= c.shift || crate::tree::same_instant(t, c.shift))
-                .map(|(k, &t)| (k, (t - c.shift).max(0.0)))
-                .unzip();
-            if idx.is_empty() {
-                continue;
-            }
-            if c.chain.is_empty() {
-                for &k in &idx {
-                    sums[k][o] += c.weight * c.chain.initial_success;
-                }
-                continue;
-            }
-            let points = solve_chain(&c.chain, &local, options, name)?;
-            for (&k, p) in idx.iter().zip(&points) {
-                sums[k][o] += c.weight * p.success;
-            }
-        }
-    }
-    Ok(times
-        .iter()
-        .zip(sums)
-        .map(|(&t, [s, f])| {
-            let (success, failure) = (s.clamp(0.0, 1.0), f.clamp(0.0, 1.0));
-            CurvePoint {
-                t,
-                success,
-                failure,
-                running: (1.0 - success - failure).max(0.0),
-            }
-        })
-        .collect())
-}
-
-pub(super) fn solve_chain(
-    chain: &PhaseChain,
-    times: &[f64],
-    options: &CurveOptions,
-    name: &str,
-) -> Result<Vec<CurvePoint>, AnalysisError> {
-    let work = uniformization_work(chain, times);
-    let small = chain.len() + 2 <= expm::MAX_DENSE_STATES;
-    // the cheaper of the two: uniformization needs ~Λt steps, the dense
-    // exponential of a small chain costs the same at any horizon
-    let dense = small && expm::dense_work(chain, times) < work;
-    let points = if !dense && work <= options.max_work {
-        transient::transient(chain, times, options.tolerance)
-    } else if small {
-        // long horizon or stiff, but small: dense exponentials with a
-        // rigorous bound
-        let (points, bound) = expm::transient_dense(chain, times);
-        if bound > options.tolerance.max(DENSE_TOLERANCE) {
-            return Err(AnalysisError::Numerical {
-                node: name.to_string(),
-                what: format!("the error bound {bound:.1e} of the stiff solver is too large"),
-            });
-        }
-        points
-    } else {
-        return Err(AnalysisError::Stiff {
-            node: name.to_string(),
-            work,
-            limit: options.max_work,
-        });
-    };
-    for p in &points {
-        if ![p.success, p.failure, p.running]
-            .iter()
-            .all(|x| x.is_finite())
-        {
-            return Err(AnalysisError::Numerical {
-                node: name.to_string(),
-                what: format!("non-finite probability at t = {}", p.t),
-            });
         }
     }
     Ok(points)

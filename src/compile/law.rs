@@ -72,24 +72,20 @@
 //! (about 280 lines are comments).
 
 use super::atoms as det;
-use super::curve::CurveOptions;
+use super::chain_curve::{sample_weighted, SAMPLE_TOLERANCE};
+use super::curve_options::CurveOptions;
 use super::mrg::Outcome;
 use crate::compile::{counts, phase, renewal_law, AnalysisError};
 use crate::solve::chain::PhaseChain;
-use crate::solve::expm;
 use crate::solve::exponential::ExponentialConvolution;
 use crate::solve::interpolant::{build_with_breaks, BuildError, Interpolant};
 use crate::solve::transient::{
-    absorption_by_phase, transient_split, transient_weighted, uniformization_work, CurvePoint,
-    MAX_SINGLE_PASS_STEPS,
+    absorption_by_phase, transient_split, uniformization_work, CurvePoint, MAX_SINGLE_PASS_STEPS,
 };
 use crate::tree::same_instant;
 use crate::tree::stages::Stages;
 use crate::tree::{Decorator, Duration, Flow, FlowNext, NodeId, NodeKind, Tree};
 use rayon::prelude::*;
-
-/// Dropped Poisson mass in each sampled density.
-const SAMPLE_TOLERANCE: f64 = 1e-16;
 
 /// Mass below which the rest of a fold is dropped.
 const NEGLIGIBLE: f64 = 1e-17;
@@ -487,50 +483,6 @@ fn stiff(tree: &Tree, id: NodeId, chain: &PhaseChain, end: f64) -> AnalysisError
         work: uniformization_work(chain, &[end]),
         limit: MAX_SINGLE_PASS_STEPS as f64 * nnz.max(1) as f64,
     }
-}
-
-/// `[S, F, π·h₁, ...]` at `points` by one uniformization pass, or — when that
-/// would take too many steps (a stiff chain over a long horizon) and the
-/// chain is small — by dense exponentials whose bound is below the sampling
-/// tolerance; `None` otherwise.
-pub(crate) fn sample_weighted(
-    chain: &PhaseChain,
-    points: &[f64],
-    weights: &[&[f64]],
-) -> Option<Vec<Vec<f64>>> {
-    // phases that only exit (an action, a mixture of exponentials): closed
-    // form, π_i(t) = p_i e^{−q_i t}
-    if chain.transitions.iter().all(Vec::is_empty) {
-        return Some(
-            points
-                .iter()
-                .map(|&t| {
-                    let mut row = vec![chain.initial_success, chain.initial_failure];
-                    row.resize(2 + weights.len(), 0.0);
-                    for &(i, p) in &chain.initial {
-                        let q = chain.total_rate(i);
-                        let (alive, gone) = ((-q * t).exp(), -(-q * t).exp_m1());
-                        if q > 0.0 {
-                            row[0] += p * chain.exit_success[i] / q * gone;
-                            row[1] += p * chain.exit_failure[i] / q * gone;
-                        }
-                        for (k, w) in weights.iter().enumerate() {
-                            row[2 + k] += p * alive * w[i];
-                        }
-                    }
-                    row
-                })
-                .collect(),
-        );
-    }
-    if let Some(rows) = transient_weighted(chain, points, SAMPLE_TOLERANCE, weights) {
-        return Some(rows);
-    }
-    if chain.len() + 2 > expm::MAX_DENSE_STATES {
-        return None;
-    }
-    let (rows, bound) = expm::transient_dense_weighted(chain, points, weights);
-    (bound <= super::curve::DENSE_TOLERANCE).then_some(rows)
 }
 
 struct Builder<'a> {

@@ -19,8 +19,10 @@
 
 pub(crate) mod atoms;
 pub(crate) mod book_ctmc;
+mod chain_curve;
 pub mod counts;
 pub mod curve;
+mod curve_options;
 pub(crate) mod flow;
 pub(crate) mod law;
 pub(crate) mod mrg;

@@ -48,7 +48,9 @@ use std::collections::HashMap;
 
 use super::curve::{self as curve_query, CurveOptions, CurvePoint, Timing};
 use super::mrg::{self, Mrg, Policy};
-use super::{atoms, book_ctmc, counts, flow, law, phase, race, AnalysisError, Figures, Method};
+use super::{
+    atoms, book_ctmc, chain_curve, counts, flow, law, phase, race, AnalysisError, Figures, Method,
+};
 use crate::solve::chain::PhaseChain;
 use crate::solve::solve_absorbing;
 use crate::tree::nav2::MAX_RERUN_TERMS;
@@ -561,7 +563,7 @@ impl<'t> Plan<'t> {
                 Ok(points(&|t| atoms::cumulative(&a, t)))
             }
             Representation::Chain => {
-                curve_query::solve_chain(&self.chain(id)?, times, options, &node.name)
+                chain_curve::solve_chain(&self.chain(id)?, times, options, &node.name)
             }
             Representation::Counted => {
                 let (m, _, _) = thresholds(&node.kind).expect("a counted node is a Parallel");
@@ -579,7 +581,7 @@ impl<'t> Plan<'t> {
                 let first = self.max_states.min(SHIFTED_FIRST);
                 match super::shifted::shifted_law(&self.tree, id, first) {
                     Ok(Some(law)) => {
-                        curve_query::curve_by_shifted(&law, times, options, &node.name)
+                        chain_curve::curve_by_shifted(&law, times, options, &node.name)
                     }
                     // a form the mixture cannot hold
                     Ok(None) => law::curve_by_laws(&self.tree, id, times, options, mixed),
@@ -591,7 +593,7 @@ impl<'t> Plan<'t> {
                             Err(AnalysisError::MixedTiming { .. }) if first < self.max_states => {
                                 match super::shifted::shifted_law(&self.tree, id, self.max_states)?
                                 {
-                                    Some(law) => curve_query::curve_by_shifted(
+                                    Some(law) => chain_curve::curve_by_shifted(
                                         &law, times, options, &node.name,
                                     ),
                                     None => Err(mixed),
@@ -630,7 +632,7 @@ impl<'t> Plan<'t> {
                     }
                     book_ctmc::book_ctmc(&Mrg::build(policy, children.len()), &child_figs)
                 };
-                curve_query::solve_chain(&chain, times, options, &node.name)
+                chain_curve::solve_chain(&chain, times, options, &node.name)
             }
         }
     }

@@ -43,8 +43,9 @@
 //! counting at instants and between them, and the figures and curve entry
 //! points (about 200 lines are comments, 120 tests).
 
-use super::curve::CurvePoint;
-use super::law::{sample_weighted, HorizonLaw};
+use super::chain_curve::sample_weighted;
+use super::curve_options::CurvePoint;
+use super::law::HorizonLaw;
 use super::renewal::Renewal;
 use super::renewal_curve;
 use super::shifted::{self, ShiftedLaw};
@@ -111,7 +112,7 @@ const LAW_ERROR: f64 = 1e-11;
 /// upper bound (the tail bound's time can be several times the one the
 /// integration stops at, and the solver skips zero entries): MoveIt Pro's
 /// satellite tree, estimated at 2e10, is answered in 1.7 s.
-const MAX_PASS_WORK: f64 = super::curve::DEFAULT_MAX_WORK;
+const MAX_PASS_WORK: f64 = super::curve_options::DEFAULT_MAX_WORK;
 
 /// Most phases (over all components) of a shifted mixture that a race
 /// samples: every row of it is one transient pass per component, so a

@@ -78,7 +78,8 @@
 //! Size: one concern, the renewal race's curve by levels (about 200 lines
 //! are comments).
 
-use super::curve::{self as curve_query, CurveOptions, CurvePoint};
+use super::chain_curve::solve_chain;
+use super::curve_options::{CurveOptions, CurvePoint};
 use super::renewal;
 use super::{phase, AnalysisError};
 use crate::solve::chain::PhaseChain;
@@ -946,7 +947,7 @@ pub(crate) fn curve(
     let early: Vec<usize> = (0..times.len()).filter(|&k| times[k] < t0).collect();
     if !early.is_empty() {
         let ts: Vec<f64> = early.iter().map(|&k| times[k]).collect();
-        let pts = curve_query::solve_chain(run.rest(), &ts, options, name)?;
+        let pts = solve_chain(run.rest(), &ts, options, name)?;
         for (k, p) in early.into_iter().zip(pts) {
             out[k] = Some(p);
         }

@@ -50,7 +50,7 @@
 //! fails with an atom at the end of each wait entered by an atom — after
 //! 0, which the composed laws do not hold yet: refused as mixed timing.
 
-use super::law::sample_weighted;
+use super::chain_curve::sample_weighted;
 use super::renewal_curve::{self, Level};
 use super::AnalysisError;
 use crate::solve::interpolant::{build_on, BuildError, Interpolant};
