@@ -196,6 +196,12 @@ impl Model {
     }
 
     /// The node of the planned tree standing for node `id`.
+    /// The plan of the tree itself, when it has no Nav2 node to lower (the
+    /// planned tree is then the tree, node for node).
+    pub(crate) fn own_plan(&self) -> Option<&compile::Plan<'static>> {
+        self.image.is_none().then_some(&self.plan)
+    }
+
     fn planned(&self, id: NodeId) -> NodeId {
         self.image.as_ref().map_or(id, |image| image[id])
     }

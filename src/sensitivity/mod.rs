@@ -42,9 +42,10 @@ mod chain;
 mod dual;
 mod exact;
 
-use crate::compile::{analyze, primitive_view, Analysis, AnalysisError, Options, Plan};
-use crate::curve::{curve, CurveOptions};
+use crate::compile::{Analysis, AnalysisError, Options, Plan};
+use crate::curve::CurveOptions;
 use crate::tree::{Duration, NodeId, NodeKind, Tree};
+use crate::Model;
 
 /// What the derivatives are of: a figure of the root.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -266,21 +267,31 @@ impl From<AnalysisError> for SensitivityError {
     }
 }
 
+impl From<crate::Error> for SensitivityError {
+    fn from(e: crate::Error) -> Self {
+        match e {
+            crate::Error::Analysis(e) => SensitivityError::Analysis(e),
+            // a deadline that is not a time: the objective is undefined
+            other => SensitivityError::Undefined(other.to_string()),
+        }
+    }
+}
+
 /// The root's objective for a tree.
 pub(crate) fn objective_value(
     tree: &Tree,
     objective: Objective,
     options: &Options,
 ) -> Result<f64, SensitivityError> {
+    objective_of(&Model::with_options(tree, *options)?, objective)
+}
+
+/// The root's objective from the tree's model.
+fn objective_of(model: &Model, objective: Objective) -> Result<f64, SensitivityError> {
     if let Objective::SuccessBy(t) = objective {
-        let co = CurveOptions {
-            method: options.method,
-            max_states: options.max_states,
-            ..CurveOptions::default()
-        };
-        return Ok(curve(tree, Tree::ROOT, &[t], &co)?[0].success);
+        return Ok(model.curve(Tree::ROOT, &[t])?[0].success);
     }
-    let f = analyze(tree, options)?.nodes[Tree::ROOT];
+    let f = model.figures(Tree::ROOT)?;
     let undefined =
         |what: &str| SensitivityError::Undefined(format!("the root's {what} is undefined"));
     Ok(match objective {
@@ -459,16 +470,16 @@ fn sensitivity_with(
     options: &Options,
     exact: bool,
 ) -> Result<Sensitivity, SensitivityError> {
-    let value = objective_value(tree, objective, options)?;
-    // the plan and analysis the exact derivatives start from: not for a
-    // tree with Nav2 nodes (its leaves stand for several)
-    let primitive = exact && primitive_view(tree)?.is_none();
-    let plan = primitive.then(|| Plan::new(tree, options.method, options.max_states));
+    // one model: the objective, and the plan and analysis the exact
+    // derivatives start from (not for a tree with Nav2 nodes: its leaves
+    // stand for several)
+    let model = Model::with_options(tree, *options)?;
+    let value = objective_of(&model, objective)?;
+    let plan = if exact { model.own_plan() } else { None };
     let grids = exact::Grids::default();
-    let analysis = if primitive && !matches!(objective, Objective::SuccessBy(_)) {
-        Some(analyze(tree, options)?)
-    } else {
-        None
+    let analysis = match plan {
+        Some(_) if !matches!(objective, Objective::SuccessBy(_)) => Some(model.analysis()?),
+        _ => None,
     };
     let mut rows = Vec::new();
     let mut skipped = Vec::new();
@@ -477,9 +488,9 @@ fn sensitivity_with(
             continue;
         }
         for (param, x) in params_of(&node.kind) {
-            if let Some(d) = plan.as_ref().and_then(|p| {
-                exact_derivative(p, &grids, analysis.as_ref(), id, param, objective, value)
-            }) {
+            if let Some(d) = plan
+                .and_then(|p| exact_derivative(p, &grids, analysis, id, param, objective, value))
+            {
                 if in_domain(&node.kind, param, x + 1e-9) || in_domain(&node.kind, param, x - 1e-9)
                 {
                     let elasticity = (value != 0.0 && value.is_finite()).then(|| d * x / value);
