@@ -14,6 +14,26 @@ use crate::solve::transient::{self, transient_weighted, uniformization_work};
 /// chains, by uniformization).
 pub(crate) const SAMPLE_TOLERANCE: f64 = 1e-16;
 
+/// The times at or after `shift` (strictly after with `left`: a left
+/// limit, the mass that returns exactly at `shift` not yet counted), as
+/// their indices and their times since `shift`. An instant within
+/// rounding of `shift` is `shift`.
+pub(crate) fn shifted_times(times: &[f64], shift: f64, left: bool) -> (Vec<usize>, Vec<f64>) {
+    times
+        .iter()
+        .enumerate()
+        .filter(|&(_, &t)| {
+            let at = crate::tree::same_instant(t, shift);
+            if left {
+                t > shift && !at
+            } else {
+                t > shift || at
+            }
+        })
+        .map(|(k, &t)| (k, (t - shift).max(0.0)))
+        .unzip()
+}
+
 /// `π(t)` from a shifted phase-type law ([`shifted`]): each outcome's
 /// `Σ w · A(t − τ)`, every component's chain solved like any chain.
 pub(crate) fn curve_by_shifted(
@@ -25,12 +45,7 @@ pub(crate) fn curve_by_shifted(
     let mut sums = vec![[0.0f64; 2]; times.len()];
     for (o, part) in [&law.success, &law.failure].into_iter().enumerate() {
         for c in part {
-            let (idx, local): (Vec<usize>, Vec<f64>) = times
-                .iter()
-                .enumerate()
-                .filter(|&(_, &t)| t >= c.shift || crate::tree::same_instant(t, c.shift))
-                .map(|(k, &t)| (k, (t - c.shift).max(0.0)))
-                .unzip();
+            let (idx, local) = shifted_times(times, c.shift, false);
             if idx.is_empty() {
                 continue;
             }

@@ -43,7 +43,7 @@
 //! counting at instants and between them, and the figures and curve entry
 //! points (about 200 lines are comments, 120 tests).
 
-use super::chain_curve::sample_weighted;
+use super::chain_curve::{sample_weighted, shifted_times};
 use super::curve_options::CurvePoint;
 use super::law::HorizonLaw;
 use super::renewal::Renewal;
@@ -422,19 +422,7 @@ impl Racer {
                 let mut out = vec![[0.0; 4]; times.len()];
                 for (o, part) in [&l.success, &l.failure].into_iter().enumerate() {
                     for c in part {
-                        let (idx, local): (Vec<usize>, Vec<f64>) = times
-                            .iter()
-                            .enumerate()
-                            .filter(|&(_, &t)| {
-                                let at = same_instant(t, c.shift);
-                                if left {
-                                    t > c.shift && !at
-                                } else {
-                                    t > c.shift || at
-                                }
-                            })
-                            .map(|(k, &t)| (k, (t - c.shift).max(0.0)))
-                            .unzip();
+                        let (idx, local) = shifted_times(times, c.shift, left);
                         if idx.is_empty() {
                             continue;
                         }
