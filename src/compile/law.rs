@@ -68,19 +68,22 @@
 //! `super::race`).
 //!
 //! Size: one concern, the composed outcome law; most of it is one `Builder`
-//! whose methods are the law of each node kind over shared panels and memo
-//! (about 280 lines are comments).
+//! whose methods are the law of each node kind over shared panels and memo,
+//! then the curves read from laws (`curve_by_laws`, a loop's `loop_curve`);
+//! about 300 lines are comments.
 
 use super::atoms as det;
-use super::chain_curve::{sample_weighted, SAMPLE_TOLERANCE};
+use super::chain_curve::{curve_by_shifted, sample_weighted, SAMPLE_TOLERANCE};
 use super::curve_options::CurveOptions;
 use super::mrg::Outcome;
+use super::shifted;
 use crate::compile::{counts, phase, renewal_law, AnalysisError};
 use crate::solve::chain::PhaseChain;
 use crate::solve::exponential::ExponentialConvolution;
 use crate::solve::interpolant::{build_with_breaks, BuildError, Interpolant};
 use crate::solve::transient::{
-    absorption_by_phase, transient_split, uniformization_work, CurvePoint, MAX_SINGLE_PASS_STEPS,
+    self, absorption_by_phase, transient_split, uniformization_work, CurvePoint,
+    MAX_SINGLE_PASS_STEPS,
 };
 use crate::tree::same_instant;
 use crate::tree::stages::Stages;
@@ -1579,4 +1582,90 @@ impl Measure {
         self.atoms.iter().map(|a| a.0 * a.1).sum::<f64>()
             + self.density.as_ref().map_or(0.0, Interpolant::first_moment)
     }
+}
+
+/// `π(t)` of a loop without a bound over a child with a phase chain: the
+/// child's chain with the exit that repeats it ("again": Success for
+/// `until_failure`) routed back to its entry distribution — a cyclic chain,
+/// solved by uniformization (which needs no order of the phases). An
+/// instantaneous "again" at entry is folded in by renormalising the entry:
+/// the entry is `initial / (1 − p₀)`, `p₀` the child's instantaneous
+/// probability of "again".
+pub(crate) fn loop_curve(
+    tree: &Tree,
+    id: NodeId,
+    child: NodeId,
+    decorator: Decorator,
+    times: &[f64],
+    options: &CurveOptions,
+) -> Result<Vec<CurvePoint>, AnalysisError> {
+    let node = tree.node(id);
+    let unbounded = || AnalysisError::Unbounded {
+        node: node.name.clone(),
+    };
+    let mut c = match phase::chain_of(tree, child, options.max_states) {
+        Ok(c) => c,
+        // a child with mixed timing: the loop's truncated geometric series
+        // as a shifted mixture where it is small (as the planner's
+        // `Shifted` rule), else the loop's composed law (`law`: the
+        // geometric sum by binary powering, any child)
+        Err(AnalysisError::NotMarkovian { .. }) => {
+            let first = options.max_states.min(super::plan::SHIFTED_FIRST);
+            return match shifted::shifted_law(tree, id, first) {
+                Ok(Some(law)) => curve_by_shifted(&law, times, options, &node.name),
+                Ok(None) | Err(AnalysisError::StateBudget { .. }) => {
+                    curve_by_laws(tree, id, times, options, unbounded())
+                }
+                Err(e) => Err(e),
+            };
+        }
+        Err(e) => return Err(e),
+    };
+    // work with "again" as the Success exit, then swap back
+    let until_success = decorator == Decorator::UntilSuccess;
+    if until_success {
+        std::mem::swap(&mut c.exit_success, &mut c.exit_failure);
+        std::mem::swap(&mut c.initial_success, &mut c.initial_failure);
+    }
+    let again0 = c.initial_success;
+    if again0 >= 1.0 || (c.initial.is_empty() && c.initial_failure <= 0.0) {
+        // the child never ends the loop: it runs forever
+        return Ok(times
+            .iter()
+            .map(|&t| CurvePoint {
+                t,
+                success: 0.0,
+                failure: 0.0,
+                running: 1.0,
+            })
+            .collect());
+    }
+    let scale = 1.0 / (1.0 - again0);
+    let entry: Vec<(usize, f64)> = c.initial.iter().map(|&(j, p)| (j, p * scale)).collect();
+    let end0 = c.initial_failure * scale;
+    for i in 0..c.len() {
+        let again = std::mem::take(&mut c.exit_success[i]);
+        if again > 0.0 {
+            c.transitions[i].extend(entry.iter().map(|&(j, p)| (j, again * p)));
+            c.exit_failure[i] += again * end0;
+        }
+    }
+    c.initial = entry;
+    c.initial_success = 0.0;
+    c.initial_failure = end0;
+    let work = uniformization_work(&c, times);
+    if work > options.max_work {
+        return Err(AnalysisError::Stiff {
+            node: node.name.clone(),
+            work,
+            limit: options.max_work,
+        });
+    }
+    let mut points = transient::transient(&c, times, options.tolerance);
+    if until_success {
+        for p in &mut points {
+            std::mem::swap(&mut p.success, &mut p.failure);
+        }
+    }
+    Ok(points)
 }

@@ -26,6 +26,7 @@ mod curve_options;
 pub(crate) mod flow;
 pub(crate) mod law;
 pub(crate) mod mrg;
+mod parallel_times;
 pub mod phase;
 pub(crate) mod plan;
 pub(crate) mod race;
@@ -504,7 +505,7 @@ pub(crate) fn parallel_by_counts(
             m,
             children.len() + 1 - m,
         );
-        let [ts, tf] = curve::parallel_times_by_quadrature(plan, id, m, child_figs)?;
+        let [ts, tf] = plan.parallel_times_by_quadrature(id, m, child_figs)?;
         return Ok(Some(Figures::from_moments([ps, pf, ts, tf])));
     }
     let laws: Vec<counts::ChildLaw> = chains.into_iter().map(counts::ChildLaw::new).collect();

@@ -46,10 +46,11 @@
 use std::cell::{OnceCell, RefCell};
 use std::collections::HashMap;
 
-use super::curve::{self as curve_query, CurveOptions, CurvePoint, Timing};
+use super::curve_options::{CurveOptions, CurvePoint, Timing};
 use super::mrg::{self, Mrg, Policy};
 use super::{
-    atoms, book_ctmc, chain_curve, counts, flow, law, phase, race, AnalysisError, Figures, Method,
+    atoms, book_ctmc, chain_curve, counts, flow, law, parallel_times, phase, race, AnalysisError,
+    Figures, Method,
 };
 use crate::solve::chain::PhaseChain;
 use crate::solve::solve_absorbing;
@@ -451,8 +452,35 @@ impl<'t> Plan<'t> {
         let n = child_figs.len();
         let outcomes: Vec<(f64, f64)> = child_figs.iter().map(|f| (f.ps, f.pf)).collect();
         let (ps, pf) = counts::status_by_counts(&outcomes, m, n + 1 - m);
-        let [ts, tf] = curve_query::parallel_times_by_quadrature(self, id, m, child_figs)?;
+        let [ts, tf] = self.parallel_times_by_quadrature(id, m, child_figs)?;
         Ok(Figures::from_moments([ps, pf, ts, tf]))
+    }
+
+    /// The mean times of Parallel `id` (success threshold `m`) by
+    /// quadrature of its counted curve ([`parallel_times`]).
+    pub(crate) fn parallel_times_by_quadrature(
+        &self,
+        id: NodeId,
+        m: usize,
+        child_figs: &[Figures],
+    ) -> Result<[f64; 2], AnalysisError> {
+        let fastest = self
+            .tree
+            .node(id)
+            .kind
+            .children()
+            .iter()
+            .filter_map(|&c| self.chain(c).ok())
+            .flat_map(|c| (0..c.len()).map(move |i| c.total_rate(i)))
+            .fold(0.0, f64::max);
+        parallel_times::parallel_times_by_quadrature(
+            &self.tree,
+            id,
+            (m, self.max_states),
+            child_figs,
+            fastest,
+            &|times, options| self.counted_curve(id, m, times, options),
+        )
     }
 
     /// `π(t)` of node `id` at `times` (finite, ≥ 0, any order), in the
@@ -555,7 +583,7 @@ impl<'t> Plan<'t> {
                 let NodeKind::Decorator { decorator, child } = node.kind else {
                     unreachable!("a loop is a decorator")
                 };
-                curve_query::loop_curve(&self.tree, id, child, decorator, times, options)
+                law::loop_curve(&self.tree, id, child, decorator, times, options)
             }
             Representation::Atoms => {
                 let a = atoms::atoms(&self.tree, id, self.max_states)?
