@@ -1031,7 +1031,8 @@ pub fn render(f: &Fitted, by: By) -> String {
              # hyperexponential-2 by BIC, maximum likelihood with halted episodes censored;\n\
              # `fit:` holds counts, the families compared, standard errors and 95% intervals\n\
              # (ignored by the analysis), and `cov_theta:` the covariance of the free\n\
-             # parameters on the logit/ln scale (inverse observed information), which `--ci` draws\n",
+             # parameters on the logit/ln scale (inverse observed information), from which the\n\
+             # parametric bootstrap of the figures' intervals draws\n",
         );
     } else {
         s.push_str(
@@ -1045,7 +1046,7 @@ pub fn render(f: &Fitted, by: By) -> String {
     {
         s.push_str(
             "# `cov:` (leaves with halts): covariances of the estimates of ps, mu and nu, which\n\
-             # halted episodes correlate; `--ci` draws the three jointly\n",
+             # halted episodes correlate; the bootstrap of the intervals draws the three jointly\n",
         );
     }
     for (key, c) in &f.unfitted {
