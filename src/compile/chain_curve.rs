@@ -18,6 +18,7 @@ pub(crate) const SAMPLE_TOLERANCE: f64 = 1e-16;
 /// limit, the mass that returns exactly at `shift` not yet counted), as
 /// their indices and their times since `shift`. An instant within
 /// rounding of `shift` is `shift`.
+#[inline]
 pub(crate) fn shifted_times(times: &[f64], shift: f64, left: bool) -> (Vec<usize>, Vec<f64>) {
     times
         .iter()

@@ -49,14 +49,14 @@ const TAIL_ROUNDING: f64 = 1e-15;
 /// otherwise). The result is an error *estimate*, not a bound.
 ///
 /// `counted_curve(times, options)` is the node's curve by the count
-/// programme (the planner's), `fastest` the largest total rate of the
-/// children's phase chains (0 without any).
+/// programme (the planner's), `fastest()` the largest total rate of the
+/// children's phase chains (0 without any), asked only when needed.
 pub(crate) fn parallel_times_by_quadrature(
     tree: &Tree,
     id: NodeId,
     (m, max_states): (usize, usize),
     child_figures: &[compile::Figures],
-    fastest: f64,
+    fastest: &dyn Fn() -> f64,
     counted_curve: &CountedCurve<'_>,
 ) -> Result<[f64; 2], AnalysisError> {
     let node = tree.node(id);
@@ -89,6 +89,7 @@ pub(crate) fn parallel_times_by_quadrature(
     }
     // fast phases make boundary layers of width ~1/rate near 0: cut there
     // too, geometrically up to the longest mean
+    let fastest = fastest();
     if fastest > 0.0 {
         let mut t = 1.0 / fastest;
         while t < longest {

@@ -464,21 +464,22 @@ impl<'t> Plan<'t> {
         m: usize,
         child_figs: &[Figures],
     ) -> Result<[f64; 2], AnalysisError> {
-        let fastest = self
-            .tree
-            .node(id)
-            .kind
-            .children()
-            .iter()
-            .filter_map(|&c| self.chain(c).ok())
-            .flat_map(|c| (0..c.len()).map(move |i| c.total_rate(i)))
-            .fold(0.0, f64::max);
+        let fastest = || {
+            self.tree
+                .node(id)
+                .kind
+                .children()
+                .iter()
+                .filter_map(|&c| self.chain(c).ok())
+                .flat_map(|c| (0..c.len()).map(move |i| c.total_rate(i)))
+                .fold(0.0, f64::max)
+        };
         parallel_times::parallel_times_by_quadrature(
             &self.tree,
             id,
             (m, self.max_states),
             child_figs,
-            fastest,
+            &fastest,
             &|times, options| self.counted_curve(id, m, times, options),
         )
     }
