@@ -77,6 +77,7 @@ use super::chain_curve::{curve_by_shifted, sample_weighted, SAMPLE_TOLERANCE};
 use super::curve_options::CurveOptions;
 use super::mrg::Outcome;
 use super::shifted;
+use crate::compile::children::{Children, ReturnLaw};
 use crate::compile::{counts, phase, renewal_law, AnalysisError};
 use crate::solve::chain::PhaseChain;
 use crate::solve::exponential::ExponentialConvolution;
@@ -182,24 +183,23 @@ pub(crate) struct HorizonLaw {
 }
 
 impl HorizonLaw {
-    /// The law of `id` on `[0, end]`.
+    /// The law of `id` on `[0, end]`, its children's asked of `children`.
     pub(crate) fn build(
-        tree: &Tree,
+        children: &dyn Children,
         id: NodeId,
         end: f64,
-        max_states: usize,
     ) -> Result<HorizonLaw, AnalysisError> {
-        let law = composed_law(tree, id, end, max_states, |b| b.law(id))?;
+        let law = composed_law(children, id, end, children.max_states(), |b| b.law(id))?;
         Ok(HorizonLaw { law, end })
     }
+}
 
-    /// Probability of returning by `end`.
-    pub(crate) fn mass(&self) -> f64 {
+impl ReturnLaw for HorizonLaw {
+    fn mass(&self) -> f64 {
         self.law.cdf(SUCCESS, self.end) + self.law.cdf(FAILURE, self.end)
     }
 
-    /// `[S, F, s, f]` at `t`; `left`: without a return exactly at `t`.
-    pub(crate) fn row(&self, t: f64, left: bool) -> [f64; 4] {
+    fn row(&self, t: f64, left: bool) -> [f64; 4] {
         if t > self.end && !same_instant(t, self.end) {
             return [
                 self.law.cdf(SUCCESS, self.end),
@@ -218,21 +218,21 @@ impl HorizonLaw {
         ]
     }
 
-    /// Instants with an atom.
-    pub(crate) fn instants(&self) -> impl Iterator<Item = f64> + '_ {
+    fn instants(&self) -> Vec<f64> {
         self.law
             .parts
             .iter()
             .flat_map(|m| m.atoms.iter().map(|a| a.0))
+            .collect()
     }
 
-    /// Where its densities may jump or kink (and its end).
-    pub(crate) fn cuts(&self) -> impl Iterator<Item = f64> + '_ {
+    fn cuts(&self) -> Vec<f64> {
         self.law
             .parts
             .iter()
             .flat_map(|m| m.breaks.iter().copied().chain(m.atoms.iter().map(|a| a.0)))
             .chain(std::iter::once(self.end))
+            .collect()
     }
 }
 
@@ -289,10 +289,10 @@ pub(crate) fn deadline_race(tree: &Tree, id: NodeId) -> Option<DeadlineRace> {
 /// [`renewal_law`]); `None` for any other node. Exact but for the
 /// interpolation's estimate (1e-15 of mass per panel).
 pub(crate) fn deadline_figures(
-    tree: &Tree,
+    children: &dyn Children,
     id: NodeId,
-    max_states: usize,
 ) -> Result<Option<[f64; 4]>, AnalysisError> {
+    let (tree, max_states) = (children.tree(), children.max_states());
     let Some(race) = deadline_race(tree, id) else {
         return Ok(None);
     };
@@ -303,6 +303,7 @@ pub(crate) fn deadline_figures(
     let mixed = non_markovian(tree);
     let b = Builder {
         tree,
+        children,
         end: race.time,
         max_states,
         memo: &memo,
@@ -323,14 +324,14 @@ pub(crate) fn deadline_figures(
 /// error returned where laws cannot help (its chain's budget error, or the
 /// mixed timing that the shifted mixture could not hold).
 pub(super) fn curve_by_laws(
-    tree: &Tree,
+    children: &dyn Children,
     id: NodeId,
     times: &[f64],
     options: &CurveOptions,
     fallback: AnalysisError,
 ) -> Result<Vec<CurvePoint>, AnalysisError> {
     let end = times.iter().copied().fold(0.0, f64::max);
-    let law = composed_law(tree, id, end, options.max_states, |b| {
+    let law = composed_law(children, id, end, options.max_states, |b| {
         b.opaque(id, fallback)
     })?;
     Ok(times
@@ -351,16 +352,18 @@ pub(super) fn curve_by_laws(
 /// The law of `id` that `build` makes with a fresh builder on `[0, end]`, refused where
 /// it dropped more than [`DROPPED_LIMIT`] of atom mass.
 fn composed_law(
-    tree: &Tree,
+    children: &dyn Children,
     id: NodeId,
     end: f64,
     max_states: usize,
     build: impl FnOnce(&Builder) -> Result<Law, AnalysisError>,
 ) -> Result<Law, AnalysisError> {
+    let tree = children.tree();
     let memo = LawMemo::default();
     let mixed = non_markovian(tree);
     let b = Builder {
         tree,
+        children,
         end,
         max_states,
         memo: &memo,
@@ -402,13 +405,14 @@ const MAX_DOUBLINGS: usize = 40;
 /// rounding floor of the children's mean times). The error of the result is
 /// that remainder plus the interpolation's estimate.
 pub(crate) fn counted_parallel_times(
-    tree: &Tree,
+    planner: &dyn Children,
     id: NodeId,
     m: usize,
     child_mean_times: &[f64],
     max_states: usize,
     memo: &LawMemo,
 ) -> Result<[f64; 2], AnalysisError> {
+    let tree = planner.tree();
     let children = tree.node(id).kind.children();
     let longest = child_mean_times.iter().copied().fold(0.0, f64::max);
     if longest == 0.0 {
@@ -434,6 +438,7 @@ pub(crate) fn counted_parallel_times(
     for _ in 0..MAX_DOUBLINGS {
         let b = Builder {
             tree,
+            children: planner,
             end,
             max_states,
             memo,
@@ -490,6 +495,8 @@ fn stiff(tree: &Tree, id: NodeId, chain: &PhaseChain, end: f64) -> AnalysisError
 
 struct Builder<'a> {
     tree: &'a Tree,
+    /// The planner, asked for the races below ([`Children`]).
+    children: &'a dyn Children,
     end: f64,
     max_states: usize,
     memo: &'a LawMemo,
@@ -786,8 +793,7 @@ impl Builder<'_> {
         // a renewal race whose R has no phase chain: the process's law from
         // its levels raced with R's (`race::renewal_race`)
         if super::renewal::parts(self.tree, id).is_some() {
-            let plan = super::Plan::new(self.tree, super::Method::Exact, self.max_states);
-            if let Some(race) = super::race::renewal_race(&plan, id, Some(self.end), 0.0)? {
+            if let Some(race) = super::race::renewal_race(self.children, id, Some(self.end), 0.0)? {
                 return self.race_law(id, &race);
             }
         }
@@ -807,8 +813,7 @@ impl Builder<'_> {
                 // phase chains, shifted mixtures, or their own composed
                 // laws): its atoms and interpolated densities
                 None => {
-                    let plan = super::Plan::new(self.tree, super::Method::Exact, self.max_states);
-                    let race = super::race::race_within(&plan, id, self.end)?;
+                    let race = super::race::race_within(self.children, id, self.end)?;
                     self.race_law(id, &race)
                 }
             },
@@ -1599,13 +1604,14 @@ impl Measure {
 /// the entry is `initial / (1 − p₀)`, `p₀` the child's instantaneous
 /// probability of "again".
 pub(crate) fn loop_curve(
-    tree: &Tree,
+    children: &dyn Children,
     id: NodeId,
     child: NodeId,
     decorator: Decorator,
     times: &[f64],
     options: &CurveOptions,
 ) -> Result<Vec<CurvePoint>, AnalysisError> {
+    let tree = children.tree();
     let node = tree.node(id);
     let unbounded = || AnalysisError::Unbounded {
         node: node.name.clone(),
@@ -1617,11 +1623,11 @@ pub(crate) fn loop_curve(
         // `Shifted` rule), else the loop's composed law (`law`: the
         // geometric sum by binary powering, any child)
         Err(AnalysisError::NotMarkovian { .. }) => {
-            let first = options.max_states.min(super::plan::SHIFTED_FIRST);
+            let first = options.max_states.min(super::shifted::SHIFTED_FIRST);
             return match shifted::shifted_law(tree, id, first) {
                 Ok(Some(law)) => curve_by_shifted(&law, times, options, &node.name),
                 Ok(None) | Err(AnalysisError::StateBudget { .. }) => {
-                    curve_by_laws(tree, id, times, options, unbounded())
+                    curve_by_laws(children, id, times, options, unbounded())
                 }
                 Err(e) => Err(e),
             };

@@ -20,6 +20,7 @@
 pub(crate) mod atoms;
 pub(crate) mod book_ctmc;
 mod chain_curve;
+pub(crate) mod children;
 pub mod counts;
 pub mod curve;
 mod curve_options;
@@ -40,9 +41,9 @@ use crate::solve::chain::{AbsorbingChain, Edge, Target};
 use crate::solve::{solve_absorbing, Absorption};
 use crate::tree::nav2::View;
 use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
+pub use children::Representation;
 use mrg::{Mrg, Outcome, Policy, Status};
 pub(crate) use plan::Plan;
-pub use plan::Representation;
 
 /// Which analysis to run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -476,7 +477,7 @@ pub(crate) fn parallel_by_counts(
             Err(AnalysisError::NotMarkovian { .. }) => return Ok(None),
             // a child holds a wide Parallel itself
             Err(AnalysisError::StateBudget { .. }) => {
-                return means_from_laws(tree, id, m, child_figs, &options, memo).map(Some)
+                return means_from_laws(plan, id, m, child_figs, &options, memo).map(Some)
             }
             Err(e) => return Err(e),
         }
@@ -532,7 +533,7 @@ pub(crate) const STIFF_STEPS: f64 = 1e5;
 /// error estimate, not a bound). Used when a child holds a wide Parallel
 /// itself, or when the children are stiff.
 fn means_from_laws(
-    tree: &Tree,
+    plan: &Plan,
     id: NodeId,
     m: usize,
     child_figs: &[Figures],
@@ -542,7 +543,7 @@ fn means_from_laws(
     let outcomes: Vec<(f64, f64)> = child_figs.iter().map(|f| (f.ps, f.pf)).collect();
     let (ps, pf) = counts::status_by_counts(&outcomes, m, child_figs.len() + 1 - m);
     let means: Vec<f64> = child_figs.iter().map(Figures::mean_time).collect();
-    let [ts, tf] = law::counted_parallel_times(tree, id, m, &means, options.max_states, memo)?;
+    let [ts, tf] = law::counted_parallel_times(plan, id, m, &means, options.max_states, memo)?;
     Ok(Figures::from_moments([ps, pf, ts, tf]))
 }
 

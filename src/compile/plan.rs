@@ -46,8 +46,10 @@
 use std::cell::{OnceCell, RefCell};
 use std::collections::HashMap;
 
+use super::children::{Children, Representation, ReturnLaw};
 use super::curve_options::{CurveOptions, CurvePoint, Timing};
 use super::mrg::{self, Mrg, Policy};
+use super::shifted::SHIFTED_FIRST;
 use super::{
     atoms, book_ctmc, chain_curve, counts, flow, law, parallel_times, phase, race, AnalysisError,
     Figures, Method,
@@ -56,54 +58,6 @@ use crate::solve::chain::PhaseChain;
 use crate::solve::solve_absorbing;
 use crate::tree::nav2::MAX_RERUN_TERMS;
 use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
-
-/// Most phases the shifted mixture may hold on its first attempt at a
-/// node's curve: past it the composed laws answer (exact too, and faster
-/// there); the mixture gets the whole `--max-states` only where the laws
-/// cannot hold the node.
-pub(super) const SHIFTED_FIRST: usize = 1 << 16;
-
-/// How the engine represents one node's outcome law (the planner's table,
-/// module docs).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Representation {
-    /// A leaf: its parameters and closed-form CDFs.
-    Closed,
-    /// The book's CTMC over the node's MRG (strategy `book`).
-    Book,
-    /// A loop without a bound: a cyclic chain or a truncated series.
-    Loop,
-    /// Finitely many return instants (deterministic subtree).
-    Atoms,
-    /// An exact phase chain (exponential subtree within the budget).
-    Chain,
-    /// A Parallel with the book's thresholds, by counting its children.
-    Counted,
-    /// A Parallel whose thresholds can both be met: a race of its children.
-    Race,
-    /// A shifted phase-type mixture (mixed timing); the composed laws
-    /// where the mixture exceeds the budget or cannot hold a Parallel.
-    Shifted,
-    /// Composed outcome laws (interpolated densities; a wide Parallel below).
-    Composed,
-}
-
-impl Representation {
-    /// A short name, as in docs/METHOD.md.
-    pub fn name(&self) -> &'static str {
-        match self {
-            Representation::Closed => "closed form",
-            Representation::Book => "book CTMC",
-            Representation::Loop => "loop",
-            Representation::Atoms => "atoms",
-            Representation::Chain => "phase chain",
-            Representation::Counted => "counted",
-            Representation::Race => "race",
-            Representation::Shifted => "shifted mixture",
-            Representation::Composed => "composed laws",
-        }
-    }
-}
 
 /// What the planner knows of a subtree before building anything.
 #[derive(Debug, Clone, Copy)]
@@ -193,6 +147,38 @@ fn thresholds(kind: &NodeKind) -> Option<(usize, usize, usize)> {
 /// returns Success iff ≥ M children have succeeded.
 fn book_thresholds(kind: &NodeKind) -> bool {
     thresholds(kind).is_some_and(|(m, f, n)| f > n - m)
+}
+
+/// The planner answers the representations' questions about the subtrees
+/// below them (module [`super::children`]).
+impl Children for Plan<'_> {
+    fn tree(&self) -> &Tree {
+        Plan::tree(self)
+    }
+    fn max_states(&self) -> usize {
+        self.max_states
+    }
+    fn representation(&self, id: NodeId) -> Result<Representation, AnalysisError> {
+        Plan::representation(self, id)
+    }
+    fn chain(&self, id: NodeId) -> Result<PhaseChain, AnalysisError> {
+        Plan::chain(self, id)
+    }
+    fn mixed_leaf(&self, id: NodeId) -> String {
+        Plan::mixed_leaf(self, id)
+    }
+    fn known_subtree_figures(&self, id: NodeId) -> Vec<Option<Figures>> {
+        Plan::known_subtree_figures(self, id)
+    }
+    fn subtree_figures(&self, id: NodeId) -> Result<Vec<Figures>, AnalysisError> {
+        super::subtree_figures(self, id)
+    }
+    fn horizon_law(&self, id: NodeId, end: f64) -> Result<Box<dyn ReturnLaw>, AnalysisError> {
+        Ok(Box::new(law::HorizonLaw::build(self, id, end)?))
+    }
+    fn deadline_figures(&self, id: NodeId) -> Result<Option<[f64; 4]>, AnalysisError> {
+        law::deadline_figures(self, id)
+    }
 }
 
 impl Plan<'static> {
@@ -542,7 +528,7 @@ impl<'t> Plan<'t> {
             leaf,
         };
         let budget = refusal(self.mixed_leaf(id));
-        law::curve_by_laws(&self.tree, id, times, options, budget).map_err(|e| match e {
+        law::curve_by_laws(self, id, times, options, budget).map_err(|e| match e {
             AnalysisError::MixedTiming { leaf, .. } => refusal(leaf),
             e => e,
         })
@@ -584,7 +570,7 @@ impl<'t> Plan<'t> {
                 let NodeKind::Decorator { decorator, child } = node.kind else {
                     unreachable!("a loop is a decorator")
                 };
-                law::loop_curve(&self.tree, id, child, decorator, times, options)
+                law::loop_curve(self, id, child, decorator, times, options)
             }
             Representation::Atoms => {
                 let a = atoms::atoms(&self.tree, id, self.max_states)?
@@ -613,12 +599,12 @@ impl<'t> Plan<'t> {
                         chain_curve::curve_by_shifted(&law, times, options, &node.name)
                     }
                     // a form the mixture cannot hold
-                    Ok(None) => law::curve_by_laws(&self.tree, id, times, options, mixed),
+                    Ok(None) => law::curve_by_laws(self, id, times, options, mixed),
                     // too many components: where the composed laws cannot
                     // hold the node either, the mixture within the whole
                     // budget, and the budget is what stops it
                     Err(budget @ AnalysisError::StateBudget { .. }) => {
-                        match law::curve_by_laws(&self.tree, id, times, options, mixed.clone()) {
+                        match law::curve_by_laws(self, id, times, options, mixed.clone()) {
                             Err(AnalysisError::MixedTiming { .. }) if first < self.max_states => {
                                 match super::shifted::shifted_law(&self.tree, id, self.max_states)?
                                 {
@@ -644,7 +630,7 @@ impl<'t> Plan<'t> {
                         Ok(_) => unreachable!("a node with a chain is planned as a chain"),
                     },
                 };
-                law::curve_by_laws(&self.tree, id, times, options, budget)
+                law::curve_by_laws(self, id, times, options, budget)
             }
             Representation::Book => {
                 let figs = self.book_figures()?;

@@ -44,12 +44,12 @@
 //! points (about 200 lines are comments, 120 tests).
 
 use super::chain_curve::{sample_weighted, shifted_times};
+use super::children::{Children, Representation, ReturnLaw};
 use super::curve_options::CurvePoint;
-use super::law::HorizonLaw;
 use super::renewal::Renewal;
 use super::renewal_curve;
 use super::shifted::{self, ShiftedLaw};
-use super::{counts, AnalysisError, Figures, Plan, Representation};
+use super::{counts, AnalysisError, Figures};
 use crate::solve::chain::PhaseChain;
 use crate::solve::quadrature::GaussLegendre;
 use crate::solve::transient::uniformization_work;
@@ -92,7 +92,7 @@ pub(crate) enum Racer {
     Renewal(Box<RenewalLoop>),
     /// Any subtree: its composed law ([`HorizonLaw`]) on a horizon past
     /// which it has returned but for [`LAW_TAIL`] of its mass.
-    Law(Box<HorizonLaw>),
+    Law(Box<dyn ReturnLaw>),
 }
 
 /// Mass a [`Racer::Law`] may leave unreturned past its horizon (its
@@ -201,7 +201,7 @@ impl Racer {
     /// `horizon` whatever happens; `f64::INFINITY` for all time): a shifted
     /// mixture keeps only the components that start by then
     /// ([`shifted::shifted_law_within`]).
-    fn build_within(plan: &Plan, id: NodeId, horizon: f64) -> Result<Racer, AnalysisError> {
+    fn build_within(plan: &dyn Children, id: NodeId, horizon: f64) -> Result<Racer, AnalysisError> {
         let tree = plan.tree();
         let node = tree.node(id);
         // the shifted mixture where it holds the subtree within the budget,
@@ -260,17 +260,16 @@ impl Racer {
     /// refused beyond. `refusal`: the error where the subtree's figures are
     /// not known.
     fn law(
-        plan: &Plan,
+        plan: &dyn Children,
         id: NodeId,
         horizon: f64,
         refusal: impl FnOnce() -> AnalysisError,
     ) -> Result<Racer, AnalysisError> {
-        let (tree, max_states) = (plan.tree(), plan.max_states());
+        let tree = plan.tree();
         if horizon.is_finite() {
-            let law = HorizonLaw::build(tree, id, horizon, max_states)?;
-            return Ok(Racer::Law(Box::new(law)));
+            return Ok(Racer::Law(plan.horizon_law(id, horizon)?));
         }
-        let Ok(all) = super::subtree_figures(plan, id) else {
+        let Ok(all) = plan.subtree_figures(id) else {
             return Err(refusal());
         };
         let figures = all[0];
@@ -284,14 +283,14 @@ impl Racer {
         let known = plan.known_subtree_figures(id);
         let settled = super::tail::settled_after(tree, id, &known, scale, LAW_TAIL / 2.0);
         for _ in 0..LAW_DOUBLINGS {
-            let law = HorizonLaw::build(tree, id, end, max_states)?;
+            let law = plan.horizon_law(id, end)?;
             let deficit = returns - law.mass();
             if deficit <= LAW_TAIL {
-                return Ok(Racer::Law(Box::new(law)));
+                return Ok(Racer::Law(law));
             }
             if let Some(settled) = settled.filter(|&s| end >= s) {
                 if deficit <= LAW_ERROR {
-                    return Ok(Racer::Law(Box::new(law)));
+                    return Ok(Racer::Law(law));
                 }
                 return Err(numerical(
                     &tree.node(id).name,
@@ -873,7 +872,7 @@ pub fn resolve_instant(rows: &[Row], m: usize, f: usize) -> (f64, f64) {
 /// the node has surely returned ([`sure_return`]), after which they are
 /// never read.
 fn parallel_racers(
-    plan: &Plan,
+    plan: &dyn Children,
     id: NodeId,
     horizon: f64,
 ) -> Result<(usize, usize, Vec<Racer>), AnalysisError> {
@@ -944,7 +943,7 @@ const REST_TAIL: f64 = 1e-13;
 /// `id` is no such race, R may never return, or the re-run can fail at
 /// its start (atoms at every wait's end).
 pub(crate) fn renewal_race(
-    plan: &Plan,
+    plan: &dyn Children,
     id: NodeId,
     horizon: Option<f64>,
     scale: f64,
@@ -1035,12 +1034,16 @@ pub(crate) fn renewal_race(
 }
 
 /// The race node `id` (a Parallel whose thresholds can both be met).
-pub(crate) fn race_of(plan: &Plan, id: NodeId) -> Result<Race, AnalysisError> {
+pub(crate) fn race_of(plan: &dyn Children, id: NodeId) -> Result<Race, AnalysisError> {
     race_within(plan, id, f64::INFINITY)
 }
 
 /// The race node `id`, exact on `[0, horizon]` only.
-pub(crate) fn race_within(plan: &Plan, id: NodeId, horizon: f64) -> Result<Race, AnalysisError> {
+pub(crate) fn race_within(
+    plan: &dyn Children,
+    id: NodeId,
+    horizon: f64,
+) -> Result<Race, AnalysisError> {
     let (m, f, kids) = parallel_racers(plan, id, horizon)?;
     Race::new(plan.tree().node(id).name.clone(), m, f, kids)
 }
@@ -1048,7 +1051,7 @@ pub(crate) fn race_within(plan: &Plan, id: NodeId, horizon: f64) -> Result<Race,
 /// Figures of race `id` (module docs); `child_figures` set the scale of the
 /// horizon.
 pub(crate) fn figures(
-    plan: &Plan,
+    plan: &dyn Children,
     id: NodeId,
     child_figures: &[Figures],
 ) -> Result<Figures, AnalysisError> {
@@ -1077,7 +1080,7 @@ pub(crate) fn figures(
         }
     }
     // a deadline over such a race (its law by levels, cut at the deadline)
-    if let Some(moments) = super::law::deadline_figures(tree, id, max_states)? {
+    if let Some(moments) = plan.deadline_figures(id)? {
         return Ok(Figures::from_moments(moments));
     }
     let race = race_of(plan, id)?;
@@ -1100,7 +1103,7 @@ pub(crate) fn figures(
 
 /// `π(t)` of race `id` at `times` (module docs).
 pub(crate) fn curve(
-    plan: &Plan,
+    plan: &dyn Children,
     id: NodeId,
     times: &[f64],
 ) -> Result<Vec<CurvePoint>, AnalysisError> {

@@ -470,6 +470,12 @@ fn within_budget(
 /// Most repetitions a loop's series may take ([`loop_series`]).
 pub const MAX_LOOP_TERMS: usize = 100_000;
 
+/// Most phases the shifted mixture may hold on its first attempt at a
+/// node's curve: past it the composed laws answer (exact too, and faster
+/// there); the mixture gets the whole `--max-states` only where the laws
+/// cannot hold the node.
+pub(crate) const SHIFTED_FIRST: usize = 1 << 16;
+
 /// The law of a loop without a bound over a child with mixed timing: the
 /// geometric series `Σ_k again^{⊛k} ⊛ end` (`again` the child's repeating
 /// outcome — Success for `until_failure` — and `end` the other), truncated
