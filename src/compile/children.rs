@@ -63,6 +63,9 @@ pub(crate) trait Children {
     fn max_states(&self) -> usize;
     /// The representation of node `id`.
     fn representation(&self, id: NodeId) -> Result<Representation, AnalysisError>;
+    /// Whether `id`'s subtree has a phase chain (every leaf phase-type:
+    /// its shape, known before building anything).
+    fn markovian(&self, id: NodeId) -> bool;
     /// The exact phase chain of `id`.
     fn chain(&self, id: NodeId) -> Result<PhaseChain, AnalysisError>;
     /// A leaf below `id` that makes its timing mixed (for messages).

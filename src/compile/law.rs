@@ -1616,24 +1616,21 @@ pub(crate) fn loop_curve(
     let unbounded = || AnalysisError::Unbounded {
         node: node.name.clone(),
     };
-    let mut c = match phase::chain_of(tree, child, options.max_states) {
-        Ok(c) => c,
+    if !children.markovian(child) {
         // a child with mixed timing: the loop's truncated geometric series
         // as a shifted mixture where it is small (as the planner's
         // `Shifted` rule), else the loop's composed law (`law`: the
         // geometric sum by binary powering, any child)
-        Err(AnalysisError::NotMarkovian { .. }) => {
-            let first = options.max_states.min(super::shifted::SHIFTED_FIRST);
-            return match shifted::shifted_law(tree, id, first) {
-                Ok(Some(law)) => curve_by_shifted(&law, times, options, &node.name),
-                Ok(None) | Err(AnalysisError::StateBudget { .. }) => {
-                    curve_by_laws(children, id, times, options, unbounded())
-                }
-                Err(e) => Err(e),
-            };
-        }
-        Err(e) => return Err(e),
-    };
+        let first = options.max_states.min(super::shifted::SHIFTED_FIRST);
+        return match shifted::shifted_law(tree, id, first) {
+            Ok(Some(law)) => curve_by_shifted(&law, times, options, &node.name),
+            Ok(None) | Err(AnalysisError::StateBudget { .. }) => {
+                curve_by_laws(children, id, times, options, unbounded())
+            }
+            Err(e) => Err(e),
+        };
+    }
+    let mut c = phase::chain_of(tree, child, options.max_states)?;
     // work with "again" as the Success exit, then swap back
     let until_success = decorator == Decorator::UntilSuccess;
     if until_success {

@@ -470,11 +470,16 @@ pub(crate) fn parallel_by_counts(
     let memo = &plan.laws;
     let node = tree.node(id);
     let children = node.kind.children();
+    if children
+        .iter()
+        .any(|&c| !children::Children::markovian(plan, c))
+    {
+        return Ok(None);
+    }
     let mut chains = Vec::with_capacity(children.len());
     for &c in children {
         match plan.chain(c) {
             Ok(chain) => chains.push(chain),
-            Err(AnalysisError::NotMarkovian { .. }) => return Ok(None),
             // a child holds a wide Parallel itself
             Err(AnalysisError::StateBudget { .. }) => {
                 return means_from_laws(plan, id, m, child_figs, &options, memo).map(Some)

@@ -52,6 +52,54 @@ pub fn phase_chain(
     }
 }
 
+/// Whether an outcome of probability `p` with time `d` has a phase chain:
+/// it cannot happen, takes no time, or has a phase-type time (exponential,
+/// Erlang, hypo-, hyperexponential, phase-type). The planner's shapes and
+/// [`markovian`] use this one rule, which is [`chain_of`]'s.
+pub(crate) fn outcome_markovian(p: f64, d: Option<Duration>) -> bool {
+    p <= 0.0
+        || matches!(d, Some(Duration::Fixed { time }) if time == 0.0)
+        || d.is_some_and(|d| d.is_phase_type())
+}
+
+/// Whether the subtree at `id` of a primitive tree has a phase chain (every
+/// action's outcomes [`outcome_markovian`]): then [`chain_of`] can fail only
+/// for its budget. Decided from the leaves, before building anything.
+pub(crate) fn markovian(tree: &Tree, id: NodeId) -> bool {
+    tree.subtree(id).all(|n| match &tree.node(n).kind {
+        NodeKind::Action(a) => {
+            outcome_markovian(a.ps, a.success) && outcome_markovian(a.pf, a.failure)
+        }
+        _ => true,
+    })
+}
+
+/// [`chain_of`] where the subtree is [`markovian`], `None` (nothing built)
+/// where it is not.
+pub(crate) fn markovian_chain_of(
+    tree: &Tree,
+    id: NodeId,
+    max_states: usize,
+) -> Result<Option<PhaseChain>, AnalysisError> {
+    if !markovian(tree, id) {
+        return Ok(None);
+    }
+    chain_of(tree, id, max_states).map(Some)
+}
+
+/// [`phase_chain`] where the subtree (its primitive view) is
+/// [`markovian`], `None` where it is not.
+pub(crate) fn markovian_chain(
+    tree: &Tree,
+    id: NodeId,
+    max_states: usize,
+) -> Result<Option<PhaseChain>, AnalysisError> {
+    match super::primitive_view(tree)? {
+        Some(view) => markovian_chain_of(&view.tree, view.image[id], max_states),
+        None => markovian_chain_of(tree, id, max_states),
+    }
+}
+
 pub(crate) fn chain_of(
     tree: &Tree,
     id: NodeId,

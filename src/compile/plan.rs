@@ -75,12 +75,12 @@ fn side(p: f64, d: Option<Duration>) -> (bool, bool) {
     if p <= 0.0 {
         return (true, true);
     }
+    // a zero-time outcome is instantaneous in a phase chain too;
+    // exponential, Erlang, hypo-, hyperexponential, phase-type: phases
+    let markovian = phase::outcome_markovian(p, d);
     match d {
-        // a zero-time outcome is instantaneous in a phase chain too
-        Some(Duration::Fixed { time }) => (time == 0.0, true),
-        // exponential, Erlang, hypo-, hyperexponential, phase-type: phases
-        Some(d) => (d.is_phase_type(), false),
-        None => (false, false),
+        Some(Duration::Fixed { .. }) => (markovian, true),
+        _ => (markovian, false),
     }
 }
 
@@ -160,6 +160,9 @@ impl Children for Plan<'_> {
     }
     fn representation(&self, id: NodeId) -> Result<Representation, AnalysisError> {
         Plan::representation(self, id)
+    }
+    fn markovian(&self, id: NodeId) -> bool {
+        self.shapes[id].exponential
     }
     fn chain(&self, id: NodeId) -> Result<PhaseChain, AnalysisError> {
         Plan::chain(self, id)

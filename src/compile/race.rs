@@ -220,11 +220,10 @@ impl Racer {
         match plan.representation(id)? {
             Representation::Chain => Ok(Racer::Chain(plan.chain(id)?)),
             // a leaf or a loop: its chain when Markovian
-            Representation::Closed | Representation::Loop => match plan.chain(id) {
-                Ok(c) => Ok(Racer::Chain(c)),
-                Err(AnalysisError::NotMarkovian { .. }) => shifted(),
-                Err(e) => Err(e),
-            },
+            Representation::Closed | Representation::Loop if plan.markovian(id) => {
+                Ok(Racer::Chain(plan.chain(id)?))
+            }
+            Representation::Closed | Representation::Loop => shifted(),
             Representation::Atoms | Representation::Shifted => shifted(),
             Representation::Counted | Representation::Race => {
                 let (m, f, kids) = parallel_racers(plan, id, horizon)?;

@@ -122,15 +122,18 @@ pub(super) fn rest_chain(
     tree: &Tree,
     rest: &Rest,
     max_states: usize,
-) -> Result<PhaseChain, AnalysisError> {
+) -> Result<Option<PhaseChain>, AnalysisError> {
     match rest {
-        Rest::Node(n) => phase::chain_of(tree, *n, max_states),
+        Rest::Node(n) => phase::markovian_chain_of(tree, *n, max_states),
         Rest::Parallel { node, m, children } => {
+            if !children.iter().all(|&c| phase::markovian(tree, c)) {
+                return Ok(None);
+            }
             let chains = children
                 .iter()
                 .map(|&c| phase::chain_of(tree, c, max_states))
                 .collect::<Result<Vec<_>, _>>()?;
-            phase::parallel_chain(&tree.node(*node).name, &chains, *m, 1, max_states)
+            phase::parallel_chain(&tree.node(*node).name, &chains, *m, 1, max_states).map(Some)
         }
     }
 }
@@ -286,10 +289,10 @@ pub(crate) fn figures(
         return Ok(Renewal::NotApplicable);
     };
     let name = &tree.node(id).name;
-    let chain = |n: NodeId| match phase::chain_of(tree, n, max_states) {
-        Ok(c) => Ok(Ok(c)),
+    let chain = |n: NodeId| match phase::markovian_chain_of(tree, n, max_states) {
+        Ok(Some(c)) => Ok(Ok(c)),
+        Ok(None) => Ok(Err(None)),
         Err(e @ AnalysisError::StateBudget { .. }) => Ok(Err(Some(e))),
-        Err(AnalysisError::NotMarkovian { .. }) => Ok(Err(None)),
         Err(e) => Err(e),
     };
     let c = match chain(p.rerun)? {
@@ -306,10 +309,9 @@ pub(crate) fn figures(
     let r = match rest_chain(tree, &p.rest, max_states).map_or_else(
         |e| match e {
             e @ AnalysisError::StateBudget { .. } => Ok(Err(Some(e))),
-            AnalysisError::NotMarkovian { .. } => Ok(Err(None)),
             e => Err(e),
         },
-        |c| Ok(Ok(c)),
+        |c| Ok(c.ok_or(None)),
     )? {
         Ok(r) => r,
         Err(None) => return Ok(Renewal::NotApplicable),

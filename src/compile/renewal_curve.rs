@@ -126,11 +126,7 @@ fn chains(tree: &Tree, id: NodeId, max_states: usize) -> Result<Option<Chains>, 
     let Some(p) = renewal::parts(tree, race) else {
         return Ok(None);
     };
-    let chain = |n: NodeId| match phase::chain_of(tree, n, max_states) {
-        Ok(c) => Ok(Some(c)),
-        Err(AnalysisError::NotMarkovian { .. }) => Ok(None),
-        Err(e) => Err(e),
-    };
+    let chain = |n: NodeId| phase::markovian_chain_of(tree, n, max_states);
     let mut pre = Vec::new();
     for &c in prefix_ids {
         match chain(c)? {
@@ -138,11 +134,7 @@ fn chains(tree: &Tree, id: NodeId, max_states: usize) -> Result<Option<Chains>, 
             None => return Ok(None),
         }
     }
-    let rest = match renewal::rest_chain(tree, &p.rest, max_states) {
-        Ok(c) => Some(c),
-        Err(AnalysisError::NotMarkovian { .. }) => None,
-        Err(e) => return Err(e),
-    };
+    let rest = renewal::rest_chain(tree, &p.rest, max_states)?;
     let (Some(rest), Some(rerun)) = (rest, chain(p.rerun)?) else {
         return Ok(None);
     };
@@ -623,11 +615,7 @@ pub(super) fn prepare_process(
     let Some((wait, rerun, first)) = renewal::process(tree, process) else {
         return Ok(None);
     };
-    let chain = |n: NodeId| match phase::chain_of(tree, n, max_states) {
-        Ok(c) => Ok(Some(c)),
-        Err(AnalysisError::NotMarkovian { .. }) => Ok(None),
-        Err(e) => Err(e),
-    };
+    let chain = |n: NodeId| phase::markovian_chain_of(tree, n, max_states);
     let Some(rerun) = chain(rerun)? else {
         return Ok(None);
     };

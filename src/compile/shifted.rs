@@ -277,23 +277,19 @@ fn shifted_law_unclipped(
 ) -> Result<Option<ShiftedLaw>, AnalysisError> {
     let node = tree.node(id);
     // Markovian subtrees: their exact chain, one component per outcome
-    match phase::phase_chain(tree, id, max_states) {
-        Ok(chain) => {
-            return Ok(Some(ShiftedLaw {
-                success: vec![Component {
-                    shift: 0.0,
-                    weight: 1.0,
-                    chain: chain.clone(),
-                }],
-                failure: vec![Component {
-                    shift: 0.0,
-                    weight: 1.0,
-                    chain: count_failure(chain),
-                }],
-            }))
-        }
-        Err(AnalysisError::NotMarkovian { .. }) => {}
-        Err(e) => return Err(e),
+    if let Some(chain) = phase::markovian_chain(tree, id, max_states)? {
+        return Ok(Some(ShiftedLaw {
+            success: vec![Component {
+                shift: 0.0,
+                weight: 1.0,
+                chain: chain.clone(),
+            }],
+            failure: vec![Component {
+                shift: 0.0,
+                weight: 1.0,
+                chain: count_failure(chain),
+            }],
+        }));
     }
     if let NodeKind::Action(a) = &node.kind {
         return Ok(Some(ShiftedLaw {
@@ -658,12 +654,11 @@ fn first_return(
             fixed.push(list);
             continue;
         }
-        match phase::phase_chain(tree, c, max_states) {
-            Ok(ch) if ch.initial_success == 0.0 && ch.initial_failure == 0.0 => chains.push(ch),
-            Ok(_) => return Ok(None),
-            Err(AnalysisError::NotMarkovian { .. } | AnalysisError::StateBudget { .. }) => {
-                return Ok(None)
+        match phase::markovian_chain(tree, c, max_states) {
+            Ok(Some(ch)) if ch.initial_success == 0.0 && ch.initial_failure == 0.0 => {
+                chains.push(ch)
             }
+            Ok(_) | Err(AnalysisError::StateBudget { .. }) => return Ok(None),
             Err(e) => return Err(e),
         }
     }
