@@ -37,157 +37,14 @@ const PIPELINES_NOT_ANALYSED: &[&str] = &[
     "nav2/navigate_to_pose_w_replanning_goal_patience_and_recovery.xml",
 ];
 
-/// Parameters the first published params files predated: the probabilities
-/// of the predicates btrel reads since (Precondition's `if`, `_skipIf`,
-/// ManualSelector's `select_k`, PathLongerOnApproach's `longer`, keyed as
-/// docs/TREE-FORMAT.md "Predicates" says), the robot's speed that DistanceController and
-/// SpeedController read (`<node>/speed`, m/s), and blackboard values the
-/// sources fix (queue lengths, a SubTree port's default), illustrative like
-/// the published ones. The corpus' params files now carry them (INDEX.md:
-/// "its params file adds it under a comment"): a key the published file has
-/// must have the same line there (see [`with_extra`]); a key it lacks is
-/// appended to a copy of it (the corpus itself is read-only). Lines starting
-/// with `STALE` keys are dropped.
-const EXTRA_PARAMS: &[(&str, &str)] = &[
-    (
-        "btcpp/t09_scripting.xml",
-        "\"Precondition/if\": {ps: 0.5}\n",
-    ),
-    (
-        "moveitpro/factory_sim__automated_return_held_tool.xml",
-        "\"Precondition/if\": {ps: 0.5}\n",
-    ),
-    // its Scripts set type to 'A' before task A and to 'B' before task B:
-    // neither SubTree is ever skipped (`_skipIf`)
-    (
-        "btcpp/ex03_sqlite_log.xml",
-        "\"ExecuteTaskA/_skipIf\": {ps: 0}\n\"ExecuteTaskB/_skipIf\": {ps: 0}\n",
-    ),
-    // the user picks each of the 5 children with probability 1/5 (1/5, then
-    // 1/4 of the rest, ...), and answers SUCCESS half of the time when the
-    // childless `YouChoose` asks for a status
-    ("btcpp/ex03_ncurses_manual_selector.xml", MANUAL_SELECTOR),
-    ("btcpp_v3/ex03_ncurses_manual_selector.xml", MANUAL_SELECTOR),
-    // GenerateWaypoints pushes 5 poses (examples/t18_waypoints.cpp) ...
-    ("btcpp/t18_waypoints.xml", "\"{waypoints}\": {value: 5}\n"),
-    // ... and 10 in v3.8's examples/ex04_waypoints.cpp (QueueSize gives 10)
-    (
-        "btcpp_v3/ex04_waypoints_2.xml",
-        "\"{wp_size}\": {value: 10}\n",
-    ),
-    (
-        "btcpp_v3/ex04_waypoints_3.xml",
-        "\"{waypoints}\": {value: 10}\n",
-    ),
-    // the robot at the trees' max_speed (TurtleBot3's 0.26 m/s)
-    ("nav2/navigate_w_replanning_distance.xml", DISTANCE_SPEED),
-    (
-        "nav2_humble/navigate_w_replanning_distance.xml",
-        DISTANCE_SPEED,
-    ),
-    // the SubTree's caller in the same repository passes num_samples="5"
-    // (moveit_pro_example_ws, picknik_ur_site_config/objectives/
-    // pick_apriltag_labeled_object.xml)
-    (
-        "moveitpro/picknik_ur_site_config__sample_april_tag.xml",
-        "\"{num_samples}\": {value: 5}\n",
-    ),
-    ("nav2/navigate_w_replanning_speed.xml", SPEED_SPEED),
-    ("nav2_humble/navigate_w_replanning_speed.xml", SPEED_SPEED),
-    // a re-planned path near the goal is more than twice as long 10% of
-    // the time
-    (
-        "nav2/navigate_to_pose_w_replanning_goal_patience_and_recovery.xml",
-        PATH_LONGER,
-    ),
-    (
-        "nav2_humble/navigate_to_pose_w_replanning_goal_patience_and_recovery.xml",
-        PATH_LONGER,
-    ),
-    // MoveIt Pro's ForEach over perception results: illustrative lengths
-    // (3 masks, 3 point cloud fragments, 3 graspable boxes, 16 grasp poses),
-    // and its predicates: SAM3 finds no box 10% of the time (`mask_count ==
-    // 0`), the first waypoint yields a pick half of the time
-    ("moveitpro/dual_arm_sim__sort_blocks.xml", SORT_BLOCKS),
-    ("moveitpro/hangar_sim__move_boxes_looping.xml", MOVE_BOXES),
-    // the SubTree's model gives relaxation_time_ms the default 500
-    (
-        "moveitpro/lab_sim__force_relaxation.xml",
-        "\"{relaxation_time_ms}\": {value: 500}\n",
-    ),
-];
-
-const MANUAL_SELECTOR: &str = "\"ManualSelector/select_1\": {ps: 0.2}\n\
-     \"ManualSelector/select_2\": {ps: 0.25}\n\
-     \"ManualSelector/select_3\": {ps: 0.3333333333333333}\n\
-     \"ManualSelector/select_4\": {ps: 0.5}\n\
-     YouChoose: {ps: 0.5}\n";
-const SORT_BLOCKS: &str = "\"{masks3d}\": {value: 3}\n\"{point_cloud_vector}\": {value: 3}\n";
-const MOVE_BOXES: &str = "\"{masks3d}\": {value: 3}\n\"{graspable_objects}\": {value: 3}\n\
-     \"{grasp_poses}\": {value: 16}\n\
-     \"Inverter/_skipIf\": {ps: 0.1}\n\
-     \"Move Boxes to Loading Zone Start from Waypoint/_skipIf\": {ps: 0.5}\n";
-const DISTANCE_SPEED: &str = "\"DistanceController/speed\": {value: 0.26}\n";
-const SPEED_SPEED: &str = "\"SpeedController/speed\": {value: 0.26}\n";
-const PATH_LONGER: &str = "\"PathLongerOnApproach/longer\": {ps: 0.1}\n";
-
-/// Published params keys of trees in [`EXTRA_PARAMS`] that no leaf
-/// reads: `Sleep` in `ex03_sqlite_log`, a built-in (`msec`) since.
-const STALE: &[&str] = &["Sleep:"];
-
-/// The published params `published` with the lines of `extra` whose key it
-/// does not have appended. A YAML mapping may not repeat a key (btrel
-/// refuses it), and a key the published file has must say there what
-/// `extra` says, or the test's expectations no longer hold: panics naming
-/// `file` otherwise.
-fn with_extra(file: &str, published: &str, extra: &str) -> String {
-    let key = |l: &str| l.split_once(": ").map(|(k, _)| k.trim().to_string());
-    let mut out = published.to_string();
-    if !out.is_empty() && !out.ends_with('\n') {
-        out.push('\n');
-    }
-    for line in extra.lines().filter(|l| !l.trim().is_empty()) {
-        let k = key(line).unwrap_or_else(|| panic!("EXTRA_PARAMS line `{line}` has no key"));
-        match published
-            .lines()
-            .find(|p| !p.trim_start().starts_with('#') && key(p).as_deref() == Some(k.as_str()))
-        {
-            Some(p) => assert_eq!(
-                p.trim(),
-                line.trim(),
-                "{file}: the published params give {k} another value"
-            ),
-            None => {
-                out.push_str(line);
-                out.push('\n');
-            }
-        }
-    }
-    out
-}
-
-/// Reads corpus tree `row` as the corpus test does: its params file (with
-/// [`EXTRA_PARAMS`] joined in `scratch`), the files of its SubTrees and its
-/// project's node model.
-fn read(
-    root: &Path,
-    row: &Row,
-    scratch: &Path,
-) -> Result<btrel::tree::Tree, btrel::tree::TreeError> {
+/// Reads corpus tree `row` as the corpus test does: its params file as
+/// published (it carries the predicate probabilities, branch choices and
+/// blackboard values btrel reads: INDEX.md, "its params file adds it under
+/// a comment"), the files of its SubTrees and its project's node model.
+fn read(root: &Path, row: &Row) -> Result<btrel::tree::Tree, btrel::tree::TreeError> {
     let xml = root.join(&row.file);
     let dir = xml.parent().unwrap().to_path_buf();
-    let mut params = xml.with_extension("params.yaml");
-    if let Some((_, extra)) = EXTRA_PARAMS.iter().find(|(f, _)| *f == row.file) {
-        let published: String = std::fs::read_to_string(&params)
-            .unwrap_or_default()
-            .lines()
-            .filter(|l| !STALE.iter().any(|k| l.starts_with(k)))
-            .map(|l| format!("{l}\n"))
-            .collect();
-        let joined = scratch.join(format!("{}.params.yaml", row.file.replace('/', "_")));
-        std::fs::write(&joined, with_extra(&row.file, &published, extra)).unwrap();
-        params = joined;
-    }
+    let params = xml.with_extension("params.yaml");
     let mut includes: Vec<PathBuf> = row.needs.iter().map(|n| dir.join(n)).collect();
     // the project's node model, shipped as a separate file
     let folder = row.file.split('/').next().unwrap();
@@ -269,9 +126,8 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
     // read, but a Nav2 node has no exact analysis yet: simulated instead
     let mut nav2 = Vec::new();
     let mut unsimulated = Vec::new();
-    let scratch = tempfile::tempdir().unwrap();
     for row in &trees {
-        match read(&root, row, scratch.path()) {
+        match read(&root, row) {
             Ok(tree) => {
                 // the tree as read has a PipelineSequence iff INDEX.md's
                 // node types (of the tree and its needs) name one
@@ -525,7 +381,7 @@ fn published_trees_are_read_or_refused_for_node_semantics_only() {
     // index became a flow and the renewal method took a first cycle. Read but
     // not analysed: Jazzy's goal-patience tree (two indexes to follow). MoveIt Pro's
     // sample_april_tag SubTree is analysed with the `{num_samples}` its caller
-    // passes (EXTRA_PARAMS)
+    // passes (in its params file)
     assert!(parsed.len() >= 100, "{} analysed", parsed.len());
     assert!(curves >= 100, "{curves} root curves");
     for f in [
@@ -602,7 +458,6 @@ fn published_trees_with_fitted_timings() {
         return;
     };
     let index = std::fs::read_to_string(root.join("INDEX.md")).unwrap();
-    let scratch = tempfile::tempdir().unwrap();
     let (mut answered, mut refused) = (Vec::new(), Vec::new());
     // `BTREL_CORPUS_ONLY=part` runs the trees whose file name holds `part`
     let only = std::env::var("BTREL_CORPUS_ONLY").ok();
@@ -612,7 +467,7 @@ fn published_trees_with_fitted_timings() {
         .filter(|r| r.kind == "tree" && chosen(&r.file))
     {
         println!("fitted timings: {} starts", row.file);
-        let Ok(published) = read(&root, row, scratch.path()) else {
+        let Ok(published) = read(&root, row) else {
             continue;
         };
         if analyze(&published, &Options::default()).is_err() {
