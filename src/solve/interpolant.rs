@@ -108,7 +108,7 @@ pub fn panel_points(a: f64, b: f64) -> [f64; POINTS] {
 
 /// The supports of the two functions of a convolution
 /// ([`Interpolant::support`]).
-type Supports = (Option<(f64, f64)>, Option<(f64, f64)>);
+pub(crate) type Supports = (Option<(f64, f64)>, Option<(f64, f64)>);
 
 /// The two functions' values at their panels' own Gauss nodes
 /// ([`Interpolant::gauss_values`]), where computed.
@@ -183,6 +183,65 @@ impl Interpolant {
             scale,
             chebyshev,
         }
+    }
+
+    /// No panels yet, on `[start, start]`: the start of a build panel by
+    /// panel ([`build_marching`], [`Self::push_panel`]).
+    pub(crate) fn empty(start: f64) -> Interpolant {
+        Interpolant {
+            edges: vec![start],
+            values: Vec::new(),
+            prefix: vec![0.0],
+            scale: Vec::new(),
+            chebyshev: Vec::new(),
+        }
+    }
+
+    /// Appends panel `[a, b]` (`a` the current end) with values `v` at
+    /// its [`panel_points`]: as [`Self::from_panels`] builds each panel.
+    pub(crate) fn push_panel(&mut self, a: f64, b: f64, v: &[f64; POINTS]) {
+        debug_assert_eq!(a, self.end());
+        let basis = basis();
+        let acc = self.total()
+            + (b - a) / 2.0
+                * v.iter()
+                    .zip(&basis.integral)
+                    .map(|(x, w)| x * w)
+                    .sum::<f64>();
+        self.edges.push(b);
+        self.values.extend_from_slice(v);
+        self.prefix.push(acc);
+        self.scale
+            .push(v.iter().fold(0.0f64, |m, x| m.max(x.abs())));
+        self.chebyshev.extend(
+            basis
+                .coefficients
+                .iter()
+                .map(|row| row.iter().zip(v).map(|(w, x)| w * x).sum::<f64>()),
+        );
+    }
+
+    /// `∫ self(v) g(t − v) dv` over `self`'s domain (0 where `self` has no
+    /// panels): one point of [`Self::convolution`], for a function being
+    /// built panel by panel; `own` and `theirs` are both functions'
+    /// [`Self::panel_gauss`] values (all panels).
+    pub(crate) fn convolve_point(
+        &self,
+        g: &Interpolant,
+        (own_support, g_support): Supports,
+        (own, theirs): (&[[f64; POINTS]], &[[f64; POINTS]]),
+        t: f64,
+    ) -> f64 {
+        if self.panels() == 0 {
+            return 0.0;
+        }
+        self.convolve_within(g, t, (own_support, g_support), (Some(own), Some(theirs)))
+    }
+
+    /// Panel `k`'s values at its own Gauss–Legendre nodes (what a
+    /// convolution reads for a whole panel).
+    pub(crate) fn panel_gauss(&self, k: usize) -> [f64; POINTS] {
+        self.eval_block_in(k, &gauss_nodes(self.edges[k], self.edges[k + 1]))
     }
 
     /// The interpolants of consecutive intervals (each one's domain
@@ -827,6 +886,179 @@ fn refine<E>(
     Err(BuildError::NotConverged)
 }
 
+/// `T_c(ξ(y))`, `c < POINTS`, with `ξ` mapping `[a, b]` onto `[−1, 1]`
+/// (clamped): a panel polynomial is `Σ_c coef_c T_c(ξ)`.
+fn chebyshev_row(a: f64, b: f64, y: f64) -> [f64; POINTS] {
+    let x = if b > a {
+        ((2.0 * y - a - b) / (b - a)).clamp(-1.0, 1.0)
+    } else {
+        0.0
+    };
+    let mut t = [0.0; POINTS];
+    t[0] = 1.0;
+    t[1] = x;
+    for c in 2..POINTS {
+        t[c] = 2.0 * x * t[c - 1] - t[c - 2];
+    }
+    t
+}
+
+/// `ℓ_j(y)`: the weights with which the polynomial of panel `[a, b]`
+/// whose values at its [`panel_points`] are `v` takes the value `Σ_j ℓ_j(y)
+/// v_j` at `y` (the same polynomial as [`Interpolant::single`]'s).
+pub(crate) fn panel_weights(a: f64, b: f64, y: f64) -> [f64; POINTS] {
+    let t = chebyshev_row(a, b, y);
+    let c = &basis().coefficients;
+    std::array::from_fn(|j| (0..POINTS).map(|k| t[k] * c[k][j]).sum())
+}
+
+/// `M` with `∫_a^{x_k} p(s) g(x_k − s) ds = Σ_j M[k][j] v_j` for the
+/// polynomial `p` of panel `[a, b]` with values `v` at its
+/// [`panel_points`], at each of `points` (in the panel): the convolution
+/// of the panel with `g` as a matrix, for a value on the panel that
+/// depends on the panel itself (a renewal equation). Each piece between
+/// `x_k − g`'s edges takes one Gauss–Legendre rule, as a convolution's.
+pub(crate) fn panel_convolution(
+    g: &Interpolant,
+    g_support: Option<(f64, f64)>,
+    a: f64,
+    b: f64,
+    points: &[f64; POINTS],
+) -> [[f64; POINTS]; POINTS] {
+    let basis = basis();
+    let mut out = [[0.0; POINTS]; POINTS];
+    let Some((g_lo, g_hi)) = g_support else {
+        return out;
+    };
+    let rule = &basis.gauss;
+    for (k, &x) in points.iter().enumerate() {
+        // s in [a, x] with x − s in g's support
+        let lo = a.max(x - g_hi);
+        let hi = x.min(b).min(x - g_lo);
+        if hi <= lo {
+            continue;
+        }
+        // cuts at x − g's edges inside (lo, hi)
+        let mut cuts: Vec<f64> = g
+            .edges
+            .iter()
+            .map(|&e| x - e)
+            .filter(|&c| c > lo && c < hi)
+            .collect();
+        cuts.push(lo);
+        cuts.push(hi);
+        cuts.sort_by(f64::total_cmp);
+        let mut cheb = [0.0; POINTS];
+        for w in cuts.windows(2) {
+            let (alpha, beta) = (w[0], w[1]);
+            if beta <= alpha {
+                continue;
+            }
+            let nodes = gauss_nodes(alpha, beta);
+            let kg = g.panel_of(x - (alpha + beta) / 2.0);
+            let mut u = [0.0; POINTS];
+            for q in 0..POINTS {
+                u[q] = x - nodes[q];
+            }
+            let gv = g.eval_block_in(kg, &u);
+            let half = (beta - alpha) / 2.0;
+            for q in 0..POINTS {
+                let row = chebyshev_row(a, b, nodes[q]);
+                let wq = half * rule.weights[q] * gv[q];
+                for c in 0..POINTS {
+                    cheb[c] += wq * row[c];
+                }
+            }
+        }
+        for (j, o) in out[k].iter_mut().enumerate() {
+            *o = (0..POINTS)
+                .map(|c| cheb[c] * basis.coefficients[c][j])
+                .sum();
+        }
+    }
+    out
+}
+
+/// One function on `[0, end]` built panel by panel from the left, for a
+/// function whose values on a panel depend on its values before it (a
+/// renewal equation marched in time): `sample(done, a, b, points)` gets the
+/// interpolant of the panels accepted so far (on `[0, a]`), the panel and
+/// its [`panel_points`] (one-sided at the `breaks`, as
+/// [`build_with_breaks`]'s) and returns the values there, or `None` to
+/// have the panel halved. Panels start from [`build_with_breaks`]'s grids
+/// and are halved until the same Chebyshev tail test passes.
+pub(crate) fn build_marching<E>(
+    end: f64,
+    breaks: &[f64],
+    mut sample: impl FnMut(&Interpolant, f64, f64, &[f64; POINTS]) -> Result<Option<[f64; POINTS]>, E>,
+) -> Result<Interpolant, BuildError<E>> {
+    if end <= 0.0 {
+        return Ok(Interpolant::zero(end.max(0.0)));
+    }
+    let mut cuts: Vec<f64> = breaks
+        .iter()
+        .copied()
+        .filter(|&b| b > 1e-13 * end && b < end * (1.0 - 1e-13))
+        .collect();
+    cuts.sort_by(f64::total_cmp);
+    cuts.dedup_by(|b, a| *b - *a <= 1e-13 * end);
+    cuts.push(end);
+    // (a, b, halvings so far), the leftmost last
+    let mut pending: Vec<(f64, f64, usize)> = Vec::new();
+    let mut from = 0.0;
+    for (i, &to) in cuts.iter().enumerate() {
+        let grid: &[f64] = if i == 0 { &GRID } else { &SEGMENT_GRID };
+        let width = to - from;
+        pending.extend(grid.windows(2).map(|g| {
+            let b = if g[1] == 1.0 { to } else { from + g[1] * width };
+            (from + g[0] * width, b, 0)
+        }));
+        from = to;
+    }
+    pending.reverse();
+    let basis = basis();
+    let mut done = Interpolant::empty(0.0);
+    while let Some((a, b, depth)) = pending.pop() {
+        let mut p = panel_points(a, b);
+        let nudge = |x: f64| (BREAK_NUDGE * x.abs().max(1.0)).min((b - a) / 64.0);
+        if cuts.binary_search_by(|c| c.total_cmp(&b)).is_ok() && b < end {
+            p[0] = b - nudge(b);
+        }
+        if cuts.binary_search_by(|c| c.total_cmp(&a)).is_ok() {
+            p[POINTS - 1] = a + nudge(a);
+        }
+        let width = b - a;
+        let values = sample(&done, a, b, &p).map_err(BuildError::Sample)?;
+        let converged = values.is_some_and(|v| {
+            let coefficient = |i: usize| {
+                basis.coefficients[i]
+                    .iter()
+                    .zip(&v)
+                    .map(|(w, x)| w * x)
+                    .sum::<f64>()
+                    .abs()
+            };
+            let tail = coefficient(POINTS - 1) + coefficient(POINTS - 2);
+            let scale = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            tail * width <= MASS_TOLERANCE || tail <= 64.0 * f64::EPSILON * scale
+        });
+        match values {
+            Some(v) if v.iter().any(|x| !x.is_finite()) => return Err(BuildError::NotConverged),
+            // panels narrower than rounding can resolve are taken as they are
+            Some(v) if converged || width <= 1e-13 * end => done.push_panel(a, b, &v),
+            _ if depth >= MAX_ROUNDS || width <= 1e-13 * end => {
+                return Err(BuildError::NotConverged)
+            }
+            _ => {
+                let m = (a + b) / 2.0;
+                pending.push((m, b, depth + 1));
+                pending.push((a, m, depth + 1));
+            }
+        }
+    }
+    Ok(done)
+}
+
 /// `f` interpolated on `[0, end]` (tests' shorthand).
 #[cfg(test)]
 pub(crate) fn build1(end: f64, f: impl Fn(f64) -> f64) -> Interpolant {
@@ -838,6 +1070,81 @@ pub(crate) fn build1(end: f64, f: impl Fn(f64) -> f64) -> Interpolant {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_panel_as_a_matrix_is_its_convolution_and_its_values() {
+        // the polynomial of panel [a, b] through e^{-t}: its values at any
+        // point, and its convolution with g at the panel's points, as
+        // weights and a matrix on its values
+        let (a, b) = (1.0, 1.8);
+        let pts = panel_points(a, b);
+        let v: [f64; POINTS] = std::array::from_fn(|j| (-pts[j]).exp());
+        let mut panel = Interpolant::empty(a);
+        panel.push_panel(a, b, &v);
+        for y in [1.0, 1.13, 1.5, 1.8] {
+            let w = panel_weights(a, b, y);
+            let by_weights: f64 = w.iter().zip(&v).map(|(w, x)| w * x).sum();
+            assert!((by_weights - panel.eval(y)).abs() < 1e-14, "{y}");
+            assert!((by_weights - (-y).exp()).abs() < 1e-14, "{y}");
+        }
+        // g(u) = 2e^{-2u} on [0, 5] with a break at 0.3 (two segments)
+        let g = build_with_breaks::<()>(5.0, &[0.3], 1, |p| {
+            Ok(p.iter().map(|&u| 2.0 * (-2.0 * u).exp()).collect())
+        })
+        .unwrap()
+        .remove(0);
+        let m = panel_convolution(&g, g.support(), a, b, &pts);
+        let gauss: Vec<_> = (0..g.panels()).map(|k| g.panel_gauss(k)).collect();
+        let own = [panel.panel_gauss(0)];
+        for (k, &x) in pts.iter().enumerate() {
+            let by_matrix: f64 = m[k].iter().zip(&v).map(|(m, v)| m * v).sum();
+            let direct =
+                panel.convolve_point(&g, (panel.support(), g.support()), (&own, &gauss), x);
+            // ∫_a^x e^{-s} 2e^{-2(x-s)} ds = 2e^{-2x}(e^{x} − e^{a})
+            let exact = 2.0 * (-2.0 * x).exp() * (x.exp() - a.exp());
+            assert!(
+                (by_matrix - direct).abs() < 1e-14,
+                "{x}: {by_matrix} vs {direct}"
+            );
+            assert!(
+                (by_matrix - exact).abs() < 1e-13,
+                "{x}: {by_matrix} vs {exact}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_marching_build_solves_a_renewal_equation() {
+        // r(t) = 1 + ∫_0^t r(t − u) du has r = e^t: each panel's values
+        // are solved from those before (here by iterating the equation on
+        // the panel until it settles)
+        let r = build_marching::<()>(3.0, &[1.5], |done, a, b, p| {
+            let mut v = [1.0; POINTS];
+            for _ in 0..200 {
+                let mut panel = Interpolant::empty(a);
+                panel.push_panel(a, b, &v);
+                let next: [f64; POINTS] = std::array::from_fn(|k| {
+                    // ∫_0^x r = r's integral before a plus the panel's to x
+                    let before = if done.panels() > 0 { done.total() } else { 0.0 };
+                    1.0 + before + panel.integral_to(p[k])
+                });
+                if next == v {
+                    break;
+                }
+                v = next;
+            }
+            Ok(Some(v))
+        })
+        .unwrap();
+        for t in [0.0, 0.7, 1.5, 2.2, 3.0] {
+            assert!(
+                (r.eval(t) - t.exp()).abs() < 1e-12 * t.exp(),
+                "{t}: {}",
+                r.eval(t)
+            );
+        }
+        assert!(r.edges().contains(&1.5), "a panel starts at the break");
+    }
 
     #[test]
     fn interpolates_and_integrates_exponential_densities() {
