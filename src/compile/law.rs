@@ -41,7 +41,9 @@
 //!   convolutions);
 //! * Retry N and Repeat N are a Fallback and a Sequence of N copies,
 //!   composed by binary powering (O(log N) convolutions, stopped once the
-//!   mass still going on within `[0, T]` is negligible); inverter and force
+//!   mass still going on within `[0, T]` is negligible); a loop without a
+//!   bound is its renewal equation marched in time (`Builder::renewal`:
+//!   about one convolution's cost, whatever the number of runs); inverter and force
 //!   decorators exchange or merge the outcomes; a flow carries the law of
 //!   the time each state is entered.
 //!
@@ -390,6 +392,10 @@ fn composed_law(
 /// Accepted bound on the time the children may still run beyond the
 /// horizon, relative to the node's mean time.
 const MEAN_TOLERANCE: f64 = 1e-11;
+
+/// Fraction of a loop's returning mass left when its renewal density is
+/// taken as 0 for the rest of the horizon ([`Builder::renewal`]).
+const SETTLED_MASS: f64 = 1e-15;
 
 /// Most doublings of the horizon for [`counted_parallel_times`].
 const MAX_DOUBLINGS: usize = 40;
@@ -1392,7 +1398,33 @@ impl Builder<'_> {
             (0..g.panels()).map(|k| g.panel_gauss(k)).collect()
         });
         let mut done_gauss: Vec<[f64; POINTS]> = Vec::new();
-        let density = build_marching(end, &breaks, |done, a, b, points| {
+        // R's mass within the horizon is at most |T|/(1 − |G|) (masses
+        // within it): once what it has returned by a panel's start is within
+        // 1e-15 of that, the rest of its density is negligible (and counted
+        // as dropped below)
+        let bound = match g.mass() {
+            m if m < 1.0 - 1e-9 => t.mass() / (1.0 - m),
+            _ => f64::INFINITY,
+        };
+        let returned = |done: &Interpolant| {
+            let a = done.end();
+            atoms
+                .iter()
+                .take_while(|x| x.0 <= a)
+                .map(|x| x.1)
+                .sum::<f64>()
+                + done.total()
+        };
+        let cut = std::cell::Cell::new(None);
+        let settled = |done: &Interpolant| {
+            let rest = bound - returned(done);
+            let settled = rest <= SETTLED_MASS * bound;
+            if settled {
+                cut.set(Some(rest.max(0.0)));
+            }
+            settled
+        };
+        let density = build_marching(end, &breaks, settled, |done, a, b, points| {
             while done_gauss.len() < done.panels() {
                 done_gauss.push(done.panel_gauss(done_gauss.len()));
             }
@@ -1480,6 +1512,10 @@ impl Builder<'_> {
                 what: "its loop's renewal density did not converge".into(),
             },
         })?;
+        // what a density cut where it had settled may have left out
+        if let Some(rest) = cut.get() {
+            dropped += rest;
+        }
         Ok(self.measure(atoms, Some(density), breaks, dropped))
     }
 
@@ -1857,8 +1893,8 @@ pub(crate) fn loop_curve(
     if !children.markovian(child) {
         // a child with mixed timing: the loop's truncated geometric series
         // as a shifted mixture where it is small (as the planner's
-        // `Shifted` rule), else the loop's composed law (`law`: the
-        // geometric sum by binary powering, any child)
+        // `Shifted` rule), else the loop's composed law (`law`: its renewal
+        // equation marched in time, any child)
         let first = options.max_states.min(super::shifted::SHIFTED_FIRST);
         return match shifted::shifted_law(tree, id, first) {
             Ok(Some(law)) => curve_by_shifted(&law, times, options, &node.name),

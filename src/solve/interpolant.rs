@@ -986,10 +986,13 @@ pub(crate) fn panel_convolution(
 /// its [`panel_points`] (one-sided at the `breaks`, as
 /// [`build_with_breaks`]'s) and returns the values there, or `None` to
 /// have the panel halved. Panels start from [`build_with_breaks`]'s grids
-/// and are halved until the same Chebyshev tail test passes.
+/// and are halved until the same Chebyshev tail test passes. Where
+/// `settled(done)` says the function is negligible from `done`'s end on, the
+/// rest of the domain is one zero panel.
 pub(crate) fn build_marching<E>(
     end: f64,
     breaks: &[f64],
+    settled: impl Fn(&Interpolant) -> bool,
     mut sample: impl FnMut(&Interpolant, f64, f64, &[f64; POINTS]) -> Result<Option<[f64; POINTS]>, E>,
 ) -> Result<Interpolant, BuildError<E>> {
     if end <= 0.0 {
@@ -1019,6 +1022,10 @@ pub(crate) fn build_marching<E>(
     let basis = basis();
     let mut done = Interpolant::empty(0.0);
     while let Some((a, b, depth)) = pending.pop() {
+        if done.panels() > 0 && settled(&done) {
+            done.push_panel(a, end, &[0.0; POINTS]);
+            break;
+        }
         let mut p = panel_points(a, b);
         let nudge = |x: f64| (BREAK_NUDGE * x.abs().max(1.0)).min((b - a) / 64.0);
         if cuts.binary_search_by(|c| c.total_cmp(&b)).is_ok() && b < end {
@@ -1118,23 +1125,28 @@ mod tests {
         // r(t) = 1 + ∫_0^t r(t − u) du has r = e^t: each panel's values
         // are solved from those before (here by iterating the equation on
         // the panel until it settles)
-        let r = build_marching::<()>(3.0, &[1.5], |done, a, b, p| {
-            let mut v = [1.0; POINTS];
-            for _ in 0..200 {
-                let mut panel = Interpolant::empty(a);
-                panel.push_panel(a, b, &v);
-                let next: [f64; POINTS] = std::array::from_fn(|k| {
-                    // ∫_0^x r = r's integral before a plus the panel's to x
-                    let before = if done.panels() > 0 { done.total() } else { 0.0 };
-                    1.0 + before + panel.integral_to(p[k])
-                });
-                if next == v {
-                    break;
+        let r = build_marching::<()>(
+            3.0,
+            &[1.5],
+            |_| false,
+            |done, a, b, p| {
+                let mut v = [1.0; POINTS];
+                for _ in 0..200 {
+                    let mut panel = Interpolant::empty(a);
+                    panel.push_panel(a, b, &v);
+                    let next: [f64; POINTS] = std::array::from_fn(|k| {
+                        // ∫_0^x r = r's integral before a plus the panel's to x
+                        let before = if done.panels() > 0 { done.total() } else { 0.0 };
+                        1.0 + before + panel.integral_to(p[k])
+                    });
+                    if next == v {
+                        break;
+                    }
+                    v = next;
                 }
-                v = next;
-            }
-            Ok(Some(v))
-        })
+                Ok(Some(v))
+            },
+        )
         .unwrap();
         for t in [0.0, 0.7, 1.5, 2.2, 3.0] {
             assert!(
