@@ -158,27 +158,10 @@ fn absolute_path(module: &str, path: &str) -> Option<Vec<String>> {
 
 /// The longest existing module that `path`, written in `module`, names.
 fn resolve(module: &str, path: &str, modules: &BTreeSet<String>) -> Option<String> {
-    let mut parts: Vec<&str> = path.split("::").collect();
-    let mut base: Vec<&str> = match parts.first() {
-        Some(&"crate") => {
-            parts.remove(0);
-            vec!["crate"]
-        }
-        Some(&"super") | Some(&"self") => {
-            let mut b: Vec<&str> = module.split("::").collect();
-            while parts.first() == Some(&"super") || parts.first() == Some(&"self") {
-                if parts.remove(0) == "super" {
-                    b.pop();
-                }
-            }
-            b
-        }
-        _ => return None,
-    };
+    let parts = absolute_path(module, path)?;
     let mut best = None;
-    for part in parts {
-        base.push(part);
-        let candidate = base.join("::");
+    for n in 1..=parts.len() {
+        let candidate = parts[..n].join("::");
         if modules.contains(&candidate) {
             best = Some(candidate);
         } else if best.is_some() {
@@ -369,6 +352,16 @@ fn the_checker_sees_a_cycle() {
     );
     assert_eq!(
         resolve_through("crate::c", "crate::a::Other", &modules, &reexports).as_deref(),
+        Some("crate::a")
+    );
+    // ... also named from a sibling through `super::` (`super::Plan` in
+    // `compile::race` is a dependency on `compile::plan`)
+    assert_eq!(
+        resolve_through("crate::a::b", "super::Thing", &modules, &reexports).as_deref(),
+        Some("crate::a::b")
+    );
+    assert_eq!(
+        resolve_through("crate::a::b", "super::Other", &modules, &reexports).as_deref(),
         Some("crate::a")
     );
     assert_eq!(

@@ -773,6 +773,14 @@ pub(crate) fn build_with_breaks<E>(
     if end <= 0.0 {
         return Ok(vec![Interpolant::zero(end.max(0.0)); k]);
     }
+    let (cuts, pending) = first_panels(end, breaks);
+    refine(pending, &cuts, end, k, sample)
+}
+
+/// The cuts of `[0, end]` at `breaks` (sorted, `end` last) and the first
+/// panels: `[0, first cut]` on [`GRID`] (graded towards 0), every later
+/// segment on [`SEGMENT_GRID`] (graded towards its break).
+fn first_panels(end: f64, breaks: &[f64]) -> (Vec<f64>, Vec<(f64, f64)>) {
     let mut cuts: Vec<f64> = breaks
         .iter()
         .copied()
@@ -793,7 +801,39 @@ pub(crate) fn build_with_breaks<E>(
         }));
         from = to;
     }
-    refine(pending, &cuts, end, k, sample)
+    (cuts, pending)
+}
+
+/// The [`panel_points`] of `[a, b]`, an end at one of the `cuts` (sorted)
+/// moved [`BREAK_NUDGE`] inside: the one-sided limit there.
+fn sample_points(a: f64, b: f64, cuts: &[f64], end: f64) -> [f64; POINTS] {
+    let mut p = panel_points(a, b);
+    let nudge = |x: f64| (BREAK_NUDGE * x.abs().max(1.0)).min((b - a) / 64.0);
+    if cuts.binary_search_by(|c| c.total_cmp(&b)).is_ok() && b < end {
+        p[0] = b - nudge(b);
+    }
+    if cuts.binary_search_by(|c| c.total_cmp(&a)).is_ok() {
+        p[POINTS - 1] = a + nudge(a);
+    }
+    p
+}
+
+/// Whether panel values `v` of width `width` pass the interpolation's
+/// test: the last two Chebyshev coefficients, times the width, below
+/// [`MASS_TOLERANCE`] (or at the rounding floor of the values).
+fn resolved(v: &[f64; POINTS], width: f64) -> bool {
+    let basis = basis();
+    let coefficient = |i: usize| {
+        basis.coefficients[i]
+            .iter()
+            .zip(v)
+            .map(|(w, x)| w * x)
+            .sum::<f64>()
+            .abs()
+    };
+    let tail = coefficient(POINTS - 1) + coefficient(POINTS - 2);
+    let scale = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    tail * width <= MASS_TOLERANCE || tail <= 64.0 * f64::EPSILON * scale
 }
 
 /// [`build`] on `[a, b]` (`a < b`), the first grid graded towards `a`
@@ -827,25 +867,14 @@ fn refine<E>(
     mut sample: impl FnMut(&[f64]) -> Result<Vec<f64>, E>,
 ) -> Result<Vec<Interpolant>, BuildError<E>> {
     let mut done: Vec<Vec<(f64, f64, [f64; POINTS])>> = vec![Vec::new(); k];
-    let basis = basis();
     for _ in 0..MAX_ROUNDS {
         if pending.is_empty() {
             return Ok(done.into_iter().map(Interpolant::from_panels).collect());
         }
+        // at a break, the one-sided limit from inside the panel
         let points: Vec<f64> = pending
             .iter()
-            .flat_map(|&(a, b)| {
-                let mut p = panel_points(a, b);
-                // at a break, the one-sided limit from inside the panel
-                let nudge = |x: f64| (BREAK_NUDGE * x.abs().max(1.0)).min((b - a) / 64.0);
-                if cuts.binary_search_by(|c| c.total_cmp(&b)).is_ok() && b < end {
-                    p[0] = b - nudge(b);
-                }
-                if cuts.binary_search_by(|c| c.total_cmp(&a)).is_ok() {
-                    p[POINTS - 1] = a + nudge(a);
-                }
-                p
-            })
+            .flat_map(|&(a, b)| sample_points(a, b, cuts, end))
             .collect();
         let values = sample(&points).map_err(BuildError::Sample)?;
         if values.len() != points.len() * k || values.iter().any(|v| !v.is_finite()) {
@@ -857,19 +886,7 @@ fn refine<E>(
             let panel: Vec<[f64; POINTS]> = (0..k)
                 .map(|c| std::array::from_fn(|j| values[(p * POINTS + j) * k + c]))
                 .collect();
-            let converged = panel.iter().all(|v| {
-                let coefficient = |i: usize| {
-                    basis.coefficients[i]
-                        .iter()
-                        .zip(v)
-                        .map(|(w, x)| w * x)
-                        .sum::<f64>()
-                        .abs()
-                };
-                let tail = coefficient(POINTS - 1) + coefficient(POINTS - 2);
-                let scale = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-                tail * width <= MASS_TOLERANCE || tail <= 64.0 * f64::EPSILON * scale
-            });
+            let converged = panel.iter().all(|v| resolved(v, width));
             // panels narrower than rounding can resolve are taken as they are
             if converged || width <= 1e-13 * end {
                 for (c, v) in panel.into_iter().enumerate() {
@@ -998,57 +1015,20 @@ pub(crate) fn build_marching<E>(
     if end <= 0.0 {
         return Ok(Interpolant::zero(end.max(0.0)));
     }
-    let mut cuts: Vec<f64> = breaks
-        .iter()
-        .copied()
-        .filter(|&b| b > 1e-13 * end && b < end * (1.0 - 1e-13))
-        .collect();
-    cuts.sort_by(f64::total_cmp);
-    cuts.dedup_by(|b, a| *b - *a <= 1e-13 * end);
-    cuts.push(end);
+    let (cuts, first) = first_panels(end, breaks);
     // (a, b, halvings so far), the leftmost last
-    let mut pending: Vec<(f64, f64, usize)> = Vec::new();
-    let mut from = 0.0;
-    for (i, &to) in cuts.iter().enumerate() {
-        let grid: &[f64] = if i == 0 { &GRID } else { &SEGMENT_GRID };
-        let width = to - from;
-        pending.extend(grid.windows(2).map(|g| {
-            let b = if g[1] == 1.0 { to } else { from + g[1] * width };
-            (from + g[0] * width, b, 0)
-        }));
-        from = to;
-    }
+    let mut pending: Vec<(f64, f64, usize)> = first.into_iter().map(|(a, b)| (a, b, 0)).collect();
     pending.reverse();
-    let basis = basis();
     let mut done = Interpolant::empty(0.0);
     while let Some((a, b, depth)) = pending.pop() {
         if done.panels() > 0 && settled(&done) {
             done.push_panel(a, end, &[0.0; POINTS]);
             break;
         }
-        let mut p = panel_points(a, b);
-        let nudge = |x: f64| (BREAK_NUDGE * x.abs().max(1.0)).min((b - a) / 64.0);
-        if cuts.binary_search_by(|c| c.total_cmp(&b)).is_ok() && b < end {
-            p[0] = b - nudge(b);
-        }
-        if cuts.binary_search_by(|c| c.total_cmp(&a)).is_ok() {
-            p[POINTS - 1] = a + nudge(a);
-        }
+        let p = sample_points(a, b, &cuts, end);
         let width = b - a;
         let values = sample(&done, a, b, &p).map_err(BuildError::Sample)?;
-        let converged = values.is_some_and(|v| {
-            let coefficient = |i: usize| {
-                basis.coefficients[i]
-                    .iter()
-                    .zip(&v)
-                    .map(|(w, x)| w * x)
-                    .sum::<f64>()
-                    .abs()
-            };
-            let tail = coefficient(POINTS - 1) + coefficient(POINTS - 2);
-            let scale = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-            tail * width <= MASS_TOLERANCE || tail <= 64.0 * f64::EPSILON * scale
-        });
+        let converged = values.is_some_and(|v| resolved(&v, width));
         match values {
             Some(v) if v.iter().any(|x| !x.is_finite()) => return Err(BuildError::NotConverged),
             // panels narrower than rounding can resolve are taken as they are
