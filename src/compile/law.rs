@@ -1394,9 +1394,7 @@ impl Builder<'_> {
         let breaks = self.measure(Vec::new(), None, breaks, 0.0).breaks;
         let g_support = gd.and_then(Interpolant::support);
         let g_panels = gd.map_or(0, Interpolant::panels) as f64;
-        let g_gauss: Vec<[f64; POINTS]> = gd.map_or(Vec::new(), |g| {
-            (0..g.panels()).map(|k| g.panel_gauss(k)).collect()
-        });
+        let g_gauss = gd.map_or(Vec::new(), Interpolant::gauss_values);
         let mut done_gauss: Vec<[f64; POINTS]> = Vec::new();
         // R's mass within the horizon is at most |T|/(1 − |G|) (masses
         // within it): once what it has returned by a panel's start is within
@@ -1406,14 +1404,16 @@ impl Builder<'_> {
             m if m < 1.0 - 1e-9 => t.mass() / (1.0 - m),
             _ => f64::INFINITY,
         };
+        // the atoms' mass up to each (they come in increasing order)
+        let cumulative: Vec<f64> = std::iter::once(0.0)
+            .chain(atoms.iter().scan(0.0, |acc, x| {
+                *acc += x.1;
+                Some(*acc)
+            }))
+            .collect();
         let returned = |done: &Interpolant| {
             let a = done.end();
-            atoms
-                .iter()
-                .take_while(|x| x.0 <= a)
-                .map(|x| x.1)
-                .sum::<f64>()
-                + done.total()
+            cumulative[atoms.partition_point(|x| x.0 <= a)] + done.total()
         };
         let cut = std::cell::Cell::new(None);
         let settled = |done: &Interpolant| {

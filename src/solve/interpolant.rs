@@ -502,10 +502,8 @@ impl Interpolant {
     /// convolution needs wherever a piece of its integral is the whole
     /// panel (most pieces are a whole panel of one of the two functions),
     /// computed once instead of at every time point.
-    fn gauss_values(&self) -> Vec<[f64; POINTS]> {
-        (0..self.panels())
-            .map(|k| self.eval_block_in(k, &gauss_nodes(self.edges[k], self.edges[k + 1])))
-            .collect()
+    pub(crate) fn gauss_values(&self) -> Vec<[f64; POINTS]> {
+        (0..self.panels()).map(|k| self.panel_gauss(k)).collect()
     }
 
     /// `[a, b]`: the span of the panels where the function exceeds
@@ -1081,7 +1079,7 @@ mod tests {
         .unwrap()
         .remove(0);
         let m = panel_convolution(&g, g.support(), a, b, &pts);
-        let gauss: Vec<_> = (0..g.panels()).map(|k| g.panel_gauss(k)).collect();
+        let gauss = g.gauss_values();
         let own = [panel.panel_gauss(0)];
         for (k, &x) in pts.iter().enumerate() {
             let by_matrix: f64 = m[k].iter().zip(&v).map(|(m, v)| m * v).sum();
