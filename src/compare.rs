@@ -43,8 +43,9 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use crate::compile::{self, analyze, AnalysisError, Figures, Method};
-use crate::curve::{curve, CurveOptions};
+use crate::compile::{self, AnalysisError, Figures, Method};
+use crate::curve::CurveOptions;
+use crate::ir::{self, Graph, Op};
 use crate::tree::{NodeId, NodeKind, Tree};
 
 /// What to optimise.
@@ -299,7 +300,8 @@ fn permutations(k: usize) -> Vec<Vec<usize>> {
 
 #[derive(Clone)]
 struct Evaluator<'a> {
-    tree: Tree,
+    /// The compared tree's IR, reordered.
+    tree: Graph,
     analysis: compile::Analysis,
     options: &'a CompareOptions,
     compile_options: compile::Options,
@@ -307,7 +309,10 @@ struct Evaluator<'a> {
 
 impl Evaluator<'_> {
     fn set_order(&mut self, node: NodeId, order: &[NodeId]) {
-        set_order(&mut self.tree, node, order);
+        // a Fallback of the IR: the chain that stops at a Success
+        if let Op::Flow(f) = &mut self.tree.nodes[node].kind {
+            f.children.copy_from_slice(order);
+        }
     }
 
     fn children(&self, node: NodeId) -> Vec<NodeId> {
@@ -328,7 +333,7 @@ impl Evaluator<'_> {
         )?;
         let success_by_deadline = match self.options.deadline {
             Some(d) => Some(
-                curve(
+                compile::curve::curve_of(
                     &self.tree,
                     Tree::ROOT,
                     &[d],
@@ -537,14 +542,19 @@ pub fn compare_with_progress(
         method: options.method,
         max_states: options.max_states,
     };
-    let view = compile::primitive_view(tree)?;
-    if let Some(v) = &view {
+    let lowered = compile::lower(tree)?;
+    if let Some(image) = &lowered.image {
         // a RoundRobin whose index the analysis follows: its flow replaces
-        // the nodes between its copies, and the lowered tree's node ids
-        // are not the tree's
+        // the nodes between its copies, and the IR's node ids are not the
+        // tree's
         if let Some(id) = (0..tree.nodes.len()).find(|&i| {
-            matches!(v.tree.node(v.image[i]).kind, NodeKind::Flow(_))
-                && !matches!(tree.node(i).kind, NodeKind::Flow(_))
+            matches!(
+                lowered.graph.node(image[i]).kind,
+                Op::Flow(ir::Flow {
+                    graph: ir::FlowGraph::States(_),
+                    ..
+                })
+            ) && !matches!(tree.node(i).kind, NodeKind::Flow(_))
         }) {
             let node = tree.node(id);
             return Err(unreorderable(
@@ -557,7 +567,7 @@ pub fn compare_with_progress(
         // the Fallbacks as nodes of the lowered tree; one that a pipeline
         // re-runs has copies there, which an ordering would have to follow
         for n in &mut nodes {
-            if v.copied[*n] {
+            if lowered.copied[*n] {
                 let node = tree.node(*n);
                 return Err(unreorderable(
                     node,
@@ -565,11 +575,14 @@ pub fn compare_with_progress(
                              later children run; reordering its re-runs is not supported",
                 ));
             }
-            *n = v.image[*n];
+            *n = image[*n];
         }
     }
-    let tree = view.as_ref().map_or(tree, |v| &v.tree);
-    let analysis = analyze(tree, &compile_options)?;
+    let tree = &lowered.graph;
+    let analysis = compile::analysis_of(
+        &compile::Plan::new(tree, compile_options.method, compile_options.max_states),
+        None,
+    )?;
     // the objectives and ties assume runs that return: a node that may run
     // for ever (a loop its child cannot end) makes the root's figures depend
     // on the ordering in a way they do not compare; named bottom-up (the
@@ -636,7 +649,7 @@ pub fn compare_with_progress(
     let under_parallel = nodes.iter().any(|&n| {
         let mut p = tree.node(n).parent;
         while let Some(id) = p {
-            if matches!(tree.node(id).kind, NodeKind::Parallel { .. }) {
+            if matches!(tree.node(id).kind, Op::KOfN { .. }) {
                 return true;
             }
             p = tree.node(id).parent;

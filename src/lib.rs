@@ -60,6 +60,7 @@ pub mod export;
 pub mod fit;
 pub mod gate;
 pub mod generate;
+pub mod ir;
 pub mod logs;
 mod model;
 pub mod number;

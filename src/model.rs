@@ -94,15 +94,13 @@ impl Model {
     }
 
     /// Plans `tree` under `options` (strategy: exact or the book's; the
-    /// state budget). Fails where the tree cannot be lowered to the
-    /// engine's primitives (a Nav2 node without an exact meaning); the
+    /// state budget). Fails where the tree cannot be lowered to the core IR
+    /// ([`crate::ir`]: a Nav2 node without an exact meaning); the
     /// figures are computed by the first query that needs them.
     pub fn with_options(tree: &Tree, options: Options) -> Result<Model, Error> {
-        let (planned, image) = match compile::primitive_view(tree)? {
-            Some(v) => (v.tree, Some(v.image)),
-            None => (tree.clone(), None),
-        };
-        let plan = compile::Plan::owned(planned, options.method, options.max_states);
+        let lowered = compile::lower(tree)?;
+        let image = lowered.image;
+        let plan = compile::Plan::owned(lowered.graph, options.method, options.max_states);
         Ok(Model {
             tree: tree.clone(),
             options,
@@ -174,7 +172,7 @@ impl Model {
             Timing::AsGiven => &self.plan,
             Timing::Deterministic => self.deterministic.get_or_init(|| {
                 compile::Plan::owned(
-                    crate::curve::deterministic_version(self.plan.tree()),
+                    crate::compile::curve::deterministic_graph(self.plan.tree()),
                     self.options.method,
                     self.options.max_states,
                 )

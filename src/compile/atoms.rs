@@ -19,8 +19,9 @@
 
 use super::mrg::{Outcome, Policy, Status};
 use super::{AnalysisError, Figures};
-use crate::tree::{same_instant, Decorator};
-use crate::tree::{Duration, Flow, FlowNext, NodeId, NodeKind, Tree};
+use crate::ir::{Flow, FlowGraph, Graph, Leaf, Op};
+use crate::tree::same_instant;
+use crate::tree::{Duration, FlowNext, NodeId};
 
 /// One possible return of a node: at `time`, with `outcome`, with probability `prob`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -55,7 +56,7 @@ fn normalise(mut atoms: Vec<Atom>) -> Vec<Atom> {
 /// not deterministic. Fails if more than `max_atoms` combinations would be
 /// needed.
 pub fn atoms(
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     max_atoms: usize,
 ) -> Result<Option<Vec<Atom>>, AnalysisError> {
@@ -66,7 +67,7 @@ pub fn atoms(
         budget: max_atoms,
     };
     match &node.kind {
-        NodeKind::Action(a) => {
+        Op::Leaf(Leaf::Action(a)) => {
             let mut out = Vec::new();
             for (p, d, o) in [
                 (a.ps, a.success, Outcome::Success),
@@ -86,7 +87,7 @@ pub fn atoms(
             }
             Ok(Some(normalise(out)))
         }
-        NodeKind::Condition { ps } => Ok(Some(normalise(vec![
+        Op::Leaf(Leaf::Condition { ps }) => Ok(Some(normalise(vec![
             Atom {
                 time: 0.0,
                 outcome: Outcome::Success,
@@ -98,36 +99,7 @@ pub fn atoms(
                 prob: 1.0 - ps,
             },
         ]))),
-        // Nav2 nodes reach here only as their primitive equivalents
-        // (`tree::nav2::primitive_view`): a pipeline is a Sequence, a
-        // RoundRobin a Fallback, a SequenceWithMemory (at index 0) a Sequence
-        NodeKind::Sequence { children }
-        | NodeKind::SequenceWithMemory { children, .. }
-        | NodeKind::Fallback { children }
-        | NodeKind::Pipeline { children }
-        | NodeKind::RoundRobin { children, .. } => {
-            let cont = if matches!(
-                node.kind,
-                NodeKind::Sequence { .. }
-                    | NodeKind::Pipeline { .. }
-                    | NodeKind::SequenceWithMemory { .. }
-            ) {
-                Outcome::Success
-            } else {
-                Outcome::Failure
-            };
-            let mut lists = Vec::with_capacity(children.len());
-            for &c in children {
-                match atoms(tree, c, max_atoms)? {
-                    Some(a) => lists.push(a),
-                    None => return Ok(None),
-                }
-            }
-            chain(lists.iter(), cont, max_atoms)
-                .map_err(budget)
-                .map(Some)
-        }
-        NodeKind::Flow(flow) => {
+        Op::Flow(flow) => {
             let mut lists = Vec::with_capacity(flow.children.len());
             for &c in &flow.children {
                 match atoms(tree, c, max_atoms)? {
@@ -135,53 +107,43 @@ pub fn atoms(
                     None => return Ok(None),
                 }
             }
-            flow_atoms(flow, &lists, max_atoms)
-                .map_err(budget)
-                .map(Some)
-        }
-        NodeKind::Decorator { decorator, child } => {
-            if matches!(decorator, Decorator::UntilFailure | Decorator::UntilSuccess) {
-                // infinitely many return instants: a shifted law's
-                // truncated series ([`super::shifted`]) instead
-                return Ok(None);
+            match flow.graph {
+                // a child's outcome other than `stop` goes on
+                FlowGraph::Chain { stop } => chain(lists.iter(), stop.other(), max_atoms),
+                FlowGraph::Repeat { times, stop } => chain(
+                    std::iter::repeat_n(&lists[0], times),
+                    stop.other(),
+                    max_atoms,
+                ),
+                FlowGraph::States(_) => flow_atoms(flow, &lists, max_atoms),
             }
+            .map_err(budget)
+            .map(Some)
+        }
+        // infinitely many return instants: a shifted law's truncated
+        // series ([`super::shifted`]) instead
+        Op::Loop { .. } => Ok(None),
+        Op::Map {
+            child,
+            on_success,
+            on_failure,
+        } => {
             let Some(c) = atoms(tree, *child, max_atoms)? else {
                 return Ok(None);
             };
-            let map = |f: &dyn Fn(Outcome) -> Outcome| {
-                normalise(
-                    c.iter()
-                        .map(|a| Atom {
-                            outcome: f(a.outcome),
-                            ..*a
-                        })
-                        .collect(),
-                )
-            };
-            Ok(Some(match decorator.as_primitive() {
-                Decorator::Inverter => map(&|o| match o {
-                    Outcome::Success => Outcome::Failure,
-                    Outcome::Failure => Outcome::Success,
-                }),
-                Decorator::ForceSuccess => map(&|_| Outcome::Success),
-                Decorator::ForceFailure => map(&|_| Outcome::Failure),
-                Decorator::Retry { attempts } => chain(
-                    std::iter::repeat_n(&c, attempts),
-                    Outcome::Failure,
-                    max_atoms,
-                )
-                .map_err(budget)?,
-                Decorator::Repeat { times } => {
-                    chain(std::iter::repeat_n(&c, times), Outcome::Success, max_atoms)
-                        .map_err(budget)?
-                }
-                Decorator::UntilFailure | Decorator::UntilSuccess => unreachable!("refused above"),
-                Decorator::Rate { .. } | Decorator::SingleTrigger => {
-                    unreachable!("as_primitive maps Nav2 decorators to repeat 1")
-                }
-            }))
+            Ok(Some(normalise(
+                c.iter()
+                    .map(|a| Atom {
+                        outcome: match a.outcome {
+                            Outcome::Success => *on_success,
+                            Outcome::Failure => *on_failure,
+                        },
+                        ..*a
+                    })
+                    .collect(),
+            )))
         }
-        NodeKind::Parallel { children, .. } => {
+        Op::KOfN { children, .. } => {
             let mut per_child = Vec::with_capacity(children.len());
             for &c in children {
                 match atoms(tree, c, max_atoms)? {
@@ -323,14 +285,15 @@ pub(crate) fn flow_atoms(
     max_atoms: usize,
 ) -> Result<Vec<Atom>, f64> {
     // entry instants of each state, as atoms whose outcome is irrelevant
-    let mut entered: Vec<Vec<Atom>> = vec![Vec::new(); flow.states.len()];
+    let states = flow.states();
+    let mut entered: Vec<Vec<Atom>> = vec![Vec::new(); states.len()];
     entered[0].push(Atom {
         time: 0.0,
         outcome: Outcome::Success,
         prob: 1.0,
     });
     let mut out = Vec::new();
-    for (i, s) in flow.states.iter().enumerate() {
+    for (i, s) in states.iter().enumerate() {
         let here = normalise(std::mem::take(&mut entered[i]));
         for e in &here {
             for a in &children[s.child] {

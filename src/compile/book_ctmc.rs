@@ -15,7 +15,6 @@
 use super::mrg::{Mrg, Outcome, Policy, Status};
 use super::Figures;
 use crate::solve::chain::PhaseChain;
-use crate::tree::Decorator;
 
 #[derive(Clone, Default)]
 struct Entry {
@@ -33,64 +32,65 @@ impl Entry {
     }
 }
 
-/// The book's CTMC of a decorator whose child is summarised by `child`:
-/// retry and repeat are a Fallback and a Sequence of fresh copies; an
-/// inverter or a force decorator maps the child's one exponential phase
-/// (rate 1/SJ) to its outcomes.
-pub(crate) fn book_decorator(decorator: Decorator, child: Figures) -> PhaseChain {
-    let (policy, n) = match decorator {
-        Decorator::Retry { attempts } => (Policy::Fallback, attempts),
-        Decorator::Repeat { times } => (Policy::Sequence, times),
-        Decorator::UntilFailure | Decorator::UntilSuccess => {
-            // the node summarised by its own figures, as the book does
-            let f = match super::loop_figures(decorator, child, "loop") {
-                Ok(Some(f)) => f,
-                _ => return PhaseChain::default(),
-            };
-            let mut c = PhaseChain::default();
-            for (p, t, success) in [(f.ps, f.mtts, true), (f.pf, f.mttf, false)] {
-                if p <= 0.0 {
-                    continue;
-                }
-                match t {
-                    Some(t) if t > 0.0 => {
-                        let i = c.push_phase();
-                        if success {
-                            c.exit_success[i] = 1.0 / t;
-                        } else {
-                            c.exit_failure[i] = 1.0 / t;
-                        }
-                        c.initial.push((i, p));
-                    }
-                    _ if success => c.initial_success += p,
-                    _ => c.initial_failure += p,
-                }
-            }
-            return c;
+/// The book's CTMC of a loop whose child is summarised by `child`: the
+/// node summarised by its own figures, as the book does.
+pub(crate) fn book_loop(until: Outcome, child: Figures) -> PhaseChain {
+    let f = super::loop_figures(until, child);
+    let mut c = PhaseChain::default();
+    for (p, t, success) in [(f.ps, f.mtts, true), (f.pf, f.mttf, false)] {
+        if p <= 0.0 {
+            continue;
         }
-        _ => {
-            let (s, f) = match decorator {
-                Decorator::Inverter => (child.pf, child.ps),
-                Decorator::ForceSuccess => (1.0, 0.0),
-                _ => (0.0, 1.0),
-            };
-            let sj = child.mean_time();
-            if sj == 0.0 {
-                return PhaseChain {
-                    initial_success: s,
-                    initial_failure: f,
-                    ..PhaseChain::default()
-                };
+        match t {
+            Some(t) if t > 0.0 => {
+                let i = c.push_phase();
+                if success {
+                    c.exit_success[i] = 1.0 / t;
+                } else {
+                    c.exit_failure[i] = 1.0 / t;
+                }
+                c.initial.push((i, p));
             }
-            let mut c = PhaseChain::default();
-            let i = c.push_phase();
-            c.exit_success[i] = s / sj;
-            c.exit_failure[i] = f / sj;
-            c.initial.push((i, 1.0));
-            return c;
+            _ if success => c.initial_success += p,
+            _ => c.initial_failure += p,
         }
+    }
+    c
+}
+
+/// The book's CTMC of a map (inverter, force decorator, identity): the
+/// child's one exponential phase (rate 1/SJ) leads to the mapped outcomes;
+/// a map to one outcome sends all its mass there.
+pub(crate) fn book_map(on_success: Outcome, on_failure: Outcome, child: Figures) -> PhaseChain {
+    let (s, f) = match (on_success, on_failure) {
+        (Outcome::Success, Outcome::Failure) => (child.ps, child.pf),
+        (Outcome::Failure, Outcome::Success) => (child.pf, child.ps),
+        (Outcome::Success, Outcome::Success) => (1.0, 0.0),
+        (Outcome::Failure, Outcome::Failure) => (0.0, 1.0),
     };
-    book_ctmc(&Mrg::build(policy, n), &vec![child; n])
+    let sj = child.mean_time();
+    if sj == 0.0 {
+        return PhaseChain {
+            initial_success: s,
+            initial_failure: f,
+            ..PhaseChain::default()
+        };
+    }
+    let mut c = PhaseChain::default();
+    let i = c.push_phase();
+    c.exit_success[i] = s / sj;
+    c.exit_failure[i] = f / sj;
+    c.initial.push((i, 1.0));
+    c
+}
+
+/// The book's CTMC of a flow repeating its child `times` times (a Retry
+/// is a Fallback of fresh copies, a Repeat a Sequence).
+pub(crate) fn book_repeat(times: usize, stop: Outcome, child: Figures) -> PhaseChain {
+    book_ctmc(
+        &Mrg::build(Policy::stopping_at(stop), times),
+        &vec![child; times],
+    )
 }
 
 /// The book's CTMC over `g` with children summarised by `children`.

@@ -10,8 +10,9 @@
 //! both sides speak it.
 
 use super::{AnalysisError, Figures};
+use crate::ir::Graph;
 use crate::solve::chain::PhaseChain;
-use crate::tree::{NodeId, Tree};
+use crate::tree::NodeId;
 
 /// How the engine represents one node's outcome law (the planner's table,
 /// module docs).
@@ -58,7 +59,7 @@ impl Representation {
 /// The planner, as the representations see it.
 pub(crate) trait Children {
     /// The (primitive) tree planned.
-    fn tree(&self) -> &Tree;
+    fn tree(&self) -> &Graph;
     /// The largest chain (or number of atoms) the plan builds.
     fn max_states(&self) -> usize;
     /// The representation of node `id`.

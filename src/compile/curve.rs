@@ -17,7 +17,8 @@
 //!   time `τ = 1/rate` first (the book's Figs. 9.20–9.21 comparison).
 
 use crate::compile::{self, AnalysisError, Plan};
-use crate::tree::{Duration, NodeId, NodeKind, Tree};
+use crate::ir::{Graph, Leaf, Op};
+use crate::tree::{Action, Duration, NodeId, NodeKind, Tree};
 
 pub use super::curve_options::{CurveOptions, CurvePoint, Timing};
 
@@ -25,6 +26,27 @@ pub use super::curve_options::{CurveOptions, CurvePoint, Timing};
 /// Erlang, hypo-, hyperexponential, phase-type or shifted time by its mean).
 pub fn deterministic_version(tree: &Tree) -> Tree {
     let mut t = tree.clone();
+    for n in &mut t.nodes {
+        if let NodeKind::Action(a) = &mut n.kind {
+            fix_times(a);
+        }
+    }
+    t
+}
+
+/// [`deterministic_version`] of a tree's IR.
+pub(crate) fn deterministic_graph(tree: &Graph) -> Graph {
+    let mut t = tree.clone();
+    for n in &mut t.nodes {
+        if let Op::Leaf(Leaf::Action(a)) = &mut n.kind {
+            fix_times(a);
+        }
+    }
+    t
+}
+
+/// An action's random times made their means.
+fn fix_times(a: &mut Action) {
     let fix = |d: Option<Duration>| {
         d.map(|d| match d {
             Duration::Exponential { rate } | Duration::TruncatedExponential { rate, .. } => {
@@ -34,13 +56,8 @@ pub fn deterministic_version(tree: &Tree) -> Tree {
             fixed => fixed,
         })
     };
-    for n in &mut t.nodes {
-        if let NodeKind::Action(a) = &mut n.kind {
-            a.success = fix(a.success);
-            a.failure = fix(a.failure);
-        }
-    }
-    t
+    a.success = fix(a.success);
+    a.failure = fix(a.failure);
 }
 
 /// `π(t)` of node `id` at `times` (finite, ≥ 0; any order), in the order
@@ -51,14 +68,13 @@ pub fn curve(
     times: &[f64],
     options: &CurveOptions,
 ) -> Result<Vec<CurvePoint>, AnalysisError> {
-    match super::primitive_view(tree)? {
-        Some(view) => curve_of(&view.tree, view.image[id], times, options),
-        None => curve_of(tree, id, times, options),
-    }
+    let lowered = super::lower(tree)?;
+    curve_of(&lowered.graph, lowered.node(id), times, options)
 }
 
-fn curve_of(
-    tree: &Tree,
+/// [`curve`] of a tree's IR.
+pub(crate) fn curve_of(
+    tree: &Graph,
     id: NodeId,
     times: &[f64],
     options: &CurveOptions,
@@ -68,7 +84,7 @@ fn curve_of(
         ..*options
     };
     if options.timing == Timing::Deterministic {
-        let det = deterministic_version(tree);
+        let det = deterministic_graph(tree);
         return with_tail(
             &Plan::new(&det, options.method, options.max_states),
             id,
@@ -152,10 +168,10 @@ pub(crate) fn with_tail(
 }
 
 /// The sum of the mean times of the actions below `id`.
-fn leaf_time_scale(tree: &Tree, id: NodeId) -> f64 {
+fn leaf_time_scale(tree: &Graph, id: NodeId) -> f64 {
     tree.subtree(id)
         .map(|n| match &tree.node(n).kind {
-            NodeKind::Action(a) => [a.success, a.failure]
+            Op::Leaf(Leaf::Action(a)) => [a.success, a.failure]
                 .iter()
                 .flatten()
                 .map(Duration::mean)

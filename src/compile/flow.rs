@@ -24,8 +24,9 @@
 //! next or to the subtree's outcome.
 
 use super::Figures;
+use crate::ir::{Flow, FlowGraph, Graph, Op, Outcome};
 use crate::solve::chain::{AbsorbingChain, Edge, PhaseChain, Target};
-use crate::tree::{Decorator, Flow, FlowNext, FlowState, NodeId, NodeKind, Tree};
+use crate::tree::{FlowNext, FlowState, NodeId};
 
 /// The DTMC over a flow's states whose transitions are the children's
 /// outcomes (probabilities `ps`, `pf`, durations MTTS, MTTF); `children`
@@ -36,8 +37,9 @@ pub fn figures_chain(flow: &Flow, children: &[Figures]) -> AbsorbingChain {
         FlowNext::Success => Target::Success,
         FlowNext::Failure => Target::Failure,
     };
-    let mut edges = Vec::with_capacity(2 * flow.states.len());
-    for (i, s) in flow.states.iter().enumerate() {
+    let states = flow.states();
+    let mut edges = Vec::with_capacity(2 * states.len());
+    for (i, s) in states.iter().enumerate() {
         let f = &children[s.child];
         for (p, t, next) in [(f.ps, f.mtts, s.on_success), (f.pf, f.mttf, s.on_failure)] {
             if p > 0.0 {
@@ -51,7 +53,7 @@ pub fn figures_chain(flow: &Flow, children: &[Figures]) -> AbsorbingChain {
         }
     }
     AbsorbingChain {
-        n: flow.states.len(),
+        n: states.len(),
         initial: vec![(0, 1.0)],
         initial_success: 0.0,
         initial_failure: 0.0,
@@ -61,7 +63,9 @@ pub fn figures_chain(flow: &Flow, children: &[Figures]) -> AbsorbingChain {
 
 /// Number of phases of the glued chain: one copy of the child's chain per state.
 pub fn glued_len(flow: &Flow, chains: &[PhaseChain]) -> usize {
-    flow.states.iter().map(|s| chains[s.child].len()).sum()
+    (0..flow.state_count())
+        .map(|i| chains[flow.state(i).child].len())
+        .sum()
 }
 
 /// "Where a run goes next": phases, or an instantaneous outcome.
@@ -109,8 +113,8 @@ fn next_entry<'a>(entries: &'a [Entry], n: FlowNext, ends: &'a [Entry; 2]) -> &'
 /// `on_success` (`on_failure`) leads to, or is the node's outcome.
 /// The caller checks [`glued_len`] against its budget.
 pub fn glue(flow: &Flow, chains: &[PhaseChain]) -> PhaseChain {
-    let offsets: Vec<usize> = flow
-        .states
+    let states = flow.states();
+    let offsets: Vec<usize> = states
         .iter()
         .scan(0, |acc, s| {
             let o = *acc;
@@ -126,8 +130,8 @@ pub fn glue(flow: &Flow, chains: &[PhaseChain]) -> PhaseChain {
         ..PhaseChain::default()
     };
     let ends = [Entry::outcome(true), Entry::outcome(false)];
-    let mut entries = vec![Entry::default(); flow.states.len()];
-    for (i, s) in flow.states.iter().enumerate().rev() {
+    let mut entries = vec![Entry::default(); states.len()];
+    for (i, s) in states.iter().enumerate().rev() {
         let c = &chains[s.child];
         let off = offsets[i];
         let on_s = next_entry(&entries, s.on_success, &ends).clone();
@@ -163,17 +167,18 @@ pub fn glue(flow: &Flow, chains: &[PhaseChain]) -> PhaseChain {
 /// `1/SJ`, left with Success or Failure in proportion `ps : pf`; a state
 /// whose child takes no time is vanishing and routes its probability on.
 pub fn book_chain(flow: &Flow, children: &[Figures]) -> PhaseChain {
-    let sojourn = |i: usize| children[flow.states[i].child].mean_time();
+    let states = flow.states();
+    let sojourn = |i: usize| children[states[i].child].mean_time();
     let mut chain = PhaseChain::default();
-    let mut phase_of = vec![usize::MAX; flow.states.len()];
+    let mut phase_of = vec![usize::MAX; states.len()];
     for (i, p) in phase_of.iter_mut().enumerate() {
         if sojourn(i) > 0.0 {
             *p = chain.push_phase();
         }
     }
     let ends = [Entry::outcome(true), Entry::outcome(false)];
-    let mut entries = vec![Entry::default(); flow.states.len()];
-    for (i, s) in flow.states.iter().enumerate().rev() {
+    let mut entries = vec![Entry::default(); states.len()];
+    for (i, s) in states.iter().enumerate().rev() {
         let f = &children[s.child];
         let on_s = next_entry(&entries, s.on_success, &ends).clone();
         let on_f = next_entry(&entries, s.on_failure, &ends).clone();
@@ -207,17 +212,29 @@ pub fn book_chain(flow: &Flow, children: &[Figures]) -> PhaseChain {
 }
 
 /// The subtree of `id` as a flow over its leaves, when it holds only
-/// Sequences, Fallbacks, inverters and force decorators over conditions and
-/// actions for which `leaf` holds (`None` otherwise). The states are the
+/// chains (Sequences, Fallbacks) and maps (inverters, force decorators)
+/// over conditions and actions for which `leaf` holds (`None` otherwise). The states are the
 /// leaves in tree order (a topological order: the tick semantics only ever
 /// go on to a later leaf); a Sequence sends each child's Success to the
 /// next child's first leaf, a Fallback each child's Failure; an inverter
 /// exchanges its subtree's exits, a force decorator merges them.
-pub(crate) fn leaf_flow(tree: &Tree, id: NodeId, leaf: impl Fn(NodeId) -> bool) -> Option<Flow> {
+pub(crate) fn leaf_flow(tree: &Graph, id: NodeId, leaf: impl Fn(NodeId) -> bool) -> Option<Flow> {
     let mut children = Vec::new();
     let mut states = Vec::new();
     lay_out(tree, id, &leaf, &mut children, &mut states)?;
-    Flow::new(children, states).ok()
+    let checked = crate::tree::Flow::new(children, states).ok()?;
+    Some(Flow {
+        children: checked.children,
+        graph: FlowGraph::States(checked.states),
+    })
+}
+
+/// The flow's exit for outcome `o`.
+fn to_next(o: Outcome) -> FlowNext {
+    match o {
+        Outcome::Success => FlowNext::Success,
+        Outcome::Failure => FlowNext::Failure,
+    }
 }
 
 /// Sends every exit of `states` that goes to `from` to `to`.
@@ -234,7 +251,7 @@ fn redirect(states: &mut [FlowState], from: FlowNext, to: FlowNext) {
 /// Appends the states of `id`'s subtree, its own exits left as
 /// `Success`/`Failure` for its parent to redirect.
 fn lay_out(
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     leaf: &impl Fn(NodeId) -> bool,
     children: &mut Vec<NodeId>,
@@ -242,7 +259,7 @@ fn lay_out(
 ) -> Option<()> {
     let start = states.len();
     match &tree.node(id).kind {
-        NodeKind::Condition { .. } | NodeKind::Action(_) if leaf(id) => {
+        Op::Leaf(_) if leaf(id) => {
             states.push(FlowState {
                 child: children.len(),
                 on_success: FlowNext::Success,
@@ -250,11 +267,12 @@ fn lay_out(
             });
             children.push(id);
         }
-        NodeKind::Sequence { children: kids } | NodeKind::Fallback { children: kids } => {
-            let go = match tree.node(id).kind {
-                NodeKind::Sequence { .. } => FlowNext::Success,
-                _ => FlowNext::Failure,
-            };
+        Op::Flow(Flow {
+            children: kids,
+            graph: FlowGraph::Chain { stop },
+        }) => {
+            // a child's outcome other than `stop` goes on to the next child
+            let go = to_next(stop.other());
             let (last, earlier) = kids.split_last()?;
             for &c in earlier {
                 let from = states.len();
@@ -265,25 +283,19 @@ fn lay_out(
             }
             lay_out(tree, *last, leaf, children, states)?;
         }
-        NodeKind::Decorator { decorator, child } => {
+        Op::Map {
+            child,
+            on_success,
+            on_failure,
+        } => {
             lay_out(tree, *child, leaf, children, states)?;
-            // a placeholder that no exit uses: the state count is past them all
-            let hold = FlowNext::State(usize::MAX);
-            match decorator.as_primitive() {
-                Decorator::Inverter => {
-                    let own = &mut states[start..];
-                    redirect(own, FlowNext::Success, hold);
-                    redirect(own, FlowNext::Failure, FlowNext::Success);
-                    redirect(own, hold, FlowNext::Failure);
-                }
-                Decorator::ForceSuccess => {
-                    redirect(&mut states[start..], FlowNext::Failure, FlowNext::Success)
-                }
-                Decorator::ForceFailure => {
-                    redirect(&mut states[start..], FlowNext::Success, FlowNext::Failure)
-                }
-                _ => return None,
-            }
+            // placeholders that no exit uses: the state count is past them all
+            let (hold_s, hold_f) = (FlowNext::State(usize::MAX), FlowNext::State(usize::MAX - 1));
+            let own = &mut states[start..];
+            redirect(own, FlowNext::Success, hold_s);
+            redirect(own, FlowNext::Failure, hold_f);
+            redirect(own, hold_s, to_next(*on_success));
+            redirect(own, hold_f, to_next(*on_failure));
         }
         _ => return None,
     }
@@ -308,7 +320,11 @@ mod tests {
     #[test]
     fn if_then_else_by_hand() {
         // C (0.3; 1, 2), T (0.6; 3, 4), E (0.8; 5, 6)
-        let flow = Flow::if_then_else(0, 1, Some(2));
+        let f = crate::tree::Flow::if_then_else(0, 1, Some(2));
+        let flow = Flow {
+            children: f.children,
+            graph: FlowGraph::States(f.states),
+        };
         let figs = [fig(0.3, 1.0, 2.0), fig(0.6, 3.0, 4.0), fig(0.8, 5.0, 6.0)];
         let a = solve_absorbing(&figures_chain(&flow, &figs)).unwrap();
         let ps = 0.3 * 0.6 + 0.7 * 0.8;
@@ -326,17 +342,20 @@ mod tests {
             on_success: s,
             on_failure: f,
         };
-        assert!(Flow::new(
+        assert!(crate::tree::Flow::new(
             vec![7, 8],
             vec![st(0, FlowNext::State(0), FlowNext::Failure)]
         )
         .is_err());
-        assert!(Flow::new(
+        assert!(crate::tree::Flow::new(
             vec![7, 8],
             vec![st(0, FlowNext::Success, FlowNext::Failure)]
         )
         .is_err());
-        assert!(Flow::new(vec![7], vec![st(1, FlowNext::Success, FlowNext::Failure)]).is_err());
-        assert!(Flow::new(vec![], vec![]).is_err());
+        assert!(
+            crate::tree::Flow::new(vec![7], vec![st(1, FlowNext::Success, FlowNext::Failure)])
+                .is_err()
+        );
+        assert!(crate::tree::Flow::new(vec![], vec![]).is_err());
     }
 }

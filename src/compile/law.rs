@@ -81,6 +81,7 @@ use super::mrg::Outcome;
 use super::shifted;
 use crate::compile::children::{Children, ReturnLaw};
 use crate::compile::{counts, phase, renewal_law, AnalysisError};
+use crate::ir::{Flow, FlowGraph, Graph, Leaf, Op};
 use crate::solve::chain::PhaseChain;
 use crate::solve::exponential::ExponentialConvolution;
 use crate::solve::interpolant::{
@@ -93,7 +94,7 @@ use crate::solve::transient::{
 };
 use crate::tree::same_instant;
 use crate::tree::stages::Stages;
-use crate::tree::{Decorator, Duration, Flow, FlowNext, NodeId, NodeKind, Tree};
+use crate::tree::{Duration, FlowNext, NodeId};
 use rayon::prelude::*;
 
 /// Mass below which the rest of a fold is dropped.
@@ -156,18 +157,20 @@ enum Piece {
 
 /// For every node, whether a leaf below (or the node) has a time that is
 /// not phase-type (fixed, hybrid, shifted): its subtree has no phase chain.
-fn non_markovian(tree: &Tree) -> Vec<bool> {
+fn non_markovian(tree: &Graph) -> Vec<bool> {
     let mut out = vec![false; tree.nodes.len()];
     // pre-order: reverse order is bottom-up
     for id in (0..tree.nodes.len()).rev() {
         out[id] = match &tree.node(id).kind {
-            NodeKind::Action(a) => [(a.ps, a.success), (a.pf, a.failure)]
-                .iter()
-                .any(|&(p, d)| {
-                    p > 0.0
-                        && !matches!(d, Some(Duration::Fixed { time: 0.0 }))
-                        && !d.is_some_and(|d| d.is_phase_type())
-                }),
+            Op::Leaf(Leaf::Action(a)) => {
+                [(a.ps, a.success), (a.pf, a.failure)]
+                    .iter()
+                    .any(|&(p, d)| {
+                        p > 0.0
+                            && !matches!(d, Some(Duration::Fixed { time: 0.0 }))
+                            && !d.is_some_and(|d| d.is_phase_type())
+                    })
+            }
             kind => kind.children().iter().any(|&c| out[c]),
         };
     }
@@ -252,10 +255,10 @@ pub(crate) struct DeadlineRace {
 }
 
 /// Node `id` as a [`DeadlineRace`], if it is one.
-pub(crate) fn deadline_race(tree: &Tree, id: NodeId) -> Option<DeadlineRace> {
-    let NodeKind::Parallel {
-        success_threshold: 1,
-        failure_threshold: 1,
+pub(crate) fn deadline_race(tree: &Graph, id: NodeId) -> Option<DeadlineRace> {
+    let Op::KOfN {
+        success: 1,
+        failure: 1,
         children,
     } = &tree.node(id).kind
     else {
@@ -265,7 +268,7 @@ pub(crate) fn deadline_race(tree: &Tree, id: NodeId) -> Option<DeadlineRace> {
         return None;
     };
     let deadline = |c: NodeId| match &tree.node(c).kind {
-        NodeKind::Action(x) if x.ps == 0.0 && x.pf == 1.0 => match x.failure {
+        Op::Leaf(Leaf::Action(x)) if x.ps == 0.0 && x.pf == 1.0 => match x.failure {
             Some(Duration::Fixed { time }) if time > 0.0 && time.is_finite() => Some(time),
             _ => None,
         },
@@ -493,7 +496,7 @@ pub(crate) fn counted_parallel_times(
 
 /// Uniformization of `id`'s chain to `end` would need more steps than one
 /// pass keeps, and the chain is too large for dense exponentials.
-fn stiff(tree: &Tree, id: NodeId, chain: &PhaseChain, end: f64) -> AnalysisError {
+fn stiff(tree: &Graph, id: NodeId, chain: &PhaseChain, end: f64) -> AnalysisError {
     let nnz: usize = chain.transitions.iter().map(Vec::len).sum::<usize>() + 2 * chain.len();
     AnalysisError::Stiff {
         node: tree.node(id).name.clone(),
@@ -503,7 +506,7 @@ fn stiff(tree: &Tree, id: NodeId, chain: &PhaseChain, end: f64) -> AnalysisError
 }
 
 struct Builder<'a> {
-    tree: &'a Tree,
+    tree: &'a Graph,
     /// The planner, asked for the races below ([`Children`]).
     children: &'a dyn Children,
     end: f64,
@@ -696,7 +699,7 @@ impl Builder<'_> {
     /// The law of a leaf without a phase chain: each outcome's time as
     /// atoms and a density.
     fn leaf_law(&self, id: NodeId) -> Result<Law, AnalysisError> {
-        let NodeKind::Action(a) = &self.tree.node(id).kind else {
+        let Op::Leaf(Leaf::Action(a)) = &self.tree.node(id).kind else {
             unreachable!("a leaf without a chain is an action")
         };
         Ok(Law {
@@ -807,16 +810,14 @@ impl Builder<'_> {
             }
         }
         match &node.kind {
-            NodeKind::Action(_) => self.leaf_law(id),
-            NodeKind::Parallel {
-                success_threshold,
-                failure_threshold,
+            Op::Leaf(Leaf::Action(_)) => self.leaf_law(id),
+            Op::KOfN {
+                success,
+                failure,
                 children,
-            } if *failure_threshold >= children.len() + 1 - success_threshold => {
-                self.counted(id, children, *success_threshold)
-            }
+            } if *failure >= children.len() + 1 - success => self.counted(id, children, *success),
             // thresholds that can both be met: ties in child order
-            NodeKind::Parallel { .. } => match det::atoms(self.tree, id, self.max_states)? {
+            Op::KOfN { .. } => match det::atoms(self.tree, id, self.max_states)? {
                 Some(atoms) => Ok(self.atoms_law(&atoms)),
                 // the race of its children's laws on the horizon (`race`:
                 // phase chains, shifted mixtures, or their own composed
@@ -826,46 +827,42 @@ impl Builder<'_> {
                     self.race_law(id, &race)
                 }
             },
-            // Nav2 nodes as their primitive equivalents (`primitive_view`);
-            // a Sequence or Fallback over simple leaves as their flow
-            NodeKind::Sequence { children }
-            | NodeKind::Pipeline { children }
-            | NodeKind::SequenceWithMemory { children, .. } => match self.leaf_flow(id)? {
-                Some(law) => Ok(law),
-                None => self.in_turn(id, children, true),
-            },
-            NodeKind::Fallback { children } | NodeKind::RoundRobin { children, .. } => {
-                match self.leaf_flow(id)? {
+            // a chain over simple leaves as their flow
+            Op::Flow(flow) => match flow.graph {
+                FlowGraph::Chain { stop } => match self.leaf_flow(id)? {
                     Some(law) => Ok(law),
-                    None => self.in_turn(id, children, false),
+                    None => self.in_turn(id, &flow.children, stop == Outcome::Failure),
+                },
+                FlowGraph::Repeat { times, stop } => {
+                    // a child that fits: its copies are what exceeded the budget
+                    let law = self.law(flow.children[0])?;
+                    self.repeated(id, &law, times, stop == Outcome::Failure)
                 }
-            }
-            NodeKind::Flow(flow) => self.flow(id, flow),
-            NodeKind::Decorator { decorator, child } => {
-                // a child that fits: its copies are what exceeded the budget
+                FlowGraph::States(_) => self.flow(id, flow),
+            },
+            Op::Map {
+                child,
+                on_success,
+                on_failure,
+            } => {
                 let law = self.law(*child)?;
-                match decorator.as_primitive() {
-                    Decorator::Inverter => {
-                        let [s, f] = law.parts;
-                        Ok(Law { parts: [f, s] })
-                    }
-                    Decorator::ForceSuccess | Decorator::ForceFailure => {
-                        let both = self.add(id, &law.measure(SUCCESS), &law.measure(FAILURE))?;
-                        let to = if *decorator == Decorator::ForceSuccess {
-                            SUCCESS
-                        } else {
-                            FAILURE
-                        };
-                        Ok(self.law_from(to, both, Measure::zero()))
-                    }
-                    Decorator::Retry { attempts } => self.repeated(id, &law, attempts, false),
-                    Decorator::Repeat { times } => self.repeated(id, &law, times, true),
-                    Decorator::UntilFailure => self.unbounded(id, &law, true),
-                    Decorator::UntilSuccess => self.unbounded(id, &law, false),
-                    Decorator::Rate { .. } | Decorator::SingleTrigger => {
-                        unreachable!("as_primitive maps Nav2 decorators to repeat 1")
-                    }
+                if on_success != on_failure {
+                    let [s, f] = law.parts;
+                    return Ok(match on_success {
+                        Outcome::Success => Law { parts: [s, f] },
+                        Outcome::Failure => Law { parts: [f, s] },
+                    });
                 }
+                let both = self.add(id, &law.measure(SUCCESS), &law.measure(FAILURE))?;
+                let to = match on_success {
+                    Outcome::Success => SUCCESS,
+                    Outcome::Failure => FAILURE,
+                };
+                Ok(self.law_from(to, both, Measure::zero()))
+            }
+            Op::Loop { child, until } => {
+                let law = self.law(*child)?;
+                self.unbounded(id, &law, *until == Outcome::Failure)
             }
             _ => Err(fallback),
         }
@@ -1136,8 +1133,8 @@ impl Builder<'_> {
             Some(Duration::PhaseType { stages, .. }) => kernel_stages(stages),
         };
         let leaf = |c: NodeId| match &self.tree.node(c).kind {
-            NodeKind::Condition { .. } => true,
-            NodeKind::Action(a) => simple(a.success) && simple(a.failure),
+            Op::Leaf(Leaf::Condition { .. }) => true,
+            Op::Leaf(Leaf::Action(a)) => simple(a.success) && simple(a.failure),
             _ => false,
         };
         let Some(flow) = super::flow::leaf_flow(self.tree, id, leaf) else {
@@ -1147,7 +1144,7 @@ impl Builder<'_> {
             .children
             .iter()
             .map(|&c| match self.tree.node(c).kind {
-                NodeKind::Condition { ps } => Ok(Law {
+                Op::Leaf(Leaf::Condition { ps }) => Ok(Law {
                     parts: [
                         self.measure(vec![(0.0, ps)], None, Vec::new(), 0.0),
                         self.measure(vec![(0.0, 1.0 - ps)], None, Vec::new(), 0.0),
@@ -1161,10 +1158,11 @@ impl Builder<'_> {
 
     /// A flow whose children's laws are `laws`.
     fn flow_of(&self, id: NodeId, flow: &Flow, laws: &[Law]) -> Result<Law, AnalysisError> {
-        let mut entered: Vec<Option<Measure>> = vec![None; flow.states.len()];
+        let states = flow.states();
+        let mut entered: Vec<Option<Measure>> = vec![None; states.len()];
         entered[0] = Some(Measure::unit());
         let mut ends = [Measure::zero(), Measure::zero()];
-        for (i, s) in flow.states.iter().enumerate() {
+        for (i, s) in states.iter().enumerate() {
             let Some(here) = entered[i].take() else {
                 continue;
             };
@@ -1881,7 +1879,7 @@ pub(crate) fn loop_curve(
     children: &dyn Children,
     id: NodeId,
     child: NodeId,
-    decorator: Decorator,
+    until: Outcome,
     times: &[f64],
     options: &CurveOptions,
 ) -> Result<Vec<CurvePoint>, AnalysisError> {
@@ -1906,7 +1904,7 @@ pub(crate) fn loop_curve(
     }
     let mut c = phase::chain_of(tree, child, options.max_states)?;
     // work with "again" as the Success exit, then swap back
-    let until_success = decorator == Decorator::UntilSuccess;
+    let until_success = until == Outcome::Success;
     if until_success {
         std::mem::swap(&mut c.exit_success, &mut c.exit_failure);
         std::mem::swap(&mut c.initial_success, &mut c.initial_failure);
@@ -1964,6 +1962,7 @@ mod tests {
     fn with_builder<T>(end: f64, f: impl FnOnce(&Builder) -> T) -> T {
         let tree = crate::parse_str("tree: {action: {name: a, ps: 0.5, mu: 1, nu: 1}}", "t.yaml")
             .expect("a tree");
+        let tree = crate::ir::graph_of(&tree);
         let plan = crate::compile::Plan::new(&tree, crate::compile::Method::Exact, 1_000_000);
         let memo = LawMemo::default();
         let mixed = non_markovian(&tree);

@@ -37,10 +37,10 @@ mod renewal_law;
 pub(crate) mod shifted;
 mod tail;
 
+use crate::ir::{Graph, Leaf, Lowered, Op};
 use crate::solve::chain::{AbsorbingChain, Edge, Target};
 use crate::solve::{solve_absorbing, Absorption};
-use crate::tree::nav2::View;
-use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
+use crate::tree::{Duration, Kind, NodeId, Tree};
 pub use children::Representation;
 use mrg::{Mrg, Outcome, Policy, Status};
 pub(crate) use plan::Plan;
@@ -288,18 +288,11 @@ pub struct Analysis {
     pub nodes: Vec<Figures>,
 }
 
-/// The tree with its Nav2 nodes lowered to exactly equivalent primitives
-/// (`None`: the tree has none), or the refusal naming the node.
-pub fn primitive_view(tree: &Tree) -> Result<Option<View>, AnalysisError> {
+/// The tree lowered to the core IR ([`crate::ir::lower`]), or the refusal
+/// naming the Nav2 node that has no exact equivalent where it stands.
+pub fn lower(tree: &Tree) -> Result<Lowered, AnalysisError> {
     let ps = |sub: &Tree| Some(analyze(sub, &Options::default()).ok()?.nodes[0].ps);
-    located(tree, crate::tree::nav2::primitive_view(tree, &ps))
-}
-
-fn located(
-    tree: &Tree,
-    view: Result<Option<View>, crate::tree::nav2::NotPrimitive>,
-) -> Result<Option<View>, AnalysisError> {
-    view.map_err(|e| {
+    crate::ir::lower(tree, &ps).map_err(|e| {
         let n = tree.node(e.node);
         AnalysisError::Nav2 {
             node: n.name.clone(),
@@ -315,7 +308,7 @@ fn located(
 
 impl Analysis {
     /// The figures of node `id`'s children, in child order.
-    pub fn children(&self, tree: &Tree, id: NodeId) -> Vec<Figures> {
+    pub fn children<K: Kind>(&self, tree: &Tree<K>, id: NodeId) -> Vec<Figures> {
         tree.node(id)
             .kind
             .children()
@@ -328,17 +321,15 @@ impl Analysis {
 /// Analyses every node of the tree, bottom-up, each from its planned
 /// representation (`plan`).
 pub fn analyze(tree: &Tree, options: &Options) -> Result<Analysis, AnalysisError> {
-    let view = primitive_view(tree)?;
-    let (tree, image) = match &view {
-        Some(v) => (&v.tree, Some(&v.image[..])),
-        None => (tree, None),
-    };
-    analysis_of(&Plan::new(tree, options.method, options.max_states), image)
+    let lowered = lower(tree)?;
+    analysis_of(
+        &Plan::new(&lowered.graph, options.method, options.max_states),
+        lowered.image.as_deref(),
+    )
 }
 
-/// Every node's figures from `plan` (of a primitive tree), for the nodes
-/// of the original tree (`image`: the node standing for each, when the
-/// plan's tree is its [`primitive_view`]).
+/// Every node's figures from `plan` (of a tree's IR), for the nodes of the
+/// tree (`image`: the node standing for each, [`Lowered::image`]).
 pub(crate) fn analysis_of(
     plan: &Plan,
     image: Option<&[NodeId]>,
@@ -399,11 +390,10 @@ pub(crate) fn subtree_figures(plan: &Plan, id: NodeId) -> Result<Vec<Figures>, A
 /// Updates `analysis` after the children of the nodes in `changed` were
 /// reordered: recomputes those nodes and their ancestors, bottom-up, and
 /// reuses every other node's figures. `analysis` must be of the same tree
-/// shape (same node ids) and `options.method` must match; a tree with Nav2
-/// nodes must be passed as its [`primitive_view`]'s tree, with the analysis
-/// of that tree.
+/// shape (same node ids) and `options.method` must match: `tree` is the
+/// IR ([`lower`]) with the analysis of that IR.
 pub(crate) fn reanalyze(
-    tree: &Tree,
+    tree: &Graph,
     analysis: &mut Analysis,
     changed: &[NodeId],
     options: &Options,
@@ -427,16 +417,16 @@ pub(crate) fn reanalyze(
     Ok(())
 }
 
-/// Figures of an action, identical under both methods.
-pub(crate) fn leaf_figures(kind: &NodeKind) -> Option<Figures> {
-    match kind {
-        NodeKind::Action(a) => Some(Figures {
+/// Figures of a leaf, identical under both methods.
+pub(crate) fn leaf_figures(op: &Op) -> Option<Figures> {
+    match op {
+        Op::Leaf(Leaf::Action(a)) => Some(Figures {
             ps: a.ps,
             pf: a.pf,
             mtts: (a.ps > 0.0).then(|| a.success.map_or(0.0, |d: Duration| d.mean())),
             mttf: (a.pf > 0.0).then(|| a.failure.map_or(0.0, |d: Duration| d.mean())),
         }),
-        NodeKind::Condition { ps } => Some(Figures {
+        Op::Leaf(Leaf::Condition { ps }) => Some(Figures {
             ps: *ps,
             pf: 1.0 - ps,
             mtts: (*ps > 0.0).then_some(0.0),
@@ -552,23 +542,18 @@ fn means_from_laws(
     Ok(Figures::from_moments([ps, pf, ts, tf]))
 }
 
-/// Figures of a loop without a bound, from its child's: `until_failure`
-/// returns Failure after `K` successful runs, `P(K = k, Failure) =
+/// Figures of a loop without a bound, from its child's: a loop until
+/// Failure returns Failure after `K` successful runs, `P(K = k, Failure) =
 /// ps^k·pf`, so `P(F) = pf/(1 − ps)` and, given that it returns,
-/// `E[K] = ps/(1 − ps)`: `MTTF = ps/(1 − ps)·MTTS + MTTF_child`;
-/// `until_success` likewise with the outcomes exchanged. The rest,
+/// `E[K] = ps/(1 − ps)`: `MTTF = ps/(1 − ps)·MTTS + MTTF_child`; a loop
+/// until Success likewise with the outcomes exchanged. The rest,
 /// `1 − P(F)`, never returns: a child that never fails (`pf = 0`) makes the
 /// loop run forever (`ps = 1`), or a run of the child that never returns
-/// (a defective child law). `None` for other decorators.
-pub(crate) fn loop_figures(
-    decorator: Decorator,
-    child: Figures,
-    _name: &str,
-) -> Result<Option<Figures>, AnalysisError> {
-    let (p_end, p_again, t_end, t_again, success) = match decorator {
-        Decorator::UntilFailure => (child.pf, child.ps, child.mttf, child.mtts, false),
-        Decorator::UntilSuccess => (child.ps, child.pf, child.mtts, child.mttf, true),
-        _ => return Ok(None),
+/// (a defective child law).
+pub(crate) fn loop_figures(until: Outcome, child: Figures) -> Figures {
+    let (p_end, p_again, t_end, t_again) = match until {
+        Outcome::Failure => (child.pf, child.ps, child.mttf, child.mtts),
+        Outcome::Success => (child.ps, child.pf, child.mtts, child.mttf),
     };
     let (p, t) = if p_end <= 0.0 {
         (0.0, None)
@@ -579,78 +564,72 @@ pub(crate) fn loop_figures(
             Some(again * t_again.unwrap_or(0.0) + t_end.unwrap_or(0.0)),
         )
     };
-    Ok(Some(if success {
-        Figures {
+    match until {
+        Outcome::Success => Figures {
             ps: p,
             pf: 0.0,
             mtts: t,
             mttf: None,
-        }
-    } else {
-        Figures {
+        },
+        Outcome::Failure => Figures {
             ps: 0.0,
             pf: p,
             mtts: None,
             mttf: t,
-        }
-    }))
+        },
+    }
 }
 
-/// Figures of a decorator from its child's (exact under both methods: the
-/// means of repeated runs add along paths).
-///
-/// * inverter: outcomes swapped; force_success/force_failure: one outcome
-///   with the child's mean time `E[T]`;
-/// * retry N: a Fallback of N fresh copies; repeat N: a Sequence of N copies,
-///   solved over their MRG like any Fallback/Sequence.
-pub(crate) fn decorator_figures(decorator: Decorator, child: Figures) -> Result<Figures, String> {
-    let decorator = decorator.as_primitive();
-    Ok(match decorator {
-        Decorator::Inverter => Figures {
-            ps: child.pf,
-            pf: child.ps,
-            mtts: child.mttf,
-            mttf: child.mtts,
+/// Figures of a [`Op::Map`] from its child's (exact under both methods):
+/// each outcome gathers the child's outcomes mapped to it, with their
+/// probability-weighted mean time (an inverter swaps the figures; a
+/// force_success has the child's mean time `E[T]` over the runs that
+/// return — a child that may never return leaves that mass never
+/// returning).
+pub(crate) fn map_figures(on_success: Outcome, on_failure: Outcome, child: Figures) -> Figures {
+    if on_success != on_failure {
+        return match on_success {
+            Outcome::Success => child,
+            Outcome::Failure => Figures {
+                ps: child.pf,
+                pf: child.ps,
+                mtts: child.mttf,
+                mttf: child.mtts,
+            },
+        };
+    }
+    let returns = child.ps + child.pf;
+    let mean = (returns > 0.0).then(|| child.mean_time() / returns);
+    match on_success {
+        Outcome::Success => Figures {
+            ps: returns,
+            pf: 0.0,
+            mtts: mean,
+            mttf: None,
         },
-        // the runs of the child that return, whatever their outcome (a
-        // child that may never return leaves that mass never returning)
-        Decorator::ForceSuccess | Decorator::ForceFailure => {
-            let returns = child.ps + child.pf;
-            let mean = (returns > 0.0).then(|| child.mean_time() / returns);
-            if decorator == Decorator::ForceSuccess {
-                Figures {
-                    ps: returns,
-                    pf: 0.0,
-                    mtts: mean,
-                    mttf: None,
-                }
-            } else {
-                Figures {
-                    ps: 0.0,
-                    pf: returns,
-                    mtts: None,
-                    mttf: mean,
-                }
-            }
-        }
-        Decorator::UntilFailure | Decorator::UntilSuccess => {
-            return loop_figures(decorator, child, "loop")
-                .map_err(|e| e.to_string())?
-                .ok_or_else(|| "not a loop".to_string())
-        }
-        Decorator::Retry { attempts: n } | Decorator::Repeat { times: n } => {
-            let policy = if matches!(decorator, Decorator::Retry { .. }) {
-                Policy::Fallback
-            } else {
-                Policy::Sequence
-            };
-            let chain = mrg_chain(&Mrg::build(policy, n), &vec![child; n], false);
-            Figures::from_absorption(&solve_absorbing(&chain)?)
-        }
-        Decorator::Rate { .. } | Decorator::SingleTrigger => {
-            unreachable!("as_primitive maps Nav2 decorators to repeat 1")
-        }
-    })
+        Outcome::Failure => Figures {
+            ps: 0.0,
+            pf: returns,
+            mtts: None,
+            mttf: mean,
+        },
+    }
+}
+
+/// Figures of a flow repeating one child (`stop`: the outcome that ends it
+/// early, Success for a Retry, Failure for a Repeat): the DTMC over the MRG
+/// of a Fallback (Sequence) of `times` fresh copies.
+pub(crate) fn repeat_figures(
+    times: usize,
+    stop: Outcome,
+    child: Figures,
+) -> Result<Figures, String> {
+    let chain = mrg_chain(
+        &Mrg::build(Policy::stopping_at(stop), times),
+        &vec![child; times],
+        false,
+    );
+    Ok(Figures::from_absorption(&solve_absorbing(&chain)?))
 }
 
 /// The DTMC over an MRG with children summarised by their figures.

@@ -11,16 +11,8 @@
 //! marking vectors. Parallel MRGs are enumerated breadth first and can grow
 //! like 3^N: [`parallel_marking_count`] bounds them before anything is built.
 
-use crate::tree::NodeKind;
-
-/// What a child or a node returns.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Outcome {
-    /// Success.
-    Success,
-    /// Failure.
-    Failure,
-}
+pub use crate::ir::Outcome;
+use crate::ir::{FlowGraph, Op};
 
 /// The return status of a node at a marking.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -51,20 +43,29 @@ pub(crate) enum Policy {
 }
 
 impl Policy {
-    /// The policy of a control node kind, `None` for leaves.
-    pub fn of(kind: &NodeKind) -> Option<Policy> {
-        match kind {
-            NodeKind::Sequence { .. } => Some(Policy::Sequence),
-            NodeKind::Fallback { .. } => Some(Policy::Fallback),
-            NodeKind::Parallel {
-                success_threshold,
-                failure_threshold,
-                ..
+    /// The policy of a chain or a k-of-n node, `None` for other operators.
+    pub fn of(op: &Op) -> Option<Policy> {
+        match op {
+            Op::Flow(f) => match f.graph {
+                FlowGraph::Chain { stop } => Some(Policy::stopping_at(stop)),
+                _ => None,
+            },
+            Op::KOfN {
+                success, failure, ..
             } => Some(Policy::Parallel {
-                success_threshold: *success_threshold,
-                failure_threshold: *failure_threshold,
+                success_threshold: *success,
+                failure_threshold: *failure,
             }),
             _ => None,
+        }
+    }
+
+    /// The chain that ends at the first child returning `stop`: a Sequence
+    /// stops at a Failure, a Fallback at a Success.
+    pub fn stopping_at(stop: Outcome) -> Policy {
+        match stop {
+            Outcome::Failure => Policy::Sequence,
+            Outcome::Success => Policy::Fallback,
         }
     }
 

@@ -4,8 +4,9 @@
 
 use super::curve_options::{CurveOptions, CurvePoint};
 use crate::compile::{self, atoms, counts, shifted, AnalysisError};
+use crate::ir::{Graph, Leaf, Op};
 use crate::solve::quadrature;
-use crate::tree::{Duration, NodeId, NodeKind, Tree};
+use crate::tree::{Duration, NodeId};
 
 /// A Parallel's curve at some times, by the planner's count programme.
 pub(crate) type CountedCurve<'a> =
@@ -52,7 +53,7 @@ const TAIL_ROUNDING: f64 = 1e-15;
 /// programme (the planner's), `fastest()` the largest total rate of the
 /// children's phase chains (0 without any), asked only when needed.
 pub(crate) fn parallel_times_by_quadrature(
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     (m, max_states): (usize, usize),
     child_figures: &[compile::Figures],
@@ -205,13 +206,13 @@ fn integrate_panels(
 /// subtree, the union of a Parallel's children's. Subtrees of exponential
 /// actions have smooth curves and add none.
 fn breakpoints(
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     max_states: usize,
     out: &mut Vec<f64>,
 ) -> Result<(), AnalysisError> {
     match &tree.node(id).kind {
-        NodeKind::Action(a) => {
+        Op::Leaf(Leaf::Action(a)) => {
             for d in [a.success, a.failure].into_iter().flatten() {
                 match d {
                     Duration::Fixed { time } => out.push(time),
@@ -221,11 +222,11 @@ fn breakpoints(
                 }
             }
         }
-        NodeKind::Condition { .. } => {}
+        Op::Leaf(Leaf::Condition { .. }) => {}
         kind => {
             if let Some(a) = atoms::atoms(tree, id, max_states)? {
                 out.extend(a.iter().map(|a| a.time));
-            } else if matches!(kind, NodeKind::Parallel { .. }) {
+            } else if matches!(kind, Op::KOfN { .. }) {
                 for &c in kind.children() {
                     breakpoints(tree, c, max_states, out)?;
                 }

@@ -24,8 +24,9 @@ use std::collections::HashMap;
 
 use super::mrg::{Policy, Status};
 use super::AnalysisError;
+use crate::ir::{FlowGraph, Graph, Leaf, Op, Outcome};
 use crate::solve::chain::PhaseChain;
-use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
+use crate::tree::{Duration, NodeId, Tree};
 
 /// A distribution over "where a run goes next": transient phases, or an
 /// instantaneous Success or Failure.
@@ -46,10 +47,8 @@ pub fn phase_chain(
     id: NodeId,
     max_states: usize,
 ) -> Result<PhaseChain, AnalysisError> {
-    match super::primitive_view(tree)? {
-        Some(view) => chain_of(&view.tree, view.image[id], max_states),
-        None => chain_of(tree, id, max_states),
-    }
+    let lowered = super::lower(tree)?;
+    chain_of(&lowered.graph, lowered.node(id), max_states)
 }
 
 /// Whether an outcome of probability `p` with time `d` has a phase chain:
@@ -65,9 +64,9 @@ pub(crate) fn outcome_markovian(p: f64, d: Option<Duration>) -> bool {
 /// Whether the subtree at `id` of a primitive tree has a phase chain (every
 /// action's outcomes [`outcome_markovian`]): then [`chain_of`] can fail only
 /// for its budget. Decided from the leaves, before building anything.
-pub(crate) fn markovian(tree: &Tree, id: NodeId) -> bool {
+pub(crate) fn markovian(tree: &Graph, id: NodeId) -> bool {
     tree.subtree(id).all(|n| match &tree.node(n).kind {
-        NodeKind::Action(a) => {
+        Op::Leaf(Leaf::Action(a)) => {
             outcome_markovian(a.ps, a.success) && outcome_markovian(a.pf, a.failure)
         }
         _ => true,
@@ -77,7 +76,7 @@ pub(crate) fn markovian(tree: &Tree, id: NodeId) -> bool {
 /// [`chain_of`] where the subtree is [`markovian`], `None` (nothing built)
 /// where it is not.
 pub(crate) fn markovian_chain_of(
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     max_states: usize,
 ) -> Result<Option<PhaseChain>, AnalysisError> {
@@ -87,27 +86,14 @@ pub(crate) fn markovian_chain_of(
     chain_of(tree, id, max_states).map(Some)
 }
 
-/// [`phase_chain`] where the subtree (its primitive view) is
-/// [`markovian`], `None` where it is not.
-pub(crate) fn markovian_chain(
-    tree: &Tree,
-    id: NodeId,
-    max_states: usize,
-) -> Result<Option<PhaseChain>, AnalysisError> {
-    match super::primitive_view(tree)? {
-        Some(view) => markovian_chain_of(&view.tree, view.image[id], max_states),
-        None => markovian_chain_of(tree, id, max_states),
-    }
-}
-
 pub(crate) fn chain_of(
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     max_states: usize,
 ) -> Result<PhaseChain, AnalysisError> {
     let node = tree.node(id);
     match &node.kind {
-        NodeKind::Action(a) => {
+        Op::Leaf(Leaf::Action(a)) => {
             let mut c = PhaseChain::default();
             for (p, d, success) in [(a.ps, a.success, true), (a.pf, a.failure, false)] {
                 if p <= 0.0 {
@@ -156,7 +142,7 @@ pub(crate) fn chain_of(
             }
             Ok(c)
         }
-        NodeKind::Condition { ps } => Ok(PhaseChain {
+        Op::Leaf(Leaf::Condition { ps }) => Ok(PhaseChain {
             initial_success: *ps,
             initial_failure: 1.0 - ps,
             ..PhaseChain::default()
@@ -178,81 +164,34 @@ pub(crate) fn chain_of(
 /// transformation, or the Parallel product. Lets a caller substitute a
 /// child's chain (e.g. by a marker, see [`crate::compile::curve`]).
 pub(crate) fn combine(
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     chains: Vec<PhaseChain>,
     max_states: usize,
 ) -> Result<PhaseChain, AnalysisError> {
     let node = tree.node(id);
     match &node.kind {
-        NodeKind::Action(_) | NodeKind::Condition { .. } => {
-            unreachable!("combine is called on control nodes")
-        }
-        // Nav2 nodes as their primitive equivalents (`primitive_view`)
-        NodeKind::Sequence { .. }
-        | NodeKind::SequenceWithMemory { .. }
-        | NodeKind::Fallback { .. }
-        | NodeKind::Pipeline { .. }
-        | NodeKind::RoundRobin { .. } => {
-            let total: usize = chains.iter().map(PhaseChain::len).sum();
-            if total > max_states {
-                return Err(AnalysisError::StateBudget {
-                    node: node.name.clone(),
-                    states: total as f64,
-                    budget: max_states,
-                });
-            }
-            let sequence = matches!(
-                node.kind,
-                NodeKind::Sequence { .. }
-                    | NodeKind::Pipeline { .. }
-                    | NodeKind::SequenceWithMemory { .. }
-            );
-            Ok(concatenate(chains, sequence))
-        }
-        NodeKind::Flow(flow) => {
-            let total = super::flow::glued_len(flow, &chains);
-            if total > max_states {
-                return Err(AnalysisError::StateBudget {
-                    node: node.name.clone(),
-                    states: total as f64,
-                    budget: max_states,
-                });
-            }
-            Ok(super::flow::glue(flow, &chains))
-        }
-        NodeKind::Decorator { decorator, .. } => {
-            let mut c = chains.into_iter().next().expect("a decorator has a child");
-            let decorator = decorator.as_primitive();
-            let copies = match decorator {
-                Decorator::Inverter => {
-                    std::mem::swap(&mut c.exit_success, &mut c.exit_failure);
-                    std::mem::swap(&mut c.initial_success, &mut c.initial_failure);
-                    return Ok(c);
-                }
-                Decorator::ForceSuccess | Decorator::ForceFailure => {
-                    let success = decorator == Decorator::ForceSuccess;
-                    for i in 0..c.len() {
-                        let total = c.exit_success[i] + c.exit_failure[i];
-                        (c.exit_success[i], c.exit_failure[i]) =
-                            if success { (total, 0.0) } else { (0.0, total) };
+        Op::Leaf(_) => unreachable!("combine is called on control nodes"),
+        Op::Flow(flow) => {
+            let (copies, stop) = match flow.graph {
+                FlowGraph::Chain { stop } => (None, stop),
+                FlowGraph::Repeat { times, stop } => (Some(times), stop),
+                FlowGraph::States(_) => {
+                    let total = super::flow::glued_len(flow, &chains);
+                    if total > max_states {
+                        return Err(AnalysisError::StateBudget {
+                            node: node.name.clone(),
+                            states: total as f64,
+                            budget: max_states,
+                        });
                     }
-                    let total = c.initial_success + c.initial_failure;
-                    (c.initial_success, c.initial_failure) =
-                        if success { (total, 0.0) } else { (0.0, total) };
-                    return Ok(c);
-                }
-                Decorator::Retry { attempts } => attempts,
-                Decorator::Repeat { times } => times,
-                Decorator::UntilFailure | Decorator::UntilSuccess => {
-                    let until_success = decorator == Decorator::UntilSuccess;
-                    return unrolled_loop(&node.name, c, until_success, max_states);
-                }
-                Decorator::Rate { .. } | Decorator::SingleTrigger => {
-                    unreachable!("as_primitive maps Nav2 decorators to repeat 1")
+                    return Ok(super::flow::glue(flow, &chains));
                 }
             };
-            let total = c.len() as f64 * copies as f64;
+            let total = match copies {
+                None => chains.iter().map(PhaseChain::len).sum::<usize>() as f64,
+                Some(k) => chains[0].len() as f64 * k as f64,
+            };
             if total > max_states as f64 {
                 return Err(AnalysisError::StateBudget {
                     node: node.name.clone(),
@@ -260,12 +199,27 @@ pub(crate) fn combine(
                     budget: max_states,
                 });
             }
-            let sequence = matches!(decorator, Decorator::Repeat { .. });
-            Ok(concatenate(vec![c; copies], sequence))
+            let sequence = stop == Outcome::Failure;
+            Ok(match copies {
+                None => concatenate(chains, sequence),
+                Some(k) => concatenate(vec![chains[0].clone(); k], sequence),
+            })
         }
-        NodeKind::Parallel {
-            success_threshold,
-            failure_threshold,
+        Op::Map {
+            on_success,
+            on_failure,
+            ..
+        } => {
+            let c = chains.into_iter().next().expect("a map has a child");
+            Ok(map_outcomes(c, *on_success, *on_failure))
+        }
+        Op::Loop { until, .. } => {
+            let c = chains.into_iter().next().expect("a loop has a child");
+            unrolled_loop(&node.name, c, *until == Outcome::Success, max_states)
+        }
+        Op::KOfN {
+            success: success_threshold,
+            failure: failure_threshold,
             children,
         } => {
             let policy = Policy::of(&node.kind).expect("a Parallel has a policy");
@@ -289,6 +243,24 @@ pub(crate) fn combine(
             })
         }
     }
+}
+
+/// A chain whose exits to Success lead to `on_success` and whose exits to
+/// Failure lead to `on_failure` (an inverter swaps them, a force decorator
+/// merges them).
+fn map_outcomes(mut c: PhaseChain, on_success: Outcome, on_failure: Outcome) -> PhaseChain {
+    let k = |o: Outcome| usize::from(o == Outcome::Failure);
+    let map = |s: f64, f: f64| {
+        let mut out = [0.0; 2];
+        out[k(on_success)] += s;
+        out[k(on_failure)] += f;
+        (out[0], out[1])
+    };
+    for i in 0..c.len() {
+        (c.exit_success[i], c.exit_failure[i]) = map(c.exit_success[i], c.exit_failure[i]);
+    }
+    (c.initial_success, c.initial_failure) = map(c.initial_success, c.initial_failure);
+    c
 }
 
 /// Mass a loop's unrolled chain may leave behind ([`unrolled_loop`]).

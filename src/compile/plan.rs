@@ -54,10 +54,11 @@ use super::{
     atoms, book_ctmc, chain_curve, counts, flow, law, parallel_times, phase, race, AnalysisError,
     Figures, Method,
 };
+use crate::ir::{FlowGraph, Graph, Leaf, Op};
 use crate::solve::chain::PhaseChain;
 use crate::solve::solve_absorbing;
 use crate::tree::nav2::MAX_RERUN_TERMS;
-use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
+use crate::tree::{Duration, NodeId};
 
 /// What the planner knows of a subtree before building anything.
 #[derive(Debug, Clone, Copy)]
@@ -84,7 +85,7 @@ fn side(p: f64, d: Option<Duration>) -> (bool, bool) {
     }
 }
 
-fn shapes(tree: &Tree) -> Vec<Shape> {
+fn shapes(tree: &Graph) -> Vec<Shape> {
     let mut out = vec![
         Shape {
             exponential: true,
@@ -96,7 +97,7 @@ fn shapes(tree: &Tree) -> Vec<Shape> {
     // pre-order: reverse order is bottom-up
     for id in (0..tree.nodes.len()).rev() {
         out[id] = match &tree.node(id).kind {
-            NodeKind::Action(a) => {
+            Op::Leaf(Leaf::Action(a)) => {
                 let (es, ds) = side(a.ps, a.success);
                 let (ef, df) = side(a.pf, a.failure);
                 Shape {
@@ -105,7 +106,7 @@ fn shapes(tree: &Tree) -> Vec<Shape> {
                     looped: false,
                 }
             }
-            NodeKind::Condition { .. } => out[id],
+            Op::Leaf(Leaf::Condition { .. }) => out[id],
             kind => {
                 let mut s = out[id];
                 for &c in kind.children() {
@@ -113,7 +114,7 @@ fn shapes(tree: &Tree) -> Vec<Shape> {
                     s.deterministic &= out[c].deterministic;
                     s.looped |= out[c].looped;
                 }
-                s.looped |= is_loop(kind);
+                s.looped |= matches!(kind, Op::Loop { .. });
                 s
             }
         };
@@ -121,38 +122,28 @@ fn shapes(tree: &Tree) -> Vec<Shape> {
     out
 }
 
-fn is_loop(kind: &NodeKind) -> bool {
-    matches!(
-        kind,
-        NodeKind::Decorator {
-            decorator: Decorator::UntilFailure | Decorator::UntilSuccess,
-            ..
-        }
-    )
-}
-
 /// `(M, F capped at N − M + 1, N)` of a Parallel.
-fn thresholds(kind: &NodeKind) -> Option<(usize, usize, usize)> {
+fn thresholds(kind: &Op) -> Option<(usize, usize, usize)> {
     match kind {
-        NodeKind::Parallel {
-            success_threshold,
-            failure_threshold,
+        Op::KOfN {
+            success,
+            failure,
             children,
-        } => Some((*success_threshold, *failure_threshold, children.len())),
+        } => Some((*success, *failure, children.len())),
         _ => None,
     }
 }
 
 /// Whether a Parallel has the book's thresholds (`F ≥ N − M + 1`): it
 /// returns Success iff ≥ M children have succeeded.
-fn book_thresholds(kind: &NodeKind) -> bool {
+fn book_thresholds(kind: &Op) -> bool {
     thresholds(kind).is_some_and(|(m, f, n)| f > n - m)
 }
 
 /// The planner answers the representations' questions about the subtrees
 /// below them (module [`super::children`]).
 impl Children for Plan<'_> {
-    fn tree(&self) -> &Tree {
+    fn tree(&self) -> &Graph {
         Plan::tree(self)
     }
     fn max_states(&self) -> usize {
@@ -187,7 +178,7 @@ impl Children for Plan<'_> {
 impl Plan<'static> {
     /// [`Plan::new`] owning its tree (a plan kept beside the tree it was
     /// made from, as the `Model` keeps it).
-    pub fn owned(tree: Tree, method: Method, max_states: usize) -> Plan<'static> {
+    pub fn owned(tree: Graph, method: Method, max_states: usize) -> Plan<'static> {
         Plan::with_tree(std::borrow::Cow::Owned(tree), method, max_states)
     }
 }
@@ -197,7 +188,7 @@ impl Plan<'static> {
 pub struct Plan<'t> {
     /// The primitive tree: borrowed, or owned by a plan that outlives its
     /// caller's tree ([`Plan::owned`], the `Model`'s).
-    tree: std::borrow::Cow<'t, Tree>,
+    tree: std::borrow::Cow<'t, Graph>,
     method: Method,
     max_states: usize,
     shapes: Vec<Shape>,
@@ -218,14 +209,13 @@ pub struct Plan<'t> {
 }
 
 impl<'t> Plan<'t> {
-    /// The plan of `tree` (a primitive tree: no Nav2 nodes left, see
-    /// [`super::primitive_view`]) under `method`, with at most `max_states`
-    /// states in any chain.
-    pub fn new(tree: &'t Tree, method: Method, max_states: usize) -> Plan<'t> {
+    /// The plan of `tree` (a tree's core IR, [`super::lower`]) under
+    /// `method`, with at most `max_states` states in any chain.
+    pub fn new(tree: &'t Graph, method: Method, max_states: usize) -> Plan<'t> {
         Plan::with_tree(std::borrow::Cow::Borrowed(tree), method, max_states)
     }
 
-    fn with_tree(tree: std::borrow::Cow<'t, Tree>, method: Method, max_states: usize) -> Plan<'t> {
+    fn with_tree(tree: std::borrow::Cow<'t, Graph>, method: Method, max_states: usize) -> Plan<'t> {
         let n = tree.nodes.len();
         Plan {
             shapes: shapes(&tree),
@@ -242,8 +232,8 @@ impl<'t> Plan<'t> {
         }
     }
 
-    /// The tree planned.
-    pub fn tree(&self) -> &Tree {
+    /// The IR planned.
+    pub fn tree(&self) -> &Graph {
         &self.tree
     }
 
@@ -296,7 +286,7 @@ impl<'t> Plan<'t> {
         if self.method == Method::Book {
             return Ok(Representation::Book);
         }
-        if is_loop(kind) {
+        if matches!(kind, Op::Loop { .. }) {
             return Ok(Representation::Loop);
         }
         if shape.deterministic && !shape.looped {
@@ -382,15 +372,25 @@ impl<'t> Plan<'t> {
             node: node.name.clone(),
             what,
         };
-        if let NodeKind::Decorator { decorator, .. } = node.kind {
-            if let Some(f) = super::loop_figures(decorator, child_figs[0], &node.name)? {
-                return Ok(f);
-            }
-            return super::decorator_figures(decorator, child_figs[0]).map_err(numerical);
-        }
-        if let NodeKind::Flow(flow) = &node.kind {
-            let a = solve_absorbing(&flow::figures_chain(flow, child_figs)).map_err(numerical)?;
-            return Ok(Figures::from_absorption(&a));
+        match &node.kind {
+            Op::Loop { until, .. } => return Ok(super::loop_figures(*until, child_figs[0])),
+            Op::Map {
+                on_success,
+                on_failure,
+                ..
+            } => return Ok(super::map_figures(*on_success, *on_failure, child_figs[0])),
+            Op::Flow(flow) => match flow.graph {
+                FlowGraph::Chain { .. } => {}
+                FlowGraph::Repeat { times, stop } => {
+                    return super::repeat_figures(times, stop, child_figs[0]).map_err(numerical)
+                }
+                FlowGraph::States(_) => {
+                    let chain = flow::figures_chain(flow, child_figs);
+                    let a = solve_absorbing(&chain).map_err(numerical)?;
+                    return Ok(Figures::from_absorption(&a));
+                }
+            },
+            _ => {}
         }
         let policy = Policy::of(&node.kind).expect("control node");
         let n = child_figs.len();
@@ -487,10 +487,7 @@ impl<'t> Plan<'t> {
         // a race against a renewal process of re-runs (or the Sequence that
         // starts it): exact by levels of its wait, without a series
         if self.method != Method::Book
-            && matches!(
-                node.kind,
-                NodeKind::Parallel { .. } | NodeKind::Sequence { .. }
-            )
+            && (matches!(node.kind, Op::KOfN { .. }) || is_sequence(&node.kind))
         {
             if let Some(points) = super::renewal_curve::curve(&self.tree, id, times, options)? {
                 return Ok(points);
@@ -562,18 +559,18 @@ impl<'t> Plan<'t> {
         match self.representation(id)? {
             Representation::Closed => Ok(match &node.kind {
                 // an outcome without a duration has probability 0
-                NodeKind::Action(a) => points(&|t| {
+                Op::Leaf(Leaf::Action(a)) => points(&|t| {
                     let cdf = |d: Option<Duration>| d.map_or(0.0, |d| d.cdf(t));
                     (a.ps * cdf(a.success), a.pf * cdf(a.failure))
                 }),
-                NodeKind::Condition { ps } => points(&|_| (*ps, 1.0 - ps)),
+                Op::Leaf(Leaf::Condition { ps }) => points(&|_| (*ps, 1.0 - ps)),
                 _ => unreachable!("closed form is for leaves"),
             }),
             Representation::Loop => {
-                let NodeKind::Decorator { decorator, child } = node.kind else {
-                    unreachable!("a loop is a decorator")
+                let Op::Loop { child, until } = node.kind else {
+                    unreachable!("planned as a loop")
                 };
-                law::loop_curve(self, id, child, decorator, times, options)
+                law::loop_curve(self, id, child, until, times, options)
             }
             Representation::Atoms => {
                 let a = atoms::atoms(&self.tree, id, self.max_states)?
@@ -639,10 +636,22 @@ impl<'t> Plan<'t> {
                 let figs = self.book_figures()?;
                 let children = node.kind.children();
                 let child_figs: Vec<Figures> = children.iter().map(|&c| figs[c]).collect();
-                let chain = if let NodeKind::Decorator { decorator, .. } = node.kind {
-                    book_ctmc::book_decorator(decorator, child_figs[0])
-                } else if let NodeKind::Flow(flow) = &node.kind {
-                    flow::book_chain(flow, &child_figs)
+                let chain = if let Op::Map {
+                    on_success,
+                    on_failure,
+                    ..
+                } = node.kind
+                {
+                    book_ctmc::book_map(on_success, on_failure, child_figs[0])
+                } else if let Op::Loop { until, .. } = node.kind {
+                    book_ctmc::book_loop(until, child_figs[0])
+                } else if let Some(flow) = not_chain(&node.kind) {
+                    match flow.graph {
+                        FlowGraph::Repeat { times, stop } => {
+                            book_ctmc::book_repeat(times, stop, child_figs[0])
+                        }
+                        _ => flow::book_chain(flow, &child_figs),
+                    }
                 } else {
                     let policy = Policy::of(&node.kind).expect("control node");
                     if let Some((m, f, n)) = thresholds(&node.kind) {
@@ -668,14 +677,14 @@ impl<'t> Plan<'t> {
             races.iter().find(|(race, _)| inside.contains(race))?.0
         } else {
             self.tree.subtree(id).find(|&n| {
-                matches!(self.tree.node(n).kind, NodeKind::Parallel { .. })
+                matches!(self.tree.node(n).kind, Op::KOfN { .. })
                     && super::renewal::parts(&self.tree, n).is_some()
             })?
         };
         Some(match self.tree.node(race).parent {
             Some(p)
-                if matches!(&self.tree.node(p).kind,
-                    NodeKind::Sequence { children } if children.last() == Some(&race)) =>
+                if is_sequence(&self.tree.node(p).kind)
+                    && self.tree.node(p).kind.children().last() == Some(&race) =>
             {
                 p
             }
@@ -688,7 +697,7 @@ impl<'t> Plan<'t> {
     fn long_renewals(&self) -> &[(NodeId, NodeId)] {
         self.long_renewals.get_or_init(|| {
             (0..self.tree.nodes.len())
-                .filter(|&id| matches!(self.tree.node(id).kind, NodeKind::Parallel { .. }))
+                .filter(|&id| matches!(self.tree.node(id).kind, Op::KOfN { .. }))
                 .filter_map(|id| {
                     let (process, terms) = super::renewal::series(&self.tree, id, self.max_states)?;
                     (terms > MAX_RERUN_TERMS as f64).then_some((id, process))
@@ -786,11 +795,26 @@ impl<'t> Plan<'t> {
         self.tree
             .subtree(id)
             .find(|&d| {
-                matches!(self.tree.node(d).kind, NodeKind::Action(_)) && !self.shapes[d].exponential
+                matches!(self.tree.node(d).kind, Op::Leaf(Leaf::Action(_)))
+                    && !self.shapes[d].exponential
             })
             .map_or_else(
                 || self.tree.node(id).name.clone(),
                 |d| self.tree.node(d).name.clone(),
             )
+    }
+}
+
+/// Whether `op` is a Sequence (the chain that stops at a Failure).
+fn is_sequence(op: &Op) -> bool {
+    op.sequence().is_some()
+}
+
+/// The flow of `op` when it is a flow other than a chain (a repetition or
+/// any graph of states).
+fn not_chain(op: &Op) -> Option<&crate::ir::Flow> {
+    match op {
+        Op::Flow(f) if !matches!(f.graph, FlowGraph::Chain { .. }) => Some(f),
+        _ => None,
     }
 }

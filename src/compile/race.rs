@@ -50,12 +50,13 @@ use super::renewal::Renewal;
 use super::renewal_curve;
 use super::shifted::{self, ShiftedLaw};
 use super::{counts, AnalysisError, Figures};
+use crate::ir::{Graph, Op};
 use crate::solve::chain::PhaseChain;
 use crate::solve::quadrature::GaussLegendre;
 use crate::solve::transient::uniformization_work;
 use crate::tree::nav2::MAX_RERUN_TERMS;
 use crate::tree::same_instant;
-use crate::tree::{Duration, NodeId, NodeKind};
+use crate::tree::{Duration, NodeId};
 
 /// Points of the quadrature rule (the error is estimated against half).
 const RULE: usize = 24;
@@ -897,13 +898,13 @@ fn parallel_racers(
     horizon: f64,
 ) -> Result<(usize, usize, Vec<Racer>), AnalysisError> {
     let tree = plan.tree();
-    let NodeKind::Parallel {
-        success_threshold: m,
-        failure_threshold: f,
+    let Op::KOfN {
+        success: m,
+        failure: f,
         children,
     } = &tree.node(id).kind
     else {
-        unreachable!("counted nodes and races are Parallel nodes")
+        unreachable!("counted nodes and races are k-of-n nodes")
     };
     let f = (*f).min(children.len() + 1 - m);
     let horizon = horizon.min(sure_return(tree, *m, f, children));
@@ -918,14 +919,12 @@ fn parallel_racers(
 /// surely returned, or infinity: with `m = f = 1` (it returns with its first
 /// child, BT.CPP's `Timeout`) the earliest time by which a leaf child has
 /// surely returned — a deadline's fixed time.
-fn sure_return(tree: &crate::tree::Tree, m: usize, f: usize, children: &[NodeId]) -> f64 {
+fn sure_return(tree: &Graph, m: usize, f: usize, children: &[NodeId]) -> f64 {
     if m != 1 || f != 1 {
         return f64::INFINITY;
     }
     let latest = |c: NodeId| -> Option<f64> {
-        let NodeKind::Action(a) = &tree.node(c).kind else {
-            return None;
-        };
+        let a = tree.node(c).kind.action()?;
         let side = |p: f64, d: Option<Duration>| match (p > 0.0, d) {
             (false, _) => Some(0.0),
             (true, Some(Duration::Fixed { time })) => Some(time),
@@ -975,7 +974,7 @@ pub(crate) fn renewal_race(
     let super::renewal::Rest::Node(r) = parts.rest else {
         return Ok(None);
     };
-    let NodeKind::Parallel { children, .. } = &tree.node(id).kind else {
+    let Op::KOfN { children, .. } = &tree.node(id).kind else {
         return Ok(None);
     };
     let name = tree.node(id).name.clone();

@@ -64,11 +64,12 @@
 //! work); about 160 lines are comments, 60 tests.
 
 use super::{phase, AnalysisError, Figures};
+use crate::ir::outcomes;
+use crate::ir::{Graph, Op, Outcome};
 use crate::solve::chain::PhaseChain;
 use crate::solve::dd::Dd;
 use crate::solve::expm::{self, MAX_DENSE_STATES};
-use crate::tree::nav2::outcomes;
-use crate::tree::{Decorator, Duration, NodeId, NodeKind, Tree};
+use crate::tree::{Duration, NodeId};
 
 /// Most operations (exponential and passes) the method takes on.
 const MAX_WORK: f64 = 4e9;
@@ -119,7 +120,7 @@ pub(super) enum Rest {
 
 /// The phase chain of `R`.
 pub(super) fn rest_chain(
-    tree: &Tree,
+    tree: &Graph,
     rest: &Rest,
     max_states: usize,
 ) -> Result<Option<PhaseChain>, AnalysisError> {
@@ -140,9 +141,9 @@ pub(super) fn rest_chain(
 
 /// The time of `w` when it is a wait: an action with ps 1 and a fixed
 /// success time in (0, ∞).
-fn wait_time(tree: &Tree, w: NodeId) -> Option<f64> {
+fn wait_time(tree: &Graph, w: NodeId) -> Option<f64> {
     match &tree.node(w).kind {
-        NodeKind::Action(a) if a.ps == 1.0 && a.pf == 0.0 => match a.success {
+        Op::Leaf(crate::ir::Leaf::Action(a)) if a.ps == 1.0 && a.pf == 0.0 => match a.success {
             Some(Duration::Fixed { time }) if time > 0.0 && time.is_finite() => Some(time),
             _ => None,
         },
@@ -151,18 +152,15 @@ fn wait_time(tree: &Tree, w: NodeId) -> Option<f64> {
 }
 
 /// `until_failure(Sequence(wait d, C′))`: `(d, C′)`.
-fn renewal_loop(tree: &Tree, p: NodeId) -> Option<(f64, NodeId)> {
-    let NodeKind::Decorator {
-        decorator: Decorator::UntilFailure,
+fn renewal_loop(tree: &Graph, p: NodeId) -> Option<(f64, NodeId)> {
+    let Op::Loop {
         child,
+        until: Outcome::Failure,
     } = tree.node(p).kind
     else {
         return None;
     };
-    let NodeKind::Sequence { children } = &tree.node(child).kind else {
-        return None;
-    };
-    let [w, c] = children[..] else {
+    let [w, c] = *tree.node(child).kind.sequence()? else {
         return None;
     };
     Some((wait_time(tree, w)?, c))
@@ -172,15 +170,12 @@ fn renewal_loop(tree: &Tree, p: NodeId) -> Option<(f64, NodeId)> {
 type Process = (f64, NodeId, Option<(f64, NodeId)>);
 
 /// The re-run process `p` (see [`Parts`]).
-pub(super) fn process(tree: &Tree, p: NodeId) -> Option<Process> {
+pub(super) fn process(tree: &Graph, p: NodeId) -> Option<Process> {
     if let Some((d, c)) = renewal_loop(tree, p) {
         return Some((d, c, None));
     }
     // a first cycle of its own (Nav2's SpeedController), then the loop
-    let NodeKind::Sequence { children } = &tree.node(p).kind else {
-        return None;
-    };
-    let [w0, c0, l] = children[..] else {
+    let [w0, c0, l] = *tree.node(p).kind.sequence()? else {
         return None;
     };
     let d0 = wait_time(tree, w0)?;
@@ -196,10 +191,10 @@ pub(super) fn process(tree: &Tree, p: NodeId) -> Option<Process> {
 /// process against `R` = Parallel{M, 1}(the others), which returns when
 /// M of them have succeeded or one has failed (MoveIt Pro's
 /// `KeepRunningUntilFailure` beside the actions it watches).
-pub(super) fn parts(tree: &Tree, id: NodeId) -> Option<Parts> {
-    let NodeKind::Parallel {
-        success_threshold: m,
-        failure_threshold: f,
+pub(super) fn parts(tree: &Graph, id: NodeId) -> Option<Parts> {
+    let Op::KOfN {
+        success: m,
+        failure: f,
         children,
     } = &tree.node(id).kind
     else {
@@ -272,7 +267,7 @@ fn series_terms(c: &PhaseChain) -> f64 {
 
 /// When node `id` is a renewal race whose re-run has a phase chain: the
 /// re-run process and the number of re-runs its law's series needs.
-pub(crate) fn series(tree: &Tree, id: NodeId, max_states: usize) -> Option<(NodeId, f64)> {
+pub(crate) fn series(tree: &Graph, id: NodeId, max_states: usize) -> Option<(NodeId, f64)> {
     let p = parts(tree, id)?;
     let c = phase::chain_of(tree, p.rerun, max_states).ok()?;
     Some((p.process, series_terms(&c)))
@@ -281,7 +276,7 @@ pub(crate) fn series(tree: &Tree, id: NodeId, max_states: usize) -> Option<(Node
 /// The exact figures of node `id` when it is a renewal race whose sides
 /// have phase chains (module docs).
 pub(crate) fn figures(
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     max_states: usize,
 ) -> Result<Renewal, AnalysisError> {

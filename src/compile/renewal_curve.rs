@@ -82,9 +82,10 @@ use super::chain_curve::solve_chain;
 use super::curve_options::{CurveOptions, CurvePoint};
 use super::renewal;
 use super::{phase, AnalysisError};
+use crate::ir::Graph;
 use crate::solve::chain::PhaseChain;
 use crate::solve::transient::poisson_window;
-use crate::tree::{NodeId, NodeKind, Tree};
+use crate::tree::NodeId;
 
 /// Most operations the method takes on.
 const MAX_WORK: f64 = 4e9;
@@ -111,15 +112,17 @@ struct Chains {
 
 /// Outcome of [`chains`]: `None` when node `id` is not such a race (or a
 /// side has no phase chain).
-fn chains(tree: &Tree, id: NodeId, max_states: usize) -> Result<Option<Chains>, AnalysisError> {
+fn chains(tree: &Graph, id: NodeId, max_states: usize) -> Result<Option<Chains>, AnalysisError> {
     let (race, prefix_ids): (NodeId, &[NodeId]) = if renewal::parts(tree, id).is_some() {
         (id, &[])
     } else {
-        match &tree.node(id).kind {
-            NodeKind::Sequence { children } => match children.split_last() {
-                Some((&last, rest)) if renewal::parts(tree, last).is_some() => (last, rest),
-                _ => return Ok(None),
-            },
+        match tree
+            .node(id)
+            .kind
+            .sequence()
+            .and_then(<[NodeId]>::split_last)
+        {
+            Some((&last, rest)) if renewal::parts(tree, last).is_some() => (last, rest),
             _ => return Ok(None),
         }
     };
@@ -588,7 +591,7 @@ impl Level {
 /// docs); `None` when it is not, a side has no phase chain, or the re-run
 /// cannot fail (the race is then R's alone).
 pub(super) fn prepare(
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     t_max: f64,
     max_states: usize,
@@ -607,7 +610,7 @@ pub(super) fn prepare(
 /// has no phase chain (`race::renewal_race`). `None` when it is no such
 /// process, `C′` has no phase chain, or it never fails.
 pub(super) fn prepare_process(
-    tree: &Tree,
+    tree: &Graph,
     process: NodeId,
     t_max: f64,
     max_states: usize,
@@ -919,7 +922,7 @@ struct Top {
 /// ending with one after Markovian children (module docs); `None` when it
 /// is not, or a side has no phase chain.
 pub(crate) fn curve(
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     times: &[f64],
     options: &CurveOptions,

@@ -53,8 +53,9 @@
 use super::chain_curve::sample_weighted;
 use super::renewal_curve::{self, Level};
 use super::AnalysisError;
+use crate::ir::{Graph, Op};
 use crate::solve::interpolant::{build_on, BuildError, Interpolant};
-use crate::tree::{NodeId, NodeKind, Tree};
+use crate::tree::NodeId;
 
 /// Levels after which the densities are taken as smooth across level
 /// boundaries (each level smooths the delay equation's solution by one
@@ -74,7 +75,7 @@ pub(super) type RaceLaw = ([f64; 2], [Interpolant; 2]);
 /// with one after Markovian children; `None` when it is not (or a side
 /// has no phase chain).
 pub(super) fn law(
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     end: f64,
     max_states: usize,
@@ -168,10 +169,10 @@ pub(super) fn law(
 }
 
 /// The name of the re-run of the race that `id` is or ends with.
-fn rerun_name(tree: &Tree, id: NodeId) -> String {
-    let race = match &tree.node(id).kind {
-        NodeKind::Sequence { children } => children.last().copied().unwrap_or(id),
-        _ => id,
+fn rerun_name(tree: &Graph, id: NodeId) -> String {
+    let race = match tree.node(id).kind.sequence() {
+        Some(children) => children.last().copied().unwrap_or(id),
+        None => id,
     };
     super::renewal::parts(tree, race).map_or_else(
         || tree.node(id).name.clone(),
@@ -181,9 +182,8 @@ fn rerun_name(tree: &Tree, id: NodeId) -> String {
 
 /// Whether a renewal race lies in the subtree of `id` (its law is then
 /// composed from its children's, the race's own from [`law`]).
-pub(super) fn holds_race(tree: &Tree, id: NodeId) -> bool {
+pub(super) fn holds_race(tree: &Graph, id: NodeId) -> bool {
     tree.subtree(id).any(|n| {
-        matches!(tree.node(n).kind, NodeKind::Parallel { .. })
-            && super::renewal::parts(tree, n).is_some()
+        matches!(tree.node(n).kind, Op::KOfN { .. }) && super::renewal::parts(tree, n).is_some()
     })
 }

@@ -42,9 +42,10 @@ use super::atoms::{self, Atom};
 use super::mrg::Outcome;
 use super::phase;
 use super::AnalysisError;
+use crate::ir::{Flow, FlowGraph, Graph, Op};
 use crate::solve::chain::PhaseChain;
 use crate::tree::same_instant;
-use crate::tree::{Decorator, Duration, Flow, FlowNext, NodeId, NodeKind, Tree};
+use crate::tree::{Duration, FlowNext, NodeId};
 
 /// One term `weight · (δ_shift ⊛ PH(chain))` of an outcome's law.
 #[derive(Debug, Clone)]
@@ -226,7 +227,7 @@ fn held(parts: &[&[Component]]) -> usize {
 /// The shifted phase-type law of the subtree at `id`, or `None` when it
 /// holds a Parallel that mixes timings (no such form). Fails when the
 /// components would hold more than `max_states` phases in all.
-fn budget(tree: &Tree, id: NodeId, states: f64, max_states: usize) -> AnalysisError {
+fn budget(tree: &Graph, id: NodeId, states: f64, max_states: usize) -> AnalysisError {
     AnalysisError::StateBudget {
         node: tree.node(id).name.clone(),
         states,
@@ -235,7 +236,7 @@ fn budget(tree: &Tree, id: NodeId, states: f64, max_states: usize) -> AnalysisEr
 }
 
 pub fn shifted_law(
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     max_states: usize,
 ) -> Result<Option<ShiftedLaw>, AnalysisError> {
@@ -250,7 +251,7 @@ pub fn shifted_law(
 /// instant is never read. Without a horizon (`f64::INFINITY`) it is
 /// [`shifted_law`].
 pub fn shifted_law_within(
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     max_states: usize,
     horizon: f64,
@@ -270,14 +271,14 @@ pub fn shifted_law_within(
 }
 
 fn shifted_law_unclipped(
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     max_states: usize,
     horizon: f64,
 ) -> Result<Option<ShiftedLaw>, AnalysisError> {
     let node = tree.node(id);
     // Markovian subtrees: their exact chain, one component per outcome
-    if let Some(chain) = phase::markovian_chain(tree, id, max_states)? {
+    if let Some(chain) = phase::markovian_chain_of(tree, id, max_states)? {
         return Ok(Some(ShiftedLaw {
             success: vec![Component {
                 shift: 0.0,
@@ -291,7 +292,7 @@ fn shifted_law_unclipped(
             }],
         }));
     }
-    if let NodeKind::Action(a) = &node.kind {
+    if let Some(a) = node.kind.action() {
         return Ok(Some(ShiftedLaw {
             success: leaf_side(a.ps, a.success),
             failure: leaf_side(a.pf, a.failure),
@@ -316,53 +317,50 @@ fn shifted_law_unclipped(
         Ok(l)
     };
     let law = match &node.kind {
-        // Nav2 nodes as their primitive equivalents (`primitive_view`)
-        NodeKind::Sequence { .. }
-        | NodeKind::Pipeline { .. }
-        | NodeKind::SequenceWithMemory { .. } => {
-            in_turn(laws, true, tree, id, max_states, horizon)?
-        }
-        NodeKind::Fallback { .. } | NodeKind::RoundRobin { .. } => {
-            in_turn(laws, false, tree, id, max_states, horizon)?
-        }
-        NodeKind::Flow(flow) => through_flow(&laws, flow, tree, id, max_states, horizon)?,
-        NodeKind::Decorator { decorator, .. } => {
-            let l = laws.pop().expect("a decorator has a child");
-            match decorator.as_primitive() {
-                Decorator::Inverter => ShiftedLaw {
-                    success: l.failure,
-                    failure: l.success,
-                },
-                Decorator::ForceSuccess => ShiftedLaw {
-                    success: l.success.into_iter().chain(l.failure).collect(),
-                    failure: Vec::new(),
-                },
-                Decorator::ForceFailure => ShiftedLaw {
-                    success: Vec::new(),
-                    failure: l.success.into_iter().chain(l.failure).collect(),
-                },
-                Decorator::Retry { attempts } => {
-                    in_turn(vec![l; attempts], false, tree, id, max_states, horizon)?
-                }
-                Decorator::Repeat { times } => {
-                    in_turn(vec![l; times], true, tree, id, max_states, horizon)?
-                }
-                Decorator::UntilFailure | Decorator::UntilSuccess => loop_series(
-                    l,
-                    *decorator == Decorator::UntilSuccess,
+        Op::Flow(flow) => match flow.graph {
+            FlowGraph::Chain { stop } => in_turn(
+                laws,
+                stop == Outcome::Failure,
+                tree,
+                id,
+                max_states,
+                horizon,
+            )?,
+            FlowGraph::Repeat { times, stop } => {
+                let l = laws.pop().expect("a repetition has a child");
+                in_turn(
+                    vec![l; times],
+                    stop == Outcome::Failure,
                     tree,
                     id,
                     max_states,
                     horizon,
-                )?,
-                Decorator::Rate { .. } | Decorator::SingleTrigger => {
-                    unreachable!("as_primitive maps Nav2 decorators to repeat 1")
+                )?
+            }
+            FlowGraph::States(_) => through_flow(&laws, flow, tree, id, max_states, horizon)?,
+        },
+        Op::Map {
+            on_success,
+            on_failure,
+            ..
+        } => {
+            let l = laws.pop().expect("a map has a child");
+            let mut out = ShiftedLaw::default();
+            for (to, part) in [(on_success, l.success), (on_failure, l.failure)] {
+                match to {
+                    Outcome::Success => out.success.extend(part),
+                    Outcome::Failure => out.failure.extend(part),
                 }
             }
+            out
+        }
+        Op::Loop { until, .. } => {
+            let l = laws.pop().expect("a loop has a child");
+            loop_series(l, *until == Outcome::Success, tree, id, max_states, horizon)?
         }
         // a first-return race (a Timeout) over Markovian and deterministic
         // children; any other mixed Parallel is answered where it is
-        NodeKind::Parallel { .. } => match first_return(tree, id, max_states)? {
+        Op::KOfN { .. } => match first_return(tree, id, max_states)? {
             Some(law) => law,
             None => return Ok(None),
         },
@@ -388,7 +386,7 @@ fn from_atoms(list: &[Atom]) -> ShiftedLaw {
 fn in_turn(
     laws: Vec<ShiftedLaw>,
     sequence: bool,
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     max_states: usize,
     horizon: f64,
@@ -448,7 +446,7 @@ fn counted_probability(c: &Component) -> f64 {
 fn within_budget(
     going: &[Component],
     stopped: &[Component],
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     max_states: usize,
 ) -> Result<(), AnalysisError> {
@@ -484,7 +482,7 @@ pub(crate) const SHIFTED_FIRST: usize = 1 << 16;
 fn loop_series(
     l: ShiftedLaw,
     until_success: bool,
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     max_states: usize,
     horizon: f64,
@@ -561,15 +559,16 @@ fn loop_series(
 fn through_flow(
     laws: &[ShiftedLaw],
     flow: &Flow,
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     max_states: usize,
     horizon: f64,
 ) -> Result<ShiftedLaw, AnalysisError> {
-    let mut entered: Vec<Vec<Component>> = vec![Vec::new(); flow.states.len()];
+    let states = flow.states();
+    let mut entered: Vec<Vec<Component>> = vec![Vec::new(); states.len()];
     entered[0].push(atom(0.0, 1.0));
     let mut out = ShiftedLaw::default();
-    for (i, s) in flow.states.iter().enumerate() {
+    for (i, s) in states.iter().enumerate() {
         let here = tidy(std::mem::take(&mut entered[i]));
         if here.is_empty() {
             continue;
@@ -632,13 +631,13 @@ const MAX_FIRST_RETURN_PHASES: usize = 2_000;
 /// Exact up to the transient solution of `P` at the instants (uniformization
 /// with its truncation bound).
 fn first_return(
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     max_states: usize,
 ) -> Result<Option<ShiftedLaw>, AnalysisError> {
-    let NodeKind::Parallel {
-        success_threshold: 1,
-        failure_threshold: 1,
+    let Op::KOfN {
+        success: 1,
+        failure: 1,
         children,
     } = &tree.node(id).kind
     else {
@@ -654,7 +653,7 @@ fn first_return(
             fixed.push(list);
             continue;
         }
-        match phase::markovian_chain(tree, c, max_states) {
+        match phase::markovian_chain_of(tree, c, max_states) {
             Ok(Some(ch)) if ch.initial_success == 0.0 && ch.initial_failure == 0.0 => {
                 chains.push(ch)
             }

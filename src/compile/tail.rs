@@ -29,7 +29,8 @@
 //! [`settled_after`] has all but `ε` of the node's returning mass behind it.
 
 use super::Figures;
-use crate::tree::{Decorator, Duration, FlowNext, NodeId, NodeKind, Tree};
+use crate::ir::{FlowGraph, Graph, Leaf, Op, Outcome};
+use crate::tree::{Duration, FlowNext, NodeId};
 
 /// `[E[e^{θT}; S], E[e^{θT}; F]]` bounded above; `∞` where the bound
 /// diverges.
@@ -44,7 +45,7 @@ type Mgf = [f64; 2];
 /// mass is taken as 1); `scale` a time scale of the node (its mean time,
 /// say) around which `θ` is searched.
 pub(crate) fn settled_after(
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     figures: &[Option<Figures>],
     scale: f64,
@@ -79,54 +80,64 @@ pub(crate) fn settled_after(
 
 /// The bound of node `id` at `θ`; `None` for a node kind the engine's
 /// primitive tree does not hold (the lowering removes it).
-fn mgf_bound(tree: &Tree, id: NodeId, figures: &[Option<Figures>], theta: f64) -> Option<Mgf> {
+fn mgf_bound(tree: &Graph, id: NodeId, figures: &[Option<Figures>], theta: f64) -> Option<Mgf> {
     let base = id;
     let mut out: Vec<Mgf> = vec![[0.0; 2]; figures.len()];
     for n in tree.subtree(id).rev() {
         let m = |c: NodeId| out[c - base];
         let v = match &tree.node(n).kind {
-            NodeKind::Condition { ps } => [*ps, 1.0 - ps],
-            NodeKind::Action(a) => [
+            Op::Leaf(Leaf::Condition { ps }) => [*ps, 1.0 - ps],
+            Op::Leaf(Leaf::Action(a)) => [
                 part(a.ps, a.success.as_ref(), theta),
                 part(a.pf, a.failure.as_ref(), theta),
             ],
-            NodeKind::Sequence { children } => in_turn(children.iter().map(|&c| m(c)), true),
-            NodeKind::Fallback { children } => in_turn(children.iter().map(|&c| m(c)), false),
-            NodeKind::Flow(flow) => {
-                let mut reach = vec![0.0; flow.states.len()];
-                reach[0] = 1.0;
-                let mut end = [0.0; 2];
-                for (i, s) in flow.states.iter().enumerate() {
-                    let child = m(flow.children[s.child]);
-                    for (next, p) in [(s.on_success, child[0]), (s.on_failure, child[1])] {
-                        let w = mul(reach[i], p);
-                        match next {
-                            FlowNext::State(j) => reach[j] += w,
-                            FlowNext::Success => end[0] += w,
-                            FlowNext::Failure => end[1] += w,
+            Op::Flow(flow) => match flow.graph {
+                FlowGraph::Chain { stop } => in_turn(
+                    flow.children.iter().map(|&c| m(c)),
+                    stop == Outcome::Failure,
+                ),
+                FlowGraph::Repeat { times, stop } => in_turn(
+                    std::iter::repeat_n(m(flow.children[0]), times),
+                    stop == Outcome::Failure,
+                ),
+                FlowGraph::States(ref states) => {
+                    let mut reach = vec![0.0; states.len()];
+                    reach[0] = 1.0;
+                    let mut end = [0.0; 2];
+                    for (i, s) in states.iter().enumerate() {
+                        let child = m(flow.children[s.child]);
+                        for (next, p) in [(s.on_success, child[0]), (s.on_failure, child[1])] {
+                            let w = mul(reach[i], p);
+                            match next {
+                                FlowNext::State(j) => reach[j] += w,
+                                FlowNext::Success => end[0] += w,
+                                FlowNext::Failure => end[1] += w,
+                            }
                         }
                     }
+                    end
                 }
-                end
-            }
-            NodeKind::Decorator { decorator, child } => {
+            },
+            Op::Map {
+                child,
+                on_success,
+                on_failure,
+            } => {
                 let [s, f] = m(*child);
-                match *decorator {
-                    Decorator::Inverter => [f, s],
-                    Decorator::ForceSuccess => [s + f, 0.0],
-                    Decorator::ForceFailure => [0.0, s + f],
-                    Decorator::Retry { attempts } => {
-                        in_turn(std::iter::repeat_n([s, f], attempts), false)
-                    }
-                    Decorator::Repeat { times } => {
-                        in_turn(std::iter::repeat_n([s, f], times), true)
-                    }
-                    Decorator::UntilSuccess => [geometric(s, f), 0.0],
-                    Decorator::UntilFailure => [0.0, geometric(f, s)],
-                    Decorator::Rate { .. } | Decorator::SingleTrigger => return None,
+                let k = |o: Outcome| usize::from(o == Outcome::Failure);
+                let mut v = [0.0; 2];
+                v[k(*on_success)] += s;
+                v[k(*on_failure)] += f;
+                v
+            }
+            Op::Loop { child, until } => {
+                let [s, f] = m(*child);
+                match until {
+                    Outcome::Success => [geometric(s, f), 0.0],
+                    Outcome::Failure => [0.0, geometric(f, s)],
                 }
             }
-            NodeKind::Parallel { children, .. } => {
+            Op::KOfN { children, .. } => {
                 let b: f64 = children.iter().fold(1.0, |b, &c| {
                     let [s, f] = m(c);
                     let never = figures[c - base].map_or(1.0, |f| f.never());
@@ -138,9 +149,6 @@ fn mgf_bound(tree: &Tree, id: NodeId, figures: &[Option<Figures>], theta: f64) -
                     None => [b, b],
                 }
             }
-            NodeKind::Pipeline { .. }
-            | NodeKind::RoundRobin { .. }
-            | NodeKind::SequenceWithMemory { .. } => return None,
         };
         out[n - base] = v;
     }
@@ -267,7 +275,14 @@ mod tests {
         let half = Figures::from_moments([0.5, 0.5, 0.5, 0.5]);
         let root = Figures::from_moments([1.0, 0.0, 2.0, 0.0]);
         let eps = 1e-13;
-        let t = settled_after(&tree, 0, &[Some(root), Some(half)], 2.0, eps).unwrap();
+        let t = settled_after(
+            &crate::ir::graph_of(&tree),
+            0,
+            &[Some(root), Some(half)],
+            2.0,
+            eps,
+        )
+        .unwrap();
         let exact = 2.0 * (1.0 / eps).ln();
         assert!(t >= exact, "{t} < {exact}");
         assert!(t < exact + 2.0 * (2.0 * exact).ln() + 4.0, "{t} vs {exact}");
@@ -298,7 +313,7 @@ mod tests {
         ]
         .map(Some);
         let eps = 1e-13;
-        let t = settled_after(&tree, 0, &figures, 1.0, eps).unwrap();
+        let t = settled_after(&crate::ir::graph_of(&tree), 0, &figures, 1.0, eps).unwrap();
         assert!(t >= (0.5 / eps).ln(), "{t}");
     }
 
@@ -315,7 +330,7 @@ mod tests {
         .unwrap();
         let f = |t: f64| Figures::from_moments([1.0, 0.0, t, 0.0]);
         let t = settled_after(
-            &tree,
+            &crate::ir::graph_of(&tree),
             0,
             &[Some(f(3.0)), Some(f(1.0)), Some(f(3.0))],
             3.0,

@@ -198,7 +198,8 @@ pub fn dot_mrg(tree: &Tree, node: NodeId, children: &[Figures]) -> Result<String
         .nodes
         .get(node)
         .ok_or_else(|| format!("no node with id {node}"))?;
-    let policy = Policy::of(&n.kind).ok_or_else(|| {
+    // the node's operator in the core IR (a Sequence and a Fallback are chains)
+    let policy = Policy::of(&crate::ir::op(&n.kind)).ok_or_else(|| {
         format!(
             "node '{}' is a {}: only Sequence, Fallback and Parallel nodes have a marking \
              reachability graph",

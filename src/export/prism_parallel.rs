@@ -48,8 +48,9 @@ use super::explicit::initial_weights;
 use super::prism_text::{comment, prism_number};
 use crate::compile::phase::chain_of;
 use crate::compile::AnalysisError;
+use crate::ir::{Graph, Op};
 use crate::solve::chain::PhaseChain;
-use crate::tree::{NodeId, NodeKind, Tree};
+use crate::tree::{NodeId, Tree};
 
 /// One part of the modular model.
 enum Part {
@@ -85,23 +86,20 @@ pub(super) fn parallel_model(
     id: NodeId,
     max_states: usize,
 ) -> Result<Option<String>, AnalysisError> {
-    let view = crate::compile::primitive_view(tree)?;
-    let (tree, id) = match &view {
-        Some(v) => (&v.tree, v.image[id]),
-        None => (tree, id),
-    };
-    if !matches!(tree.node(id).kind, NodeKind::Parallel { .. }) {
+    let lowered = crate::compile::lower(tree)?;
+    let (tree, id) = (&lowered.graph, lowered.node(id));
+    if !matches!(tree.node(id).kind, Op::KOfN { .. }) {
         return Ok(None);
     }
     let top = part(tree, id, true, max_states)?;
     Ok(Some(Writer::default().model(&top)))
 }
 
-fn part(tree: &Tree, id: NodeId, top: bool, max_states: usize) -> Result<Part, AnalysisError> {
+fn part(tree: &Graph, id: NodeId, top: bool, max_states: usize) -> Result<Part, AnalysisError> {
     let node = tree.node(id);
-    if let NodeKind::Parallel {
-        success_threshold,
-        failure_threshold,
+    if let Op::KOfN {
+        success: success_threshold,
+        failure: failure_threshold,
         children,
     } = &node.kind
     {

@@ -37,12 +37,13 @@ use super::Param;
 use crate::compile::counts::pending_by_counts;
 use crate::compile::mrg::{Policy, Status};
 use crate::compile::plan::Plan;
+use crate::ir::{Flow, FlowGraph, Graph, Leaf, Op, Outcome};
 use crate::solve::chain::PhaseChain;
 use crate::solve::quadrature::GaussLegendre;
 use crate::solve::transient::{
     absorption_by_phase, poisson_window, transient, uniformization_work,
 };
-use crate::tree::{Decorator, Duration, FlowNext, NodeId, NodeKind, Tree};
+use crate::tree::{Duration, FlowNext, NodeId};
 use std::cell::RefCell;
 use std::collections::HashMap;
 use std::rc::Rc;
@@ -181,14 +182,14 @@ impl<'a, 'p> Ctx<'a, 'p> {
 }
 
 /// The dual chain of a leaf along its own parameter (`compile::phase::chain_of`).
-fn leaf_chain(kind: &NodeKind, param: Param, max_states: usize) -> Option<DChain> {
+fn leaf_chain(kind: &Op, param: Param, max_states: usize) -> Option<DChain> {
     // a stage law's parameters move the stages themselves: not rebuilt in
     // dual numbers here (differences instead)
     if param.of_stages() {
         return None;
     }
     match kind {
-        NodeKind::Condition { ps } => Some(DChain {
+        Op::Leaf(Leaf::Condition { ps }) => Some(DChain {
             initial_success: D { v: *ps, d: 1.0 },
             initial_failure: D {
                 v: 1.0 - ps,
@@ -196,7 +197,7 @@ fn leaf_chain(kind: &NodeKind, param: Param, max_states: usize) -> Option<DChain
             },
             ..DChain::default()
         }),
-        NodeKind::Action(a) => {
+        Op::Leaf(Leaf::Action(a)) => {
             let mut c = DChain::default();
             let dps = if param == Param::Ps { 1.0 } else { 0.0 };
             for (p, d, success) in [
@@ -257,75 +258,81 @@ fn leaf_chain(kind: &NodeKind, param: Param, max_states: usize) -> Option<DChain
     }
 }
 
-/// `compile::phase::combine` in dual numbers (primitive nodes only).
-fn combine(tree: &Tree, id: NodeId, chains: Vec<DChain>, max_states: usize) -> Option<DChain> {
+/// `compile::phase::combine` in dual numbers.
+fn combine(tree: &Graph, id: NodeId, chains: Vec<DChain>, max_states: usize) -> Option<DChain> {
     let node = tree.node(id);
     match &node.kind {
-        NodeKind::Sequence { .. } | NodeKind::Fallback { .. } => {
-            let total: usize = chains.iter().map(DChain::len).sum();
-            if total > max_states {
-                return None;
-            }
-            Some(concatenate(
-                chains,
-                matches!(node.kind, NodeKind::Sequence { .. }),
-            ))
-        }
-        NodeKind::Flow(flow) => {
-            let total: usize = flow.states.iter().map(|s| chains[s.child].len()).sum();
-            if total > max_states {
-                return None;
-            }
-            Some(glue(flow, &chains))
-        }
-        NodeKind::Decorator { decorator, .. } => {
-            let mut c = chains.into_iter().next()?;
-            let copies = match *decorator {
-                Decorator::Inverter => {
-                    std::mem::swap(&mut c.exit_success, &mut c.exit_failure);
-                    std::mem::swap(&mut c.initial_success, &mut c.initial_failure);
-                    return Some(c);
+        Op::Leaf(_) => None,
+        Op::Flow(flow) => match flow.graph {
+            FlowGraph::Chain { stop } => {
+                let total: usize = chains.iter().map(DChain::len).sum();
+                if total > max_states {
+                    return None;
                 }
-                d @ (Decorator::ForceSuccess | Decorator::ForceFailure) => {
-                    return Some(force(c, d == Decorator::ForceSuccess));
-                }
-                Decorator::Retry { attempts } => attempts,
-                Decorator::Repeat { times } => times,
-                d @ (Decorator::UntilFailure | Decorator::UntilSuccess) => {
-                    return unrolled_loop(c, d == Decorator::UntilSuccess, max_states);
-                }
-                _ => return None,
-            };
-            if c.len() as f64 * copies as f64 > max_states as f64 {
-                return None;
+                Some(concatenate(chains, stop == Outcome::Failure))
             }
-            let sequence = matches!(decorator, Decorator::Repeat { .. });
-            Some(concatenate(vec![c; copies], sequence))
-        }
-        NodeKind::Parallel { .. } => {
+            FlowGraph::Repeat { times, stop } => {
+                let c = chains.into_iter().next()?;
+                if c.len() as f64 * times as f64 > max_states as f64 {
+                    return None;
+                }
+                Some(concatenate(vec![c; times], stop == Outcome::Failure))
+            }
+            FlowGraph::States(_) => {
+                let total: usize = (0..flow.state_count())
+                    .map(|i| chains[flow.state(i).child].len())
+                    .sum();
+                if total > max_states {
+                    return None;
+                }
+                Some(glue(flow, &chains))
+            }
+        },
+        Op::Map {
+            on_success,
+            on_failure,
+            ..
+        } => Some(map_outcomes(
+            chains.into_iter().next()?,
+            *on_success,
+            *on_failure,
+        )),
+        Op::Loop { until, .. } => unrolled_loop(
+            chains.into_iter().next()?,
+            *until == Outcome::Success,
+            max_states,
+        ),
+        Op::KOfN { .. } => {
             let policy = Policy::of(&node.kind)?;
             product(&chains, policy, max_states)
         }
-        _ => None,
     }
 }
 
 /// Every exit (and instantaneous outcome) made a Success (Failure).
-fn force(mut c: DChain, success: bool) -> DChain {
-    for i in 0..c.len() {
-        let total = c.exit_success[i].add(c.exit_failure[i]);
-        (c.exit_success[i], c.exit_failure[i]) = if success {
-            (total, D::ZERO)
-        } else {
-            (D::ZERO, total)
-        };
-    }
-    let total = c.initial_success.add(c.initial_failure);
-    (c.initial_success, c.initial_failure) = if success {
-        (total, D::ZERO)
+fn force(c: DChain, success: bool) -> DChain {
+    let to = if success {
+        Outcome::Success
     } else {
-        (D::ZERO, total)
+        Outcome::Failure
     };
+    map_outcomes(c, to, to)
+}
+
+/// A chain whose exits to Success lead to `on_success` and whose exits to
+/// Failure lead to `on_failure` (`compile::phase`'s rule).
+fn map_outcomes(mut c: DChain, on_success: Outcome, on_failure: Outcome) -> DChain {
+    let map = |s: D, f: D| {
+        let mut out = [D::ZERO; 2];
+        let k = |o: Outcome| usize::from(o == Outcome::Failure);
+        out[k(on_success)] = out[k(on_success)].add(s);
+        out[k(on_failure)] = out[k(on_failure)].add(f);
+        (out[0], out[1])
+    };
+    for i in 0..c.len() {
+        (c.exit_success[i], c.exit_failure[i]) = map(c.exit_success[i], c.exit_failure[i]);
+    }
+    (c.initial_success, c.initial_failure) = map(c.initial_success, c.initial_failure);
     c
 }
 
@@ -451,22 +458,23 @@ fn concatenate(chains: Vec<DChain>, sequence: bool) -> DChain {
 }
 
 /// `compile::flow::glue` in dual numbers.
-fn glue(flow: &crate::tree::Flow, chains: &[DChain]) -> DChain {
-    let mut offsets = Vec::with_capacity(flow.states.len());
+fn glue(flow: &Flow, chains: &[DChain]) -> DChain {
+    let states = flow.states();
+    let mut offsets = Vec::with_capacity(states.len());
     let mut total = 0;
-    for s in &flow.states {
+    for s in states.iter() {
         offsets.push(total);
         total += chains[s.child].len();
     }
     let mut out = with_phases(total);
     let ends = [Entry::outcome(true), Entry::outcome(false)];
-    let mut entries = vec![Entry::default(); flow.states.len()];
+    let mut entries = vec![Entry::default(); states.len()];
     let next = |entries: &[Entry], n: FlowNext| match n {
         FlowNext::State(j) => entries[j].clone(),
         FlowNext::Success => ends[0].clone(),
         FlowNext::Failure => ends[1].clone(),
     };
-    for (i, s) in flow.states.iter().enumerate().rev() {
+    for (i, s) in states.iter().enumerate().rev() {
         let c = &chains[s.child];
         let off = offsets[i];
         let on_s = next(&entries, s.on_success);

@@ -37,7 +37,8 @@ use crate::compile::{Analysis, Figures, Method, Plan, Representation};
 
 pub(crate) use super::chain::Grids;
 use super::chain::{self, success_by, Ctx};
-use crate::tree::{Decorator, Duration, FlowNext, NodeId, NodeKind, Tree};
+use crate::ir::{FlowGraph, Graph, Leaf, Op};
+use crate::tree::{Duration, FlowNext, NodeId};
 
 pub(crate) use super::dual::D;
 use super::Param;
@@ -68,14 +69,14 @@ fn mean_derivatives(d: &Duration) -> (f64, f64) {
 }
 
 /// The tangent of a leaf's node along one of its parameters.
-fn leaf_tangent(kind: &NodeKind, f: &Figures, param: Param) -> Option<Node> {
+fn leaf_tangent(kind: &Op, f: &Figures, param: Param) -> Option<Node> {
     let mut n = constant(f);
     match kind {
-        NodeKind::Condition { .. } => {
+        Op::Leaf(Leaf::Condition { .. }) => {
             n[0].d = 1.0;
             n[1].d = -1.0;
         }
-        NodeKind::Action(a) => {
+        Op::Leaf(Leaf::Action(a)) => {
             let ms = a.success.map_or(0.0, |d| d.mean());
             let mf = a.failure.map_or(0.0, |d| d.mean());
             // the values from the parameters themselves (a mean defined at
@@ -209,7 +210,7 @@ const NAN: D = D {
 /// Node `id`'s dual figures from its children's (in child order);
 /// `None` where the node's map has no exact tangent at all.
 fn node_map(
-    tree: &Tree,
+    tree: &Graph,
     id: NodeId,
     method: Method,
     fig: &Figures,
@@ -218,56 +219,59 @@ fn node_map(
 ) -> Option<Node> {
     let kind = &tree.node(id).kind;
     Some(match kind {
-        NodeKind::Sequence { .. } | NodeKind::Fallback { .. } => {
-            let policy = if matches!(kind, NodeKind::Sequence { .. }) {
-                Policy::Sequence
-            } else {
-                Policy::Fallback
-            };
-            let (n, steps) = mrg_steps(policy, children.len());
-            absorb(n, &steps, children)?
-        }
-        NodeKind::Flow(flow) => {
-            let steps: Vec<Step> = flow
-                .states
-                .iter()
-                .enumerate()
-                .flat_map(|(i, s)| {
-                    [(true, s.on_success), (false, s.on_failure)].map(|(success, to)| Step {
-                        from: i,
-                        child: s.child,
-                        success,
-                        to,
+        Op::Leaf(_) => return None,
+        Op::Flow(flow) => match flow.graph {
+            FlowGraph::Chain { stop } => {
+                let (n, steps) = mrg_steps(Policy::stopping_at(stop), children.len());
+                absorb(n, &steps, children)?
+            }
+            FlowGraph::Repeat { times, stop } => {
+                let (k, steps) = mrg_steps(Policy::stopping_at(stop), times);
+                absorb(k, &steps, &vec![children[0]; times])?
+            }
+            FlowGraph::States(ref states) => {
+                let steps: Vec<Step> = states
+                    .iter()
+                    .enumerate()
+                    .flat_map(|(i, s)| {
+                        [(true, s.on_success), (false, s.on_failure)].map(|(success, to)| Step {
+                            from: i,
+                            child: s.child,
+                            success,
+                            to,
+                        })
                     })
-                })
-                .collect();
-            absorb(flow.states.len(), &steps, children)?
-        }
-        NodeKind::Decorator { decorator, .. } => {
+                    .collect();
+                absorb(states.len(), &steps, children)?
+            }
+        },
+        // the child's runs that return (a child may never return) go where
+        // the map sends them
+        Op::Map {
+            on_success,
+            on_failure,
+            ..
+        } => {
             let c = children[0];
-            match decorator.as_primitive() {
-                Decorator::Inverter => [c[1], c[0], c[3], c[2]],
-                // the child's runs that return (a child may never return)
-                Decorator::ForceSuccess => [c[0].add(c[1]), D::ZERO, c[2].add(c[3]), D::ZERO],
-                Decorator::ForceFailure => [D::ZERO, c[0].add(c[1]), D::ZERO, c[2].add(c[3])],
-                // E[T] of the loop = (E[T·1S] + E[T·1F]) / p_end of the child
-                Decorator::UntilFailure => [D::ZERO, D::ONE, D::ZERO, c[2].add(c[3]).div(c[1])],
-                Decorator::UntilSuccess => [D::ONE, D::ZERO, c[2].add(c[3]).div(c[0]), D::ZERO],
-                d @ (Decorator::Retry { attempts: n } | Decorator::Repeat { times: n }) => {
-                    let policy = if matches!(d, Decorator::Retry { .. }) {
-                        Policy::Fallback
-                    } else {
-                        Policy::Sequence
-                    };
-                    let (k, steps) = mrg_steps(policy, n);
-                    absorb(k, &steps, &vec![c; n])?
-                }
-                _ => return None,
+            let k = |o: Outcome| usize::from(o == Outcome::Failure);
+            let mut out = [D::ZERO; 4];
+            for (to, p, t) in [(*on_success, c[0], c[2]), (*on_failure, c[1], c[3])] {
+                out[k(to)] = out[k(to)].add(p);
+                out[2 + k(to)] = out[2 + k(to)].add(t);
+            }
+            out
+        }
+        // E[T] of the loop = (E[T·1S] + E[T·1F]) / p_end of the child
+        Op::Loop { until, .. } => {
+            let c = children[0];
+            match until {
+                Outcome::Failure => [D::ZERO, D::ONE, D::ZERO, c[2].add(c[3]).div(c[1])],
+                Outcome::Success => [D::ONE, D::ZERO, c[2].add(c[3]).div(c[0]), D::ZERO],
             }
         }
-        NodeKind::Parallel {
-            success_threshold: m,
-            failure_threshold: f,
+        Op::KOfN {
+            success: m,
+            failure: f,
             children: ids,
         } => {
             let n = ids.len();
@@ -310,7 +314,6 @@ fn node_map(
             }
             out
         }
-        _ => return None,
     })
 }
 
@@ -372,11 +375,11 @@ pub(crate) fn success_by_tangent(
     max_work: f64,
 ) -> Option<D> {
     if !matches!(
-        plan.representation(Tree::ROOT).ok()?,
+        plan.representation(0).ok()?,
         Representation::Chain | Representation::Closed | Representation::Atoms
     ) {
         return None;
     }
     let mut ctx = Ctx::new(plan, grids, leaf, param);
-    success_by(&ctx.chain(Tree::ROOT)?, t, max_work)
+    success_by(&ctx.chain(0)?, t, max_work)
 }

@@ -28,12 +28,27 @@ pub type NodeId = usize;
 /// A validated Stochastic Behavior Tree: read from a file (or text), then
 /// immutable outside the crate ([`Tree::nodes`], [`Tree::title`]); a variant
 /// with other leaf times is a new tree ([`Tree::with_action_times`]).
+///
+/// The same arena holds the engine's core IR ([`crate::ir::Graph`], a
+/// `Tree<Op>`): `K` is what a node is, [`NodeKind`] for a tree as read.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Tree {
+pub struct Tree<K = NodeKind> {
     /// Optional title (`name:` at the top of the file).
     pub(crate) title: Option<String>,
     /// Nodes in pre-order; `nodes[0]` is the root.
-    pub(crate) nodes: Vec<Node>,
+    pub(crate) nodes: Vec<Node<K>>,
+}
+
+/// What a node of a [`Tree`] can be: the surface kinds ([`NodeKind`]) or
+/// the core IR's operators ([`crate::ir::Op`]).
+pub trait Kind: Clone + std::fmt::Debug {
+    /// Children of a control node; empty for leaves.
+    fn children(&self) -> &[NodeId];
+    /// [`Kind::children`], to renumber them.
+    fn children_mut(&mut self) -> &mut [NodeId];
+    /// Whether the two nodes have the same kind and parameters (their
+    /// children aside).
+    fn same_parameters(&self, other: &Self) -> bool;
 }
 
 /// A time given to [`Tree::with_action_times`] that is not a valid duration.
@@ -50,7 +65,7 @@ pub struct InvalidTime {
 
 /// A node of the tree.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Node {
+pub struct Node<K = NodeKind> {
     /// Unique name: the explicit `name`, or one generated from kind and path
     /// (e.g. `fallback@0.1`).
     pub name: String,
@@ -61,7 +76,7 @@ pub struct Node {
     /// Parent node, `None` for the root.
     pub parent: Option<NodeId>,
     /// What the node is.
-    pub kind: NodeKind,
+    pub kind: K,
     /// 1-based line and column of the node in its source file, if known.
     pub location: Option<(usize, usize)>,
 }
@@ -377,6 +392,65 @@ impl NodeKind {
     }
 }
 
+impl Kind for NodeKind {
+    fn children(&self) -> &[NodeId] {
+        NodeKind::children(self)
+    }
+
+    fn children_mut(&mut self) -> &mut [NodeId] {
+        NodeKind::children_mut(self)
+    }
+
+    fn same_parameters(&self, other: &Self) -> bool {
+        if std::mem::discriminant(self) != std::mem::discriminant(other) {
+            return false;
+        }
+        match (self, other) {
+            (NodeKind::Action(p), NodeKind::Action(q)) => p == q,
+            (NodeKind::Condition { ps: p }, NodeKind::Condition { ps: q }) => p == q,
+            (
+                NodeKind::Parallel {
+                    success_threshold: m1,
+                    failure_threshold: f1,
+                    ..
+                },
+                NodeKind::Parallel {
+                    success_threshold: m2,
+                    failure_threshold: f2,
+                    ..
+                },
+            ) => (m1, f1) == (m2, f2),
+            (
+                NodeKind::RoundRobin {
+                    wrap: w1, slot: s1, ..
+                },
+                NodeKind::RoundRobin {
+                    wrap: w2, slot: s2, ..
+                },
+            ) => (w1, s1) == (w2, s2),
+            (
+                NodeKind::SequenceWithMemory {
+                    slot: s1,
+                    halt_resets: h1,
+                    ..
+                },
+                NodeKind::SequenceWithMemory {
+                    slot: s2,
+                    halt_resets: h2,
+                    ..
+                },
+            ) => (s1, h1) == (s2, h2),
+            (NodeKind::Flow(f1), NodeKind::Flow(f2)) => f1.states == f2.states,
+            (
+                NodeKind::Decorator { decorator: d1, .. },
+                NodeKind::Decorator { decorator: d2, .. },
+            ) => d1 == d2,
+            // Sequence, Fallback, Pipeline: their children alone
+            _ => true,
+        }
+    }
+}
+
 /// An action's outcome probabilities and the time each outcome takes.
 ///
 /// Invariants (checked by the parser): `ps, pf ∈ [0, 1]`, `ps + pf = 1`
@@ -656,18 +730,15 @@ impl Action {
     }
 }
 
-impl Tree {
-    /// The root node's id (always 0).
-    pub const ROOT: NodeId = 0;
-
+impl<K: Kind> Tree<K> {
     /// The node with this id.
-    pub fn node(&self, id: NodeId) -> &Node {
+    pub fn node(&self, id: NodeId) -> &Node<K> {
         &self.nodes[id]
     }
 
     /// Every node, in pre-order (`nodes()[0]` is the root); a node's id is
     /// its index.
-    pub fn nodes(&self) -> &[Node] {
+    pub fn nodes(&self) -> &[Node<K>] {
         &self.nodes
     }
 
@@ -675,48 +746,6 @@ impl Tree {
     /// an XML file).
     pub fn title(&self) -> Option<&str> {
         self.title.as_deref()
-    }
-
-    /// This tree with each action's Success and Failure times replaced by
-    /// `times(id, action)` (outcome probabilities and everything else kept):
-    /// e.g. the same tree with fitted timing families. Refused, naming the
-    /// action, when a time is not a valid duration (a rate that is not finite
-    /// and > 0, a time or shift that is not finite and >= 0) or an outcome
-    /// with positive probability is left without a time.
-    pub fn with_action_times(
-        &self,
-        mut times: impl FnMut(NodeId, &Action) -> (Option<Duration>, Option<Duration>),
-    ) -> Result<Tree, InvalidTime> {
-        let mut tree = self.clone();
-        for (id, node) in tree.nodes.iter_mut().enumerate() {
-            let NodeKind::Action(a) = &mut node.kind else {
-                continue;
-            };
-            let (success, failure) = times(id, a);
-            for (outcome, p, d) in [("success", a.ps, success), ("failure", a.pf, failure)] {
-                let invalid = |what: String| InvalidTime {
-                    node: node.name.clone(),
-                    outcome,
-                    what,
-                };
-                match d {
-                    None if p > 0.0 => {
-                        return Err(invalid(format!(
-                            "is missing, though the outcome has probability {p}"
-                        )))
-                    }
-                    None => {}
-                    Some(d) => {
-                        if let Some(what) = d.invalid() {
-                            return Err(invalid(what));
-                        }
-                    }
-                }
-            }
-            a.success = success;
-            a.failure = failure;
-        }
-        Ok(tree)
     }
 
     /// Finds a node by name, or by path (`0.1.2`).
@@ -770,9 +799,7 @@ impl Tree {
     /// lowering of a RecoveryNode's retries makes them.
     pub fn same_subtree(&self, a: NodeId, b: NodeId) -> bool {
         let (ka, kb) = (&self.node(a).kind, &self.node(b).kind);
-        if std::mem::discriminant(ka) != std::mem::discriminant(kb)
-            || ka.children().len() != kb.children().len()
-        {
+        if !ka.same_parameters(kb) || ka.children().len() != kb.children().len() {
             return false;
         }
         let (ra, rb) = (self.subtree(a), self.subtree(b));
@@ -784,54 +811,57 @@ impl Tree {
         };
         ra.zip(rb).all(|(x, y)| {
             let (kx, ky) = (&self.node(x).kind, &self.node(y).kind);
-            if std::mem::discriminant(kx) != std::mem::discriminant(ky)
-                || shift(kx.children(), a) != shift(ky.children(), b)
-            {
+            if shift(kx.children(), a) != shift(ky.children(), b) {
                 return false;
             }
-            match (kx, ky) {
-                (NodeKind::Action(p), NodeKind::Action(q)) => p == q,
-                (NodeKind::Condition { ps: p }, NodeKind::Condition { ps: q }) => p == q,
-                (
-                    NodeKind::Parallel {
-                        success_threshold: m1,
-                        failure_threshold: f1,
-                        ..
-                    },
-                    NodeKind::Parallel {
-                        success_threshold: m2,
-                        failure_threshold: f2,
-                        ..
-                    },
-                ) => (m1, f1) == (m2, f2),
-                (
-                    NodeKind::RoundRobin {
-                        wrap: w1, slot: s1, ..
-                    },
-                    NodeKind::RoundRobin {
-                        wrap: w2, slot: s2, ..
-                    },
-                ) => (w1, s1) == (w2, s2),
-                (
-                    NodeKind::SequenceWithMemory {
-                        slot: s1,
-                        halt_resets: h1,
-                        ..
-                    },
-                    NodeKind::SequenceWithMemory {
-                        slot: s2,
-                        halt_resets: h2,
-                        ..
-                    },
-                ) => (s1, h1) == (s2, h2),
-                (NodeKind::Flow(f1), NodeKind::Flow(f2)) => f1.states == f2.states,
-                (
-                    NodeKind::Decorator { decorator: d1, .. },
-                    NodeKind::Decorator { decorator: d2, .. },
-                ) => d1 == d2,
-                // Sequence, Fallback, Pipeline: their children alone
-                _ => true,
-            }
+            kx.same_parameters(ky)
         })
+    }
+}
+
+impl Tree {
+    /// The root node's id (always 0).
+    pub const ROOT: NodeId = 0;
+
+    /// This tree with each action's Success and Failure times replaced by
+    /// `times(id, action)` (outcome probabilities and everything else kept):
+    /// e.g. the same tree with fitted timing families. Refused, naming the
+    /// action, when a time is not a valid duration (a rate that is not finite
+    /// and > 0, a time or shift that is not finite and >= 0) or an outcome
+    /// with positive probability is left without a time.
+    pub fn with_action_times(
+        &self,
+        mut times: impl FnMut(NodeId, &Action) -> (Option<Duration>, Option<Duration>),
+    ) -> Result<Tree, InvalidTime> {
+        let mut tree = self.clone();
+        for (id, node) in tree.nodes.iter_mut().enumerate() {
+            let NodeKind::Action(a) = &mut node.kind else {
+                continue;
+            };
+            let (success, failure) = times(id, a);
+            for (outcome, p, d) in [("success", a.ps, success), ("failure", a.pf, failure)] {
+                let invalid = |what: String| InvalidTime {
+                    node: node.name.clone(),
+                    outcome,
+                    what,
+                };
+                match d {
+                    None if p > 0.0 => {
+                        return Err(invalid(format!(
+                            "is missing, though the outcome has probability {p}"
+                        )))
+                    }
+                    None => {}
+                    Some(d) => {
+                        if let Some(what) = d.invalid() {
+                            return Err(invalid(what));
+                        }
+                    }
+                }
+            }
+            a.success = success;
+            a.failure = failure;
+        }
+        Ok(tree)
     }
 }
