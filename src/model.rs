@@ -67,10 +67,10 @@ pub struct Model {
     tree: Tree,
     options: Options,
     analysis: std::cell::OnceCell<Result<Analysis, AnalysisError>>,
-    /// The plan of the primitive tree (the tree itself when it has no
-    /// Nav2 node to lower).
+    /// The plan of the tree's core IR ([`crate::ir`]).
     plan: compile::Plan<'static>,
-    /// The node of the planned tree standing for each node of `tree`.
+    /// The node of the IR standing for each node of `tree` (`None`: node
+    /// for node).
     image: Option<Vec<NodeId>>,
     /// The plan of the deterministic version (curves with
     /// [`Timing::Deterministic`]), made on first use.
@@ -193,9 +193,8 @@ impl Model {
         Ok(self.plan.representation(self.planned(id))?)
     }
 
-    /// The node of the planned tree standing for node `id`.
-    /// The plan of the tree itself, when it has no Nav2 node to lower (the
-    /// planned tree is then the tree, node for node).
+    /// The plan, when its IR is the tree's node for node (no Nav2 node to
+    /// lower).
     pub(crate) fn own_plan(&self) -> Option<&compile::Plan<'static>> {
         self.image.is_none().then_some(&self.plan)
     }

@@ -1,5 +1,6 @@
-//! The bottom-up compiler: from a [`Tree`] to every node's success and
-//! failure probabilities and mean times.
+//! The bottom-up compiler: from a tree's core IR ([`crate::ir`], made by
+//! [`lower`]) to every node's success and failure probabilities and mean
+//! times.
 //!
 //! Nodes are visited children first. For each control node the compiler
 //! builds the node's marking reachability graph ([`mrg`]) and a chain over it,

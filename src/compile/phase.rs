@@ -61,7 +61,7 @@ pub(crate) fn outcome_markovian(p: f64, d: Option<Duration>) -> bool {
         || d.is_some_and(|d| d.is_phase_type())
 }
 
-/// Whether the subtree at `id` of a primitive tree has a phase chain (every
+/// Whether the subtree at `id` of a tree's IR has a phase chain (every
 /// action's outcomes [`outcome_markovian`]): then [`chain_of`] can fail only
 /// for its budget. Decided from the leaves, before building anything.
 pub(crate) fn markovian(tree: &Graph, id: NodeId) -> bool {

@@ -3,8 +3,8 @@
 //! or Failure — and the two queries every command asks of it, the node's
 //! figures (P(S), P(F), MTTS, MTTF) and its curve `π(t)`.
 //!
-//! A [`Plan`] is made once per tree (its primitive view: Nav2 nodes already
-//! lowered) and strategy. It first records each node's *shape* bottom-up in
+//! A [`Plan`] is made once per tree (its core IR, [`crate::ir`]) and
+//! strategy. It first records each node's *shape* bottom-up in
 //! one pass — whether every leaf below is exponential (the subtree has a
 //! phase chain), deterministic (finitely many return instants), or loops
 //! without a bound — and then decides a node's [`Representation`] the first
@@ -186,8 +186,8 @@ impl Plan<'static> {
 /// The planned model of one tree under one strategy: every node's
 /// representation, decided once, and the queries on it.
 pub struct Plan<'t> {
-    /// The primitive tree: borrowed, or owned by a plan that outlives its
-    /// caller's tree ([`Plan::owned`], the `Model`'s).
+    /// The tree's IR: borrowed, or owned by a plan that outlives its
+    /// caller's ([`Plan::owned`], the `Model`'s).
     tree: std::borrow::Cow<'t, Graph>,
     method: Method,
     max_states: usize,

@@ -78,8 +78,7 @@ pub(crate) fn settled_after(
     Some(t)
 }
 
-/// The bound of node `id` at `θ`; `None` for a node kind the engine's
-/// primitive tree does not hold (the lowering removes it).
+/// The bound of node `id` at `θ` (`None`: none known).
 fn mgf_bound(tree: &Graph, id: NodeId, figures: &[Option<Figures>], theta: f64) -> Option<Mgf> {
     let base = id;
     let mut out: Vec<Mgf> = vec![[0.0; 2]; figures.len()];
