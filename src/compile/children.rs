@@ -32,6 +32,9 @@ pub enum Representation {
     Counted,
     /// A Parallel whose thresholds can both be met: a race of its children.
     Race,
+    /// A map of its child's outcomes (an inverter, a force decorator) over
+    /// a child without a phase chain or atoms: its child's law, mapped.
+    Mapped,
     /// A shifted phase-type mixture (mixed timing); the composed laws
     /// where the mixture exceeds the budget or cannot hold a Parallel.
     Shifted,
@@ -50,6 +53,7 @@ impl Representation {
             Representation::Chain => "phase chain",
             Representation::Counted => "counted",
             Representation::Race => "race",
+            Representation::Mapped => "mapped child",
             Representation::Shifted => "shifted mixture",
             Representation::Composed => "composed laws",
         }

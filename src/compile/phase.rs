@@ -280,7 +280,7 @@ pub const LOOP_TAIL: f64 = 1e-14;
 /// `max_states` (a child that repeats almost surely).
 pub fn unrolled_loop(
     name: &str,
-    c: PhaseChain,
+    mut c: PhaseChain,
     until_success: bool,
     max_states: usize,
 ) -> Result<PhaseChain, AnalysisError> {
@@ -288,7 +288,7 @@ pub fn unrolled_loop(
     let from_start = |h: &[f64]| c.initial.iter().map(|&(i, p)| p * h[i]).sum::<f64>();
     let success = c.initial_success + from_start(&absorption.to_success);
     let failure = c.initial_failure + from_start(&absorption.to_failure);
-    let (again, end) = if until_success {
+    let (mut again, end) = if until_success {
         (failure, success)
     } else {
         (success, failure)
@@ -298,6 +298,27 @@ pub fn unrolled_loop(
         // (no exits) holding all the mass
         let _ = name;
         return Ok(trap());
+    }
+    // a repetition at once (the child's instantaneous "again", e.g. a
+    // condition) takes no time: the loop enters its child as if it had not
+    // happened, the entry renormalised by 1 − p₀, and only the repetitions
+    // that take time are unrolled (a loop over a Fallback whose first
+    // condition repeats it 80% of the time needed 145 copies, now one)
+    let instant = if until_success {
+        &mut c.initial_failure
+    } else {
+        &mut c.initial_success
+    };
+    let p0 = std::mem::take(instant);
+    if p0 > 0.0 {
+        let w = 1.0 / (1.0 - p0);
+        c.initial.iter_mut().for_each(|(_, p)| *p *= w);
+        if until_success {
+            c.initial_success *= w;
+        } else {
+            c.initial_failure *= w;
+        }
+        again = ((again - p0) * w).max(0.0);
     }
     let finish = |mut out: PhaseChain| {
         // the mass still repeating after the last copy ends the loop too
@@ -667,4 +688,32 @@ fn product(chains: &[PhaseChain], policy: Policy, max_states: usize) -> Option<P
         sorted.exit_failure.push(out.exit_failure[old]);
     }
     Some(sorted)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `until_failure` over a child that succeeds at once with 0.8 and
+    /// otherwise fails after Exp(λ): the instant successes repeat it in no
+    /// time, so the loop fails after Exp(λ) with probability
+    /// Σ 0.8ᵏ·0.2 = 1 — one phase, entered with 1, failing at rate λ.
+    #[test]
+    fn instant_repetitions_are_folded_into_the_entry() {
+        let lambda = 1.7;
+        let mut c = PhaseChain {
+            initial_success: 0.8,
+            ..PhaseChain::default()
+        };
+        let i = c.push_phase();
+        c.exit_failure[i] = lambda;
+        c.initial.push((i, 0.2));
+        let l = unrolled_loop("loop", c, false, 1000).expect("a chain");
+        assert_eq!(l.len(), 1);
+        assert_eq!(l.initial.len(), 1);
+        assert!((l.initial[0].1 - 1.0).abs() < 1e-15, "{:?}", l.initial);
+        assert_eq!(l.initial_success + l.initial_failure, 0.0);
+        assert!((l.exit_failure[0] - lambda).abs() < 1e-15);
+        assert_eq!(l.exit_success[0], 0.0);
+    }
 }

@@ -22,6 +22,7 @@
 //! | 3 | `until_failure` / `until_success` | [`Representation::Loop`]: the cyclic chain over the child's phase chain, or the shifted law's truncated series |
 //! | 4 | every leaf below deterministic (or a condition), no loop | [`Representation::Atoms`]: the finitely many return instants |
 //! | 5 | every leaf below phase-type (exponential, Erlang, hypoexponential), the chain within the budget (a Parallel with the book's thresholds: its product ≤ [`super::PRODUCT_LIMIT`]) | [`Representation::Chain`]: the exact phase chain |
+//! | 5b | a map (inverter, force decorator) | [`Representation::Mapped`]: its child's law, its outcomes mapped |
 //! | 6 | a Parallel with the book's thresholds (`F ≥ N − M + 1`) | [`Representation::Counted`]: the count programme over the children's own laws |
 //! | 7 | a Parallel whose two thresholds can both be met | [`Representation::Race`]: the race of the children's laws |
 //! | 8 | a leaf below is deterministic, hybrid or shifted | [`Representation::Shifted`]: the shifted phase-type mixture; where it exceeds the budget (every distinct sum of fixed times is a component; a curve tries it within `SHIFTED_FIRST` = 65,536 phases first) or cannot hold a Parallel below, the curve comes from the composed outcome laws with atoms at any instant ([`law`]) |
@@ -295,6 +296,9 @@ impl<'t> Plan<'t> {
         if shape.exponential && self.chain_fits(id)? {
             return Ok(Representation::Chain);
         }
+        if matches!(kind, Op::Map { .. }) {
+            return Ok(Representation::Mapped);
+        }
         if book_thresholds(kind) {
             return Ok(Representation::Counted);
         }
@@ -470,6 +474,10 @@ impl<'t> Plan<'t> {
             child_figs,
             &fastest,
             &|times, options| self.counted_curve(id, m, times, options),
+            &|scale, epsilon| {
+                let known = self.known_subtree_figures(id);
+                super::tail::settled_after(&self.tree, id, &known, scale, epsilon)
+            },
         )
     }
 
@@ -585,6 +593,32 @@ impl<'t> Plan<'t> {
                 self.counted_curve(id, m, times, options)
             }
             Representation::Race => race::curve(self, id, times),
+            Representation::Mapped => {
+                let Op::Map {
+                    child,
+                    on_success,
+                    on_failure,
+                } = node.kind
+                else {
+                    unreachable!("planned as a map")
+                };
+                let k = |o: super::mrg::Outcome| usize::from(o == super::mrg::Outcome::Failure);
+                Ok(self
+                    .curve(child, times, options)?
+                    .into_iter()
+                    .map(|p| {
+                        let mut v = [0.0; 2];
+                        v[k(on_success)] += p.success;
+                        v[k(on_failure)] += p.failure;
+                        CurvePoint {
+                            t: p.t,
+                            success: v[0],
+                            failure: v[1],
+                            running: p.running,
+                        }
+                    })
+                    .collect())
+            }
             Representation::Shifted => {
                 let mixed = AnalysisError::MixedTiming {
                     node: node.name.clone(),

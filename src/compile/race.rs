@@ -91,6 +91,12 @@ pub(crate) enum Racer {
     /// The first failure of a re-run process (a renewal loop) from its
     /// levels on `[0, horizon]` ([`renewal_curve::prepare_process`]).
     Renewal(Box<RenewalLoop>),
+    /// A map of a racer's outcomes (an inverter, a force decorator).
+    Mapped {
+        inner: Box<Racer>,
+        /// Where the inner Success and Failure go (0: Success, 1: Failure).
+        to: [usize; 2],
+    },
     /// Any subtree: its composed law ([`HorizonLaw`]) on a horizon past
     /// which it has returned but for [`LAW_TAIL`] of its mass.
     Law(Box<dyn ReturnLaw>),
@@ -239,6 +245,21 @@ impl Racer {
             }
             Representation::Closed | Representation::Loop => shifted(),
             Representation::Atoms | Representation::Shifted => shifted(),
+            Representation::Mapped => {
+                let Op::Map {
+                    child,
+                    on_success,
+                    on_failure,
+                } = node.kind
+                else {
+                    unreachable!("planned as a map")
+                };
+                let k = |o: super::mrg::Outcome| usize::from(o == super::mrg::Outcome::Failure);
+                Ok(Racer::Mapped {
+                    inner: Box::new(Racer::build_within(plan, child, horizon)?),
+                    to: [k(on_success), k(on_failure)],
+                })
+            }
             Representation::Counted | Representation::Race => {
                 let (m, f, kids) = parallel_racers(plan, id, horizon)?;
                 if !is_race(kids.len(), m, f) {
@@ -333,6 +354,16 @@ impl Racer {
         ))
     }
 
+    /// The probabilities a composed-law racer holds past its horizon (its
+    /// limit, within its tail of the figures'), `None` for the others.
+    fn held_limit(&self) -> Option<Row> {
+        match self {
+            Racer::Law(l) => Some(l.row(f64::INFINITY, false)),
+            Racer::Mapped { inner, to } => inner.held_limit().map(|r| mapped_row(r, *to)),
+            _ => None,
+        }
+    }
+
     /// [`Race::pass_work`] of this racer.
     fn pass_work(&self, end: f64) -> f64 {
         match self {
@@ -345,6 +376,7 @@ impl Racer {
                 .sum(),
             Racer::Counted { children, .. } => children.iter().map(|c| c.pass_work(end)).sum(),
             Racer::Race(r) => r.pass_work(end),
+            Racer::Mapped { inner, .. } => inner.pass_work(end),
             // budgeted where they are built
             Racer::Renewal(_) | Racer::Law(_) => 0.0,
         }
@@ -367,6 +399,7 @@ impl Racer {
             ),
             Racer::Counted { children, .. } => children.iter().for_each(|c| c.instants(out)),
             Racer::Race(r) => out.extend(r.atoms.iter().map(|a| a.0)),
+            Racer::Mapped { inner, .. } => inner.instants(out),
             Racer::Renewal(_) => {}
             Racer::Law(l) => out.extend(l.instants()),
         }
@@ -379,6 +412,7 @@ impl Racer {
             Racer::Shifted(l) => out.extend(l.shifts()),
             Racer::Counted { children, .. } => children.iter().for_each(|c| c.cuts(out)),
             Racer::Race(r) => out.extend(&r.cuts),
+            Racer::Mapped { inner, .. } => inner.cuts(out),
             // the densities may jump or kink where waits end, the level
             // starts: in the first levels (each smooths by one order) and
             // where waits start with an atom (`renewal_law`'s pieces)
@@ -412,6 +446,7 @@ impl Racer {
                 children.iter().map(Racer::fastest).fold(0.0, f64::max)
             }
             Racer::Race(r) => r.children.iter().map(Racer::fastest).fold(0.0, f64::max),
+            Racer::Mapped { inner, .. } => inner.fastest(),
             Racer::Renewal(l) => l.levels.iter().map(|v| v.rate()).fold(0.0, f64::max),
             // its interpolation panels resolve its boundary layers
             Racer::Law(_) => 0.0,
@@ -479,10 +514,26 @@ impl Racer {
                     .collect())
             }
             Racer::Race(r) => r.rows(times, left),
+            Racer::Mapped { inner, to } => Ok(inner
+                .rows(name, times, left)?
+                .into_iter()
+                .map(|r| mapped_row(r, *to))
+                .collect()),
             Racer::Renewal(l) => Ok(times.iter().map(|&t| l.row(t)).collect()),
             Racer::Law(l) => Ok(times.iter().map(|&t| l.row(t, left)).collect()),
         }
     }
+}
+
+/// A row `[S, F, s, f]` with its Success and Failure sent to `to[0]` and
+/// `to[1]` (0: Success, 1: Failure).
+fn mapped_row(r: Row, to: [usize; 2]) -> Row {
+    let mut out = [0.0; 4];
+    for o in 0..2 {
+        out[to[o]] += r[o];
+        out[2 + to[o]] += r[2 + o];
+    }
+    out
 }
 
 impl Race {
@@ -702,10 +753,7 @@ impl Race {
             let rows: Vec<Row> = ends
                 .iter()
                 .zip(&self.children)
-                .map(|(c, r)| match r {
-                    Racer::Law(l) => l.row(f64::INFINITY, false),
-                    _ => [c.ps, c.pf, 0.0, 0.0],
-                })
+                .map(|(c, r)| r.held_limit().unwrap_or([c.ps, c.pf, 0.0, 0.0]))
                 .collect();
             race_densities(&rows, self.m, self.f)[2].max(0.0)
         } else {
