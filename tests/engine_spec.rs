@@ -212,26 +212,23 @@ fn a_sequence_above_a_mixed_race_is_answered() {
     }
 }
 
-/// Survey tree 272 to t = 100: its loops' composed laws hold about 150
-/// panels a second (the fixed times' sums jump on a 0.125 s lattice), so
-/// the convolutions' work grows with the square of the horizon; refused
-/// once the next convolution would pass the budget, naming the node and
-/// the horizon, instead of running for many minutes (t = 10 is answered,
-/// with about 1.8e7 of the 4e7 allowed).
+/// Survey tree 272 to t = 100: its loops' composed laws jump on a 0.125 s
+/// lattice (sums of fixed times). They were refused on their convolution
+/// work after ~40 s: next to every jump the march halved its panel dozens
+/// of times, because a panel's end was sampled nudged off the jump by less
+/// than the tie tolerance, and a race's density read there the value after
+/// the instant. Answered now, within 5 standard errors of the test's own
+/// Monte Carlo.
 #[test]
-fn a_long_horizon_over_a_lattice_of_jumps_is_refused_on_its_work() {
-    let yaml = random_tree(272, 10).yaml();
-    let tree = btrel::parse_str(&yaml, "spec.yaml").expect("a valid tree");
-    match curve(&tree, 0, &[100.0], &CurveOptions::default()) {
-        Err(btrel::AnalysisError::ConvolutionWork {
-            horizon,
-            work,
-            limit,
-            ..
-        }) => {
-            assert_eq!(horizon, 100.0);
-            assert!(work > limit, "{work} {limit}");
-        }
-        other => panic!("{other:?}"),
-    }
+fn a_long_horizon_over_a_lattice_of_jumps_is_answered() {
+    let node = random_tree(272, 10);
+    let tree = btrel::parse_str(&node.yaml(), "spec.yaml").expect("a valid tree");
+    let p = curve(&tree, 0, &[100.0], &CurveOptions::default()).expect("the curve")[0];
+    let est = node.estimate(20_000, &[100.0], 272 ^ 0xABCD);
+    let (m, se) = est.success_by[0];
+    assert!(
+        se > 0.0 && ((m - p.success) / se).abs() <= 5.0,
+        "{p:?} vs {m} ± {se}"
+    );
+    assert!(((est.failure_by[0].0 - p.failure) / est.failure_by[0].1.max(1e-9)).abs() <= 5.0);
 }
