@@ -487,17 +487,35 @@ fn loop_series(
     max_states: usize,
     horizon: f64,
 ) -> Result<ShiftedLaw, AnalysisError> {
-    let (again, end) = if until_success {
+    let (mut again, mut end) = if until_success {
         (l.failure, l.success)
     } else {
         (l.success, l.failure)
     };
-    let p_again: f64 = again.iter().map(counted_probability).sum::<f64>().max(0.0);
     let p_end: f64 = end.iter().map(counted_probability).sum();
     if p_end <= 0.0 {
         // the child never ends the loop: the loop never returns (no mass)
         return Ok(ShiftedLaw::default());
     }
+    // a repetition at once (an atom of "again" at 0: a condition that
+    // repeats the child) takes no time: folded into the loop's entry, the
+    // rest renormalised by 1 − p₀, as for a child with a phase chain
+    // (`phase::unrolled_loop`) — survey tree 6 repeated at once 86% of the
+    // time and unrolled 230 rounds of it
+    let instant = |c: &Component| c.chain.is_empty() && c.shift == 0.0;
+    let p0: f64 = again
+        .iter()
+        .filter(|c| instant(c))
+        .map(|c| c.weight * c.chain.initial_success)
+        .sum();
+    if p0 > 0.0 && p0 < 1.0 {
+        again.retain(|c| !instant(c));
+        let w = 1.0 / (1.0 - p0);
+        for c in again.iter_mut().chain(end.iter_mut()) {
+            c.weight *= w;
+        }
+    }
+    let p_again: f64 = again.iter().map(counted_probability).sum::<f64>().max(0.0);
     let terms = if p_again <= 0.0 {
         1.0
     } else {
@@ -793,4 +811,31 @@ fn first_exit_product(chains: &[PhaseChain]) -> PhaseChain {
     }
     p.initial = initial;
     p
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `until_failure(Fallback(condition 0.8, fail at 1 s))`: the child
+    /// succeeds at once with 0.8 (a repetition in no time) and otherwise
+    /// fails at 1 s, so the loop fails at exactly 1 s with probability
+    /// Σ 0.8ᵏ·0.2 = 1 — one atom, without a series of instant rounds.
+    #[test]
+    fn instant_repetitions_of_a_loop_take_no_time() {
+        let tree = crate::parse_str(
+            "tree:\n  until_failure:\n    child:\n      fallback:\n        children:\n          - condition: {ps: 0.8}\n          - action: {ps: 0, tau_f: 1}\n",
+            "loop.yaml",
+        )
+        .expect("a tree");
+        let graph = crate::ir::graph_of(&tree);
+        let law = shifted_law(&graph, 0, 1000)
+            .expect("a law")
+            .expect("a mixture");
+        assert!(law.success.is_empty(), "{:?}", law.success);
+        assert_eq!(law.failure.len(), 1, "{:?}", law.failure);
+        let c = &law.failure[0];
+        assert!(c.chain.is_empty() && (c.shift - 1.0).abs() < 1e-15);
+        assert!((c.weight * c.chain.initial_success - 1.0).abs() < 1e-14);
+    }
 }
