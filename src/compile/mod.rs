@@ -136,6 +136,25 @@ impl Figures {
         }
     }
 
+    /// Figures of a node that only ever returns `o`: with probability `p`
+    /// after a mean time `t`.
+    fn one_sided(o: Outcome, p: f64, t: Option<f64>) -> Figures {
+        match o {
+            Outcome::Success => Figures {
+                ps: p,
+                pf: 0.0,
+                mtts: t,
+                mttf: None,
+            },
+            Outcome::Failure => Figures {
+                ps: 0.0,
+                pf: p,
+                mtts: None,
+                mttf: t,
+            },
+        }
+    }
+
     fn from_absorption(a: &Absorption) -> Figures {
         Figures {
             ps: a.success,
@@ -565,20 +584,7 @@ pub(crate) fn loop_figures(until: Outcome, child: Figures) -> Figures {
             Some(again * t_again.unwrap_or(0.0) + t_end.unwrap_or(0.0)),
         )
     };
-    match until {
-        Outcome::Success => Figures {
-            ps: p,
-            pf: 0.0,
-            mtts: t,
-            mttf: None,
-        },
-        Outcome::Failure => Figures {
-            ps: 0.0,
-            pf: p,
-            mtts: None,
-            mttf: t,
-        },
-    }
+    Figures::one_sided(until, p, t)
 }
 
 /// Figures of a [`Op::Map`] from its child's (exact under both methods):
@@ -601,20 +607,7 @@ pub(crate) fn map_figures(on_success: Outcome, on_failure: Outcome, child: Figur
     }
     let returns = child.ps + child.pf;
     let mean = (returns > 0.0).then(|| child.mean_time() / returns);
-    match on_success {
-        Outcome::Success => Figures {
-            ps: returns,
-            pf: 0.0,
-            mtts: mean,
-            mttf: None,
-        },
-        Outcome::Failure => Figures {
-            ps: 0.0,
-            pf: returns,
-            mtts: None,
-            mttf: mean,
-        },
-    }
+    Figures::one_sided(on_success, returns, mean)
 }
 
 /// Figures of a flow repeating one child (`stop`: the outcome that ends it

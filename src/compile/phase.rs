@@ -249,11 +249,10 @@ pub(crate) fn combine(
 /// Failure lead to `on_failure` (an inverter swaps them, a force decorator
 /// merges them).
 fn map_outcomes(mut c: PhaseChain, on_success: Outcome, on_failure: Outcome) -> PhaseChain {
-    let k = |o: Outcome| usize::from(o == Outcome::Failure);
     let map = |s: f64, f: f64| {
         let mut out = [0.0; 2];
-        out[k(on_success)] += s;
-        out[k(on_failure)] += f;
+        out[on_success.index()] += s;
+        out[on_failure.index()] += f;
         (out[0], out[1])
     };
     for i in 0..c.len() {

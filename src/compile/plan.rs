@@ -594,22 +594,14 @@ impl<'t> Plan<'t> {
             }
             Representation::Race => race::curve(self, id, times),
             Representation::Mapped => {
-                let Op::Map {
-                    child,
-                    on_success,
-                    on_failure,
-                } = node.kind
-                else {
-                    unreachable!("planned as a map")
-                };
-                let k = |o: super::mrg::Outcome| usize::from(o == super::mrg::Outcome::Failure);
+                let (child, to) = node.kind.as_map().expect("planned as a map");
                 Ok(self
                     .curve(child, times, options)?
                     .into_iter()
                     .map(|p| {
                         let mut v = [0.0; 2];
-                        v[k(on_success)] += p.success;
-                        v[k(on_failure)] += p.failure;
+                        v[to[0]] += p.success;
+                        v[to[1]] += p.failure;
                         CurvePoint {
                             t: p.t,
                             success: v[0],

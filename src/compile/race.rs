@@ -246,18 +246,10 @@ impl Racer {
             Representation::Closed | Representation::Loop => shifted(),
             Representation::Atoms | Representation::Shifted => shifted(),
             Representation::Mapped => {
-                let Op::Map {
-                    child,
-                    on_success,
-                    on_failure,
-                } = node.kind
-                else {
-                    unreachable!("planned as a map")
-                };
-                let k = |o: super::mrg::Outcome| usize::from(o == super::mrg::Outcome::Failure);
+                let (child, to) = node.kind.as_map().expect("planned as a map");
                 Ok(Racer::Mapped {
                     inner: Box::new(Racer::build_within(plan, child, horizon)?),
-                    to: [k(on_success), k(on_failure)],
+                    to,
                 })
             }
             Representation::Counted | Representation::Race => {

@@ -123,10 +123,9 @@ fn mgf_bound(tree: &Graph, id: NodeId, figures: &[Option<Figures>], theta: f64) 
                 on_failure,
             } => {
                 let [s, f] = m(*child);
-                let k = |o: Outcome| usize::from(o == Outcome::Failure);
                 let mut v = [0.0; 2];
-                v[k(*on_success)] += s;
-                v[k(*on_failure)] += f;
+                v[on_success.index()] += s;
+                v[on_failure.index()] += f;
                 v
             }
             Op::Loop { child, until } => {

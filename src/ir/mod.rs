@@ -35,6 +35,11 @@ pub enum Outcome {
 }
 
 impl Outcome {
+    /// 0 for Success, 1 for Failure (the order of `[S, F]` pairs).
+    pub fn index(self) -> usize {
+        usize::from(self == Outcome::Failure)
+    }
+
     /// The other outcome.
     pub fn other(self) -> Outcome {
         match self {
@@ -261,6 +266,19 @@ impl Op {
                         stop: Outcome::Failure,
                     },
             }) => Some(children),
+            _ => None,
+        }
+    }
+
+    /// A map's child and where it sends the child's Success and Failure
+    /// ([`Outcome::index`]: 0 Success, 1 Failure).
+    pub fn as_map(&self) -> Option<(NodeId, [usize; 2])> {
+        match self {
+            Op::Map {
+                child,
+                on_success,
+                on_failure,
+            } => Some((*child, [on_success.index(), on_failure.index()])),
             _ => None,
         }
     }

@@ -324,9 +324,8 @@ fn force(c: DChain, success: bool) -> DChain {
 fn map_outcomes(mut c: DChain, on_success: Outcome, on_failure: Outcome) -> DChain {
     let map = |s: D, f: D| {
         let mut out = [D::ZERO; 2];
-        let k = |o: Outcome| usize::from(o == Outcome::Failure);
-        out[k(on_success)] = out[k(on_success)].add(s);
-        out[k(on_failure)] = out[k(on_failure)].add(f);
+        out[on_success.index()] = out[on_success.index()].add(s);
+        out[on_failure.index()] = out[on_failure.index()].add(f);
         (out[0], out[1])
     };
     for i in 0..c.len() {

@@ -253,11 +253,10 @@ fn node_map(
             ..
         } => {
             let c = children[0];
-            let k = |o: Outcome| usize::from(o == Outcome::Failure);
             let mut out = [D::ZERO; 4];
             for (to, p, t) in [(*on_success, c[0], c[2]), (*on_failure, c[1], c[3])] {
-                out[k(to)] = out[k(to)].add(p);
-                out[2 + k(to)] = out[2 + k(to)].add(t);
+                out[to.index()] = out[to.index()].add(p);
+                out[2 + to.index()] = out[2 + to.index()].add(t);
             }
             out
         }
