@@ -24,7 +24,7 @@
 //! next or to the subtree's outcome.
 
 use super::Figures;
-use crate::ir::{Flow, FlowGraph, Graph, Op, Outcome};
+use crate::ir::{Flow, FlowGraph, Graph, Op};
 use crate::solve::chain::{AbsorbingChain, Edge, PhaseChain, Target};
 use crate::tree::{FlowNext, FlowState, NodeId};
 
@@ -229,14 +229,6 @@ pub(crate) fn leaf_flow(tree: &Graph, id: NodeId, leaf: impl Fn(NodeId) -> bool)
     })
 }
 
-/// The flow's exit for outcome `o`.
-fn to_next(o: Outcome) -> FlowNext {
-    match o {
-        Outcome::Success => FlowNext::Success,
-        Outcome::Failure => FlowNext::Failure,
-    }
-}
-
 /// Sends every exit of `states` that goes to `from` to `to`.
 fn redirect(states: &mut [FlowState], from: FlowNext, to: FlowNext) {
     for s in states {
@@ -272,7 +264,7 @@ fn lay_out(
             graph: FlowGraph::Chain { stop },
         }) => {
             // a child's outcome other than `stop` goes on to the next child
-            let go = to_next(stop.other());
+            let go = stop.other().exit();
             let (last, earlier) = kids.split_last()?;
             for &c in earlier {
                 let from = states.len();
@@ -294,8 +286,8 @@ fn lay_out(
             let own = &mut states[start..];
             redirect(own, FlowNext::Success, hold_s);
             redirect(own, FlowNext::Failure, hold_f);
-            redirect(own, hold_s, to_next(*on_success));
-            redirect(own, hold_f, to_next(*on_failure));
+            redirect(own, hold_s, on_success.exit());
+            redirect(own, hold_f, on_failure.exit());
         }
         _ => return None,
     }

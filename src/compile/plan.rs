@@ -495,7 +495,7 @@ impl<'t> Plan<'t> {
         // a race against a renewal process of re-runs (or the Sequence that
         // starts it): exact by levels of its wait, without a series
         if self.method != Method::Book
-            && (matches!(node.kind, Op::KOfN { .. }) || is_sequence(&node.kind))
+            && (matches!(node.kind, Op::KOfN { .. }) || node.kind.sequence().is_some())
         {
             if let Some(points) = super::renewal_curve::curve(&self.tree, id, times, options)? {
                 return Ok(points);
@@ -709,7 +709,7 @@ impl<'t> Plan<'t> {
         };
         Some(match self.tree.node(race).parent {
             Some(p)
-                if is_sequence(&self.tree.node(p).kind)
+                if self.tree.node(p).kind.sequence().is_some()
                     && self.tree.node(p).kind.children().last() == Some(&race) =>
             {
                 p
@@ -829,11 +829,6 @@ impl<'t> Plan<'t> {
                 |d| self.tree.node(d).name.clone(),
             )
     }
-}
-
-/// Whether `op` is a Sequence (the chain that stops at a Failure).
-fn is_sequence(op: &Op) -> bool {
-    op.sequence().is_some()
 }
 
 /// The flow of `op` when it is a flow other than a chain (a repetition or

@@ -163,7 +163,7 @@ impl Flow {
     pub fn state(&self, i: usize) -> FlowState {
         let step = |stop: Outcome, last: bool, child: usize| {
             let next = if last {
-                to_next(stop.other())
+                stop.other().exit()
             } else {
                 FlowNext::State(i + 1)
             };
@@ -226,10 +226,13 @@ pub fn outcomes(graph: &Graph, id: NodeId) -> (bool, bool) {
     }
 }
 
-fn to_next(o: Outcome) -> FlowNext {
-    match o {
-        Outcome::Success => FlowNext::Success,
-        Outcome::Failure => FlowNext::Failure,
+impl Outcome {
+    /// The flow exit that returns this outcome.
+    pub fn exit(self) -> FlowNext {
+        match self {
+            Outcome::Success => FlowNext::Success,
+            Outcome::Failure => FlowNext::Failure,
+        }
     }
 }
 
