@@ -297,6 +297,26 @@ impl Node {
 /// is cut with probability (1 − q)^LOOP_CAP).
 const LOOP_CAP: usize = 100_000;
 
+/// Most leaf runs one [`Node::estimate`] samples in all. Loops of loops
+/// multiply their caps (a loop of a loop whose child rarely ends it may
+/// take 10^10 leaf runs for one sampled run): past this budget the
+/// estimate stops, and says so ([`Estimates::complete`] false) instead of
+/// running for hours or counting cut runs as never returning.
+const LEAF_BUDGET: u64 = 200_000_000;
+
+thread_local! {
+    /// Leaf runs of the current [`Node::estimate`] on this thread.
+    static LEAF_RUNS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// Counts one leaf run; whether the estimate's budget is spent.
+fn spent() -> bool {
+    LEAF_RUNS.with(|c| {
+        c.set(c.get() + 1);
+        c.get() > LEAF_BUDGET
+    })
+}
+
 fn draw(l: &Law, rng: &mut Rng) -> f64 {
     let exp = |r: f64, rng: &mut Rng| -(1.0 - rng.random::<f64>()).ln() / r;
     match l {
@@ -372,6 +392,7 @@ impl Node {
     pub fn sample(&self, rng: &mut Rng) -> Outcome {
         match self {
             Node::Condition { ps } => {
+                spent();
                 if rng.random::<f64>() < *ps {
                     Outcome::Success(0.0)
                 } else {
@@ -379,6 +400,7 @@ impl Node {
                 }
             }
             Node::Action { ps, s, f } => {
+                spent();
                 if rng.random::<f64>() < *ps {
                     Outcome::Success(draw(s, rng))
                 } else {
@@ -442,6 +464,9 @@ impl Node {
             Node::UntilFailure(k) => {
                 let mut t0 = 0.0;
                 for _ in 0..LOOP_CAP {
+                    if LEAF_RUNS.with(|c| c.get()) > LEAF_BUDGET {
+                        return Outcome::Never;
+                    }
                     match k.sample(rng) {
                         Outcome::Success(t) => t0 += t,
                         Outcome::Failure(t) => return Outcome::Failure(t0 + t),
@@ -489,6 +514,9 @@ fn chain(ks: &[Node], rng: &mut Rng, on: bool) -> Outcome {
 fn repeat_until(k: &Node, rng: &mut Rng, n: usize, on_success: bool) -> Outcome {
     let mut t0 = 0.0;
     for _ in 0..n {
+        if LEAF_RUNS.with(|c| c.get()) > LEAF_BUDGET {
+            return Outcome::Never;
+        }
         match (k.sample(rng), on_success) {
             (Outcome::Success(t), true) | (Outcome::Failure(t), false) => t0 += t,
             (o, _) => return at(o, t0),
@@ -514,6 +542,9 @@ pub struct Estimates {
     pub mttf: Option<(f64, f64)>,
     pub success_by: Vec<(f64, f64)>,
     pub failure_by: Vec<(f64, f64)>,
+    /// False when the runs took more than the leaf budget: the estimate
+    /// stopped early and its figures are not to be compared.
+    pub complete: bool,
 }
 
 fn proportion(k: usize, n: usize) -> (f64, f64) {
@@ -536,13 +567,18 @@ impl Node {
     pub fn estimate(&self, runs: usize, times: &[f64], seed: u64) -> Estimates {
         let mut rng = Rng::seed_from_u64(seed);
         let (mut ts, mut tf) = (Vec::new(), Vec::new());
+        LEAF_RUNS.with(|c| c.set(0));
         for _ in 0..runs {
+            if LEAF_RUNS.with(|c| c.get()) > LEAF_BUDGET {
+                break;
+            }
             match self.sample(&mut rng) {
                 Outcome::Success(t) => ts.push(t),
                 Outcome::Failure(t) => tf.push(t),
                 Outcome::Never => {}
             }
         }
+        let complete = LEAF_RUNS.with(|c| c.get()) <= LEAF_BUDGET;
         let by = |xs: &[f64]| -> Vec<(f64, f64)> {
             times
                 .iter()
@@ -557,6 +593,7 @@ impl Node {
             mttf: mean(&tf),
             success_by: by(&ts),
             failure_by: by(&tf),
+            complete,
         }
     }
 }
