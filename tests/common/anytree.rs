@@ -307,14 +307,18 @@ const LEAF_BUDGET: u64 = 200_000_000;
 thread_local! {
     /// Leaf runs of the current [`Node::estimate`] on this thread.
     static LEAF_RUNS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+    /// The current estimate's budget of leaf runs.
+    static BUDGET: std::cell::Cell<u64> = const { std::cell::Cell::new(LEAF_BUDGET) };
 }
 
-/// Counts one leaf run; whether the estimate's budget is spent.
-fn spent() -> bool {
-    LEAF_RUNS.with(|c| {
-        c.set(c.get() + 1);
-        c.get() > LEAF_BUDGET
-    })
+/// Whether the current estimate has spent its budget.
+fn over_budget() -> bool {
+    LEAF_RUNS.with(|c| c.get()) > BUDGET.with(|b| b.get())
+}
+
+/// Counts one leaf run of the current estimate.
+fn count_leaf_run() {
+    LEAF_RUNS.with(|c| c.set(c.get() + 1));
 }
 
 fn draw(l: &Law, rng: &mut Rng) -> f64 {
@@ -392,7 +396,7 @@ impl Node {
     pub fn sample(&self, rng: &mut Rng) -> Outcome {
         match self {
             Node::Condition { ps } => {
-                spent();
+                count_leaf_run();
                 if rng.random::<f64>() < *ps {
                     Outcome::Success(0.0)
                 } else {
@@ -400,7 +404,7 @@ impl Node {
                 }
             }
             Node::Action { ps, s, f } => {
-                spent();
+                count_leaf_run();
                 if rng.random::<f64>() < *ps {
                     Outcome::Success(draw(s, rng))
                 } else {
@@ -464,7 +468,7 @@ impl Node {
             Node::UntilFailure(k) => {
                 let mut t0 = 0.0;
                 for _ in 0..LOOP_CAP {
-                    if LEAF_RUNS.with(|c| c.get()) > LEAF_BUDGET {
+                    if over_budget() {
                         return Outcome::Never;
                     }
                     match k.sample(rng) {
@@ -514,7 +518,7 @@ fn chain(ks: &[Node], rng: &mut Rng, on: bool) -> Outcome {
 fn repeat_until(k: &Node, rng: &mut Rng, n: usize, on_success: bool) -> Outcome {
     let mut t0 = 0.0;
     for _ in 0..n {
-        if LEAF_RUNS.with(|c| c.get()) > LEAF_BUDGET {
+        if over_budget() {
             return Outcome::Never;
         }
         match (k.sample(rng), on_success) {
@@ -563,13 +567,21 @@ fn mean(xs: &[f64]) -> Option<(f64, f64)> {
 }
 
 impl Node {
-    /// `runs` independent runs of the node.
+    /// `runs` independent runs of the node, within the default budget of
+    /// leaf runs.
     pub fn estimate(&self, runs: usize, times: &[f64], seed: u64) -> Estimates {
+        self.estimate_within(runs, times, seed, LEAF_BUDGET)
+    }
+
+    /// `runs` independent runs of the node, stopped past `budget` leaf runs
+    /// in all ([`Estimates::complete`] false).
+    pub fn estimate_within(&self, runs: usize, times: &[f64], seed: u64, budget: u64) -> Estimates {
+        BUDGET.with(|b| b.set(budget));
         let mut rng = Rng::seed_from_u64(seed);
         let (mut ts, mut tf) = (Vec::new(), Vec::new());
         LEAF_RUNS.with(|c| c.set(0));
         for _ in 0..runs {
-            if LEAF_RUNS.with(|c| c.get()) > LEAF_BUDGET {
+            if over_budget() {
                 break;
             }
             match self.sample(&mut rng) {
@@ -578,7 +590,7 @@ impl Node {
                 Outcome::Never => {}
             }
         }
-        let complete = LEAF_RUNS.with(|c| c.get()) <= LEAF_BUDGET;
+        let complete = !over_budget();
         let by = |xs: &[f64]| -> Vec<(f64, f64)> {
             times
                 .iter()
