@@ -249,7 +249,6 @@ fn a_long_horizon_over_a_lattice_of_jumps_is_answered() {
     let p = curve(&tree, 0, &[100.0], &CurveOptions::default()).expect("the curve")[0];
     // its runs are long (a root loop of ~360 rounds): no budget
     let est = node.estimate_within(20_000, &[100.0], 272 ^ 0xABCD, u64::MAX);
-    assert!(est.complete);
     let (m, se) = est.success_by[0];
     assert!(
         se > 0.0 && ((m - p.success) / se).abs() <= 5.0,

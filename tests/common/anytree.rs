@@ -305,20 +305,19 @@ const LOOP_CAP: usize = 100_000;
 const LEAF_BUDGET: u64 = 200_000_000;
 
 thread_local! {
-    /// Leaf runs of the current [`Node::estimate`] on this thread.
-    static LEAF_RUNS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
-    /// The current estimate's budget of leaf runs.
-    static BUDGET: std::cell::Cell<u64> = const { std::cell::Cell::new(LEAF_BUDGET) };
+    /// Leaf runs the current [`Node::estimate`] on this thread may still
+    /// take.
+    static LEAF_RUNS_LEFT: std::cell::Cell<u64> = const { std::cell::Cell::new(LEAF_BUDGET) };
 }
 
 /// Whether the current estimate has spent its budget.
 fn over_budget() -> bool {
-    LEAF_RUNS.with(|c| c.get()) > BUDGET.with(|b| b.get())
+    LEAF_RUNS_LEFT.with(|c| c.get()) == 0
 }
 
 /// Counts one leaf run of the current estimate.
 fn count_leaf_run() {
-    LEAF_RUNS.with(|c| c.set(c.get() + 1));
+    LEAF_RUNS_LEFT.with(|c| c.set(c.get().saturating_sub(1)));
 }
 
 fn draw(l: &Law, rng: &mut Rng) -> f64 {
@@ -576,10 +575,9 @@ impl Node {
     /// `runs` independent runs of the node, stopped past `budget` leaf runs
     /// in all ([`Estimates::complete`] false).
     pub fn estimate_within(&self, runs: usize, times: &[f64], seed: u64, budget: u64) -> Estimates {
-        BUDGET.with(|b| b.set(budget));
+        LEAF_RUNS_LEFT.with(|c| c.set(budget));
         let mut rng = Rng::seed_from_u64(seed);
         let (mut ts, mut tf) = (Vec::new(), Vec::new());
-        LEAF_RUNS.with(|c| c.set(0));
         for _ in 0..runs {
             if over_budget() {
                 break;
