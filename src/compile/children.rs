@@ -9,6 +9,7 @@
 //! [`Representation`] — the planner's answer for one node — lives here too:
 //! both sides speak it.
 
+use super::phase::ChainSize;
 use super::{AnalysisError, Figures};
 use crate::ir::Graph;
 use crate::solve::chain::PhaseChain;
@@ -73,6 +74,8 @@ pub(crate) trait Children {
     fn markovian(&self, id: NodeId) -> bool;
     /// The exact phase chain of `id`.
     fn chain(&self, id: NodeId) -> Result<PhaseChain, AnalysisError>;
+    /// The size of `id`'s phase chain, estimated before building it.
+    fn chain_size(&self, id: NodeId) -> Result<ChainSize, AnalysisError>;
     /// A leaf below `id` that makes its timing mixed (for messages).
     fn mixed_leaf(&self, id: NodeId) -> String;
     /// The figures of `id`'s subtree computed so far (`None` for the

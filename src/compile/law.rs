@@ -435,7 +435,7 @@ pub(crate) fn counted_parallel_times(
     // children with chains has decayed by e^{-30}
     let slowest = children
         .iter()
-        .filter_map(|&c| phase::chain_of(tree, c, max_states).ok())
+        .filter_map(|&c| phase::chain_within(tree, c, max_states).ok().flatten())
         .filter_map(|c| (0..c.len()).map(|i| c.total_rate(i)).reduce(f64::min))
         .fold(f64::INFINITY, f64::min);
     let start = (4.0 * longest).max(if slowest.is_finite() {
@@ -565,10 +565,15 @@ impl Builder<'_> {
                 leaf: self.mixed_leaf(id),
             }
         } else {
-            match phase::chain_of(self.tree, id, self.max_states) {
-                Ok(chain) => return Ok(Piece::Chain(chain)),
-                Err(e @ AnalysisError::StateBudget { .. }) => e,
-                Err(e) => return Err(e),
+            match phase::chain_size(self.tree, id, self.max_states, &mut Default::default())? {
+                phase::ChainSize::Within(_) => {
+                    return Ok(Piece::Chain(phase::chain_of(
+                        self.tree,
+                        id,
+                        self.max_states,
+                    )?))
+                }
+                phase::ChainSize::Over(e) | phase::ChainSize::NotMarkovian(e) => e,
             }
         };
         let key = (id, self.end.to_bits());

@@ -486,17 +486,17 @@ pub(crate) fn parallel_by_counts(
     {
         return Ok(None);
     }
-    let mut chains = Vec::with_capacity(children.len());
+    // a child holding a wide Parallel itself (its chain estimated over the
+    // budget): the children's composed laws
     for &c in children {
-        match plan.chain(c) {
-            Ok(chain) => chains.push(chain),
-            // a child holds a wide Parallel itself
-            Err(AnalysisError::StateBudget { .. }) => {
-                return means_from_laws(plan, id, m, child_figs, &options, memo).map(Some)
-            }
-            Err(e) => return Err(e),
+        if !plan.chain_size(c)?.fits() {
+            return means_from_laws(plan, id, m, child_figs, &options, memo).map(Some);
         }
     }
+    let chains = children
+        .iter()
+        .map(|&c| plan.chain(c))
+        .collect::<Result<Vec<_>, _>>()?;
     let product: f64 = chains.iter().map(|c| (c.len() + 2) as f64).product();
     // the product chain is built only where it is both small and within the
     // budget's Parallel share (beyond which `phase` refuses it)

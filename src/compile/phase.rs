@@ -51,6 +51,28 @@ pub fn phase_chain(
     chain_of(&lowered.graph, lowered.node(id), max_states)
 }
 
+/// The bound [`chain_size`] puts on the length of [`phase_chain`]`(tree,
+/// id, max_states)` before building it: `Some(phases)` where within
+/// `max_states` (then [`phase_chain`] builds a chain of at most that many
+/// phases), `None` where over it or where a leaf below is not phase-type.
+pub fn phase_chain_bound(
+    tree: &Tree,
+    id: NodeId,
+    max_states: usize,
+) -> Result<Option<f64>, AnalysisError> {
+    let lowered = super::lower(tree)?;
+    let size = chain_size(
+        &lowered.graph,
+        lowered.node(id),
+        max_states,
+        &mut HashMap::new(),
+    )?;
+    Ok(match size {
+        ChainSize::Within(n) => Some(n),
+        ChainSize::NotMarkovian(_) | ChainSize::Over(_) => None,
+    })
+}
+
 /// Whether an outcome of probability `p` with time `d` has a phase chain:
 /// it cannot happen, takes no time, or has a phase-type time (exponential,
 /// Erlang, hypo-, hyperexponential, phase-type). The planner's shapes and
@@ -73,8 +95,9 @@ pub(crate) fn markovian(tree: &Graph, id: NodeId) -> bool {
     })
 }
 
-/// [`chain_of`] where the subtree is [`markovian`], `None` (nothing built)
-/// where it is not.
+/// [`chain_of`] where the subtree is [`markovian`], `None` where it is not;
+/// refused where its size ([`chain_size`]) is over the budget. Nothing is
+/// built unless it fits.
 pub(crate) fn markovian_chain_of(
     tree: &Graph,
     id: NodeId,
@@ -83,7 +106,24 @@ pub(crate) fn markovian_chain_of(
     if !markovian(tree, id) {
         return Ok(None);
     }
-    chain_of(tree, id, max_states).map(Some)
+    match chain_size(tree, id, max_states, &mut HashMap::new())? {
+        ChainSize::Within(_) => chain_of(tree, id, max_states).map(Some),
+        ChainSize::NotMarkovian(_) => Ok(None),
+        ChainSize::Over(e) => Err(e),
+    }
+}
+
+/// [`chain_of`] where its size ([`chain_size`]) is within the budget,
+/// `None` (nothing built) where it is over it or a leaf is not phase-type.
+pub(crate) fn chain_within(
+    tree: &Graph,
+    id: NodeId,
+    max_states: usize,
+) -> Result<Option<PhaseChain>, AnalysisError> {
+    match chain_size(tree, id, max_states, &mut HashMap::new())? {
+        ChainSize::Within(_) => chain_of(tree, id, max_states).map(Some),
+        ChainSize::NotMarkovian(_) | ChainSize::Over(_) => Ok(None),
+    }
 }
 
 pub(crate) fn chain_of(
@@ -157,6 +197,198 @@ pub(crate) fn chain_of(
             combine(tree, id, chains, max_states)
         }
     }
+}
+
+/// What [`chain_of`] would build for a subtree, told before building it.
+#[derive(Debug, Clone)]
+pub(crate) enum ChainSize {
+    /// At most this many phases, within the budget: [`chain_of`] builds it
+    /// (it cannot fail for its budget).
+    Within(f64),
+    /// A leaf below has no phase chain ([`markovian`] is false).
+    NotMarkovian(AnalysisError),
+    /// Over the budget: the refusal, naming the node that exceeds it and
+    /// its estimated number of states.
+    Over(AnalysisError),
+}
+
+impl ChainSize {
+    /// Whether [`chain_of`] builds the chain.
+    pub(crate) fn fits(&self) -> bool {
+        matches!(self, ChainSize::Within(_))
+    }
+}
+
+/// An upper bound of the length of [`chain_of`]`(tree, id, max_states)`,
+/// computed from the leaves' phase counts without building the chain: sums
+/// along a flow, the count of a Parallel's tuples that leave it running
+/// (by the numbers of children returned so far, a programme over its
+/// children), and a loop's copies — the only node whose size depends on
+/// its child's probabilities, so a loop builds its child's chain (within
+/// the budget, by this same estimate first) to count its copies. The bound
+/// errs only upwards: where it is within `max_states`, [`chain_of`]
+/// succeeds. `memo` keeps the answers of nodes already estimated.
+pub(crate) fn chain_size(
+    tree: &Graph,
+    id: NodeId,
+    max_states: usize,
+    memo: &mut HashMap<NodeId, ChainSize>,
+) -> Result<ChainSize, AnalysisError> {
+    if let Some(s) = memo.get(&id) {
+        return Ok(s.clone());
+    }
+    let size = estimate(tree, id, max_states, memo)?;
+    memo.insert(id, size.clone());
+    Ok(size)
+}
+
+fn estimate(
+    tree: &Graph,
+    id: NodeId,
+    max_states: usize,
+    memo: &mut HashMap<NodeId, ChainSize>,
+) -> Result<ChainSize, AnalysisError> {
+    let node = tree.node(id);
+    let over = |states: f64, budget: usize| {
+        ChainSize::Over(AnalysisError::StateBudget {
+            node: node.name.clone(),
+            states,
+            budget,
+        })
+    };
+    let within = |states: f64| {
+        if states > max_states as f64 {
+            over(states, max_states)
+        } else {
+            ChainSize::Within(states)
+        }
+    };
+    let mut sizes = Vec::with_capacity(node.kind.children().len());
+    let mut first_over = None;
+    for &c in node.kind.children() {
+        match chain_size(tree, c, max_states, memo)? {
+            ChainSize::Within(n) => sizes.push(n),
+            s @ ChainSize::NotMarkovian(_) => return Ok(s),
+            s @ ChainSize::Over(_) => {
+                first_over.get_or_insert(s);
+            }
+        }
+    }
+    if let Some(s) = first_over {
+        return Ok(s);
+    }
+    Ok(match &node.kind {
+        Op::Leaf(Leaf::Action(a)) => {
+            let mut phases = 0.0;
+            for (p, d) in [(a.ps, a.success), (a.pf, a.failure)] {
+                if p <= 0.0 || matches!(d, Some(Duration::Fixed { time }) if time == 0.0) {
+                    continue;
+                }
+                match d.and_then(|d: Duration| d.phase_chain()) {
+                    Some(law) => phases += law.len() as f64,
+                    None => {
+                        return Ok(ChainSize::NotMarkovian(AnalysisError::NotMarkovian {
+                            leaf: node.name.clone(),
+                        }))
+                    }
+                }
+            }
+            within(phases)
+        }
+        Op::Leaf(Leaf::Condition { .. }) => ChainSize::Within(0.0),
+        Op::Flow(flow) => within(match flow.graph {
+            FlowGraph::Chain { .. } => sizes.iter().sum(),
+            FlowGraph::Repeat { times, .. } => sizes[0] * times as f64,
+            FlowGraph::States(_) => (0..flow.state_count())
+                .map(|i| sizes[flow.state(i).child])
+                .sum(),
+        }),
+        Op::Map { .. } => ChainSize::Within(sizes[0]),
+        Op::Loop { until, .. } => {
+            let child = chain_of(tree, node.kind.children()[0], max_states)?;
+            within(loop_shape(child, *until == Outcome::Success).len())
+        }
+        Op::KOfN {
+            success,
+            failure,
+            children,
+        } => {
+            let policy = Policy::of(&node.kind).expect("a Parallel has a policy");
+            let bound: f64 = sizes.iter().map(|n| n + 2.0).product();
+            let share = max_states / BOOK_PARALLEL_SHARE;
+            if *failure >= children.len() + 1 - success && bound > share as f64 {
+                return Ok(over(bound, share));
+            }
+            product_size(&node.name, &sizes, policy, max_states)
+        }
+    })
+}
+
+/// The size of the product chain ([`product`]) of a Parallel named `name`
+/// with `policy` over children of at most `sizes` phases.
+pub(crate) fn product_size(
+    name: &str,
+    sizes: &[f64],
+    policy: Policy,
+    max_states: usize,
+) -> ChainSize {
+    let over = |states: f64| {
+        ChainSize::Over(AnalysisError::StateBudget {
+            node: name.to_string(),
+            states,
+            budget: max_states,
+        })
+    };
+    let bound: f64 = sizes.iter().map(|n| n + 2.0).product();
+    if bound > 16.0 * max_states as f64 {
+        return over(bound);
+    }
+    let (running, widest_prefix) = running_tuples(sizes, policy);
+    if running > max_states as f64 || widest_prefix > 4.0 * max_states as f64 {
+        return over(running.max(widest_prefix / 4.0));
+    }
+    ChainSize::Within(running)
+}
+
+/// The number of a Parallel's tuples of its children's local states (a
+/// phase, "returned Success", "returned Failure") on which it still runs —
+/// the most its product chain can reach ([`product`]) — and the most of
+/// any prefix of its children (its entry, built child by child). Counted by
+/// the numbers of successes and failures so far, `sizes[h]` the phases of
+/// child `h`.
+fn running_tuples(sizes: &[f64], policy: Policy) -> (f64, f64) {
+    let n = sizes.len();
+    // count[s][f]: running prefixes with s successes and f failures
+    let mut count = vec![vec![0.0; n + 1]; n + 1];
+    count[0][0] = 1.0;
+    let mut widest: f64 = 1.0;
+    let mut total = 1.0;
+    for (h, &phases) in sizes.iter().enumerate() {
+        let mut next = vec![vec![0.0; n + 1]; n + 1];
+        for s in 0..=h {
+            for f in 0..=h - s {
+                let c = count[s][f];
+                if c == 0.0 {
+                    continue;
+                }
+                next[s][f] += c * phases;
+                next[s + 1][f] += c;
+                next[s][f + 1] += c;
+            }
+        }
+        total = 0.0;
+        for (s, row) in next.iter_mut().enumerate() {
+            for (f, c) in row.iter_mut().enumerate() {
+                if *c != 0.0 && policy.status(n, s, f) != Status::Running {
+                    *c = 0.0;
+                }
+                total += *c;
+            }
+        }
+        widest = widest.max(total);
+        count = next;
+    }
+    (total, widest)
 }
 
 /// The phase chain of control node `id` from its children's chains (in
@@ -279,10 +511,55 @@ pub const LOOP_TAIL: f64 = 1e-14;
 /// `max_states` (a child that repeats almost surely).
 pub fn unrolled_loop(
     name: &str,
-    mut c: PhaseChain,
+    c: PhaseChain,
     until_success: bool,
     max_states: usize,
 ) -> Result<PhaseChain, AnalysisError> {
+    Ok(match loop_shape(c, until_success) {
+        LoopShape::Trap => trap(),
+        LoopShape::Once(c) => finish_loop(c, until_success),
+        LoopShape::Folded(c) => c,
+        LoopShape::Copies(c, copies) => {
+            let total = copies * c.len() as f64;
+            if total > max_states as f64 {
+                return Err(AnalysisError::StateBudget {
+                    node: name.to_string(),
+                    states: total,
+                    budget: max_states,
+                });
+            }
+            finish_loop(
+                concatenate(vec![c; copies as usize], !until_success),
+                until_success,
+            )
+        }
+    })
+}
+
+/// What [`unrolled_loop`] makes of a child's chain, before it builds it.
+enum LoopShape {
+    /// The child never ends the loop: one trap phase.
+    Trap,
+    /// Its repetitions take no time: the child's chain (normalised), once.
+    Once(PhaseChain),
+    /// The loop folded onto the child's own phases ([`folded_loop`]).
+    Folded(PhaseChain),
+    /// This many copies of the (normalised) child in turn.
+    Copies(PhaseChain, f64),
+}
+
+impl LoopShape {
+    /// The number of phases of the loop's chain.
+    fn len(&self) -> f64 {
+        match self {
+            LoopShape::Trap => 1.0,
+            LoopShape::Once(c) | LoopShape::Folded(c) => c.len() as f64,
+            LoopShape::Copies(c, copies) => copies * c.len() as f64,
+        }
+    }
+}
+
+fn loop_shape(mut c: PhaseChain, until_success: bool) -> LoopShape {
     let absorption = crate::solve::transient::absorption_by_phase(&c);
     let from_start = |h: &[f64]| c.initial.iter().map(|&(i, p)| p * h[i]).sum::<f64>();
     let success = c.initial_success + from_start(&absorption.to_success);
@@ -295,8 +572,7 @@ pub fn unrolled_loop(
     if end <= 0.0 {
         // the child never ends the loop: it never returns, one trap phase
         // (no exits) holding all the mass
-        let _ = name;
-        return Ok(trap());
+        return LoopShape::Trap;
     }
     // a repetition at once (the child's instantaneous "again", e.g. a
     // condition) takes no time: the loop enters its child as if it had not
@@ -319,46 +595,37 @@ pub fn unrolled_loop(
         }
         again = ((again - p0) * w).max(0.0);
     }
-    let finish = |mut out: PhaseChain| {
-        // the mass still repeating after the last copy ends the loop too
-        for i in 0..out.len() {
-            let total = out.exit_success[i] + out.exit_failure[i];
-            (out.exit_success[i], out.exit_failure[i]) = if until_success {
-                (total, 0.0)
-            } else {
-                (0.0, total)
-            };
-        }
-        let total = out.initial_success + out.initial_failure;
-        (out.initial_success, out.initial_failure) = if until_success {
-            (total, 0.0)
-        } else {
-            (0.0, total)
-        };
-        out
-    };
     if c.is_empty() || again <= 0.0 {
         // instantaneous repetitions take no time; one copy otherwise
-        return Ok(finish(c));
+        return LoopShape::Once(c);
     }
     if let Some(folded) = folded_loop(&c, until_success) {
-        return Ok(folded);
+        return LoopShape::Folded(folded);
     }
     let copies = (LOOP_TAIL.ln() / again.min(1.0 - 1e-300).ln())
         .ceil()
         .max(1.0);
-    let total = copies * c.len() as f64;
-    if total > max_states as f64 {
-        return Err(AnalysisError::StateBudget {
-            node: name.to_string(),
-            states: total,
-            budget: max_states,
-        });
+    LoopShape::Copies(c, copies)
+}
+
+/// The loop's chain `out` with the mass still repeating after its last copy
+/// ending the loop too.
+fn finish_loop(mut out: PhaseChain, until_success: bool) -> PhaseChain {
+    for i in 0..out.len() {
+        let total = out.exit_success[i] + out.exit_failure[i];
+        (out.exit_success[i], out.exit_failure[i]) = if until_success {
+            (total, 0.0)
+        } else {
+            (0.0, total)
+        };
     }
-    Ok(finish(concatenate(
-        vec![c; copies as usize],
-        !until_success,
-    )))
+    let total = out.initial_success + out.initial_failure;
+    (out.initial_success, out.initial_failure) = if until_success {
+        (total, 0.0)
+    } else {
+        (0.0, total)
+    };
+    out
 }
 
 /// The loop's exact chain without unrolling, when the child repeats from a

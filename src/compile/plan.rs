@@ -156,6 +156,9 @@ impl Children for Plan<'_> {
     fn markovian(&self, id: NodeId) -> bool {
         self.shapes[id].exponential
     }
+    fn chain_size(&self, id: NodeId) -> Result<phase::ChainSize, AnalysisError> {
+        Plan::chain_size(self, id)
+    }
     fn chain(&self, id: NodeId) -> Result<PhaseChain, AnalysisError> {
         Plan::chain(self, id)
     }
@@ -196,8 +199,9 @@ pub struct Plan<'t> {
     representations: Vec<OnceCell<Representation>>,
     /// Phase chains of Parallel nodes (products), reused by ancestors.
     chains: RefCell<HashMap<NodeId, PhaseChain>>,
-    /// Why a node has no chain within the budget (for the composed laws).
-    over_budget: RefCell<HashMap<NodeId, AnalysisError>>,
+    /// Every node's phase-chain size, estimated before building
+    /// ([`phase::chain_size`]).
+    sizes: RefCell<HashMap<NodeId, phase::ChainSize>>,
     /// Laws of counted Parallels by node and horizon (mean times).
     pub(crate) laws: law::LawMemo,
     /// The book's figures of every node (strategy `book`, curves).
@@ -225,7 +229,7 @@ impl<'t> Plan<'t> {
             max_states,
             representations: (0..n).map(|_| OnceCell::new()).collect(),
             chains: RefCell::default(),
-            over_budget: RefCell::default(),
+            sizes: RefCell::default(),
             laws: law::LawMemo::default(),
             book: OnceCell::new(),
             long_renewals: OnceCell::new(),
@@ -311,7 +315,8 @@ impl<'t> Plan<'t> {
         Ok(Representation::Composed)
     }
 
-    /// Whether `id` (exponential) has a phase chain within the budget; a
+    /// Whether `id` (exponential) has a phase chain within the budget, by
+    /// its size estimated before building ([`phase::chain_size`]); a
     /// Parallel with the book's thresholds only if its product is small
     /// (larger ones are counted).
     fn chain_fits(&self, id: NodeId) -> Result<bool, AnalysisError> {
@@ -319,13 +324,9 @@ impl<'t> Plan<'t> {
         if book_thresholds(kind) {
             let mut product = 1.0;
             for &c in kind.children() {
-                match self.chain(c) {
-                    Ok(chain) => product *= (chain.len() + 2) as f64,
-                    Err(e @ AnalysisError::StateBudget { .. }) => {
-                        self.over_budget.borrow_mut().insert(id, e);
-                        return Ok(false);
-                    }
-                    Err(e) => return Err(e),
+                match self.chain_size(c)? {
+                    phase::ChainSize::Within(n) => product *= n + 2.0,
+                    _ => return Ok(false),
                 }
             }
             let share = (self.max_states / phase::BOOK_PARALLEL_SHARE) as f64;
@@ -333,14 +334,15 @@ impl<'t> Plan<'t> {
                 return Ok(false);
             }
         }
-        match self.chain(id) {
-            Ok(_) => Ok(true),
-            Err(e @ AnalysisError::StateBudget { .. }) => {
-                self.over_budget.borrow_mut().insert(id, e);
-                Ok(false)
-            }
-            Err(e) => Err(e),
-        }
+        Ok(self.chain_size(id)?.fits())
+    }
+
+    /// The size of `id`'s phase chain, estimated before building it.
+    pub(crate) fn chain_size(&self, id: NodeId) -> Result<phase::ChainSize, AnalysisError> {
+        let mut memo = std::mem::take(&mut *self.sizes.borrow_mut());
+        let size = phase::chain_size(&self.tree, id, self.max_states, &mut memo);
+        *self.sizes.borrow_mut() = memo;
+        size
     }
 
     /// The exact phase chain of `id` (Parallel nodes' chains are kept).
@@ -463,6 +465,7 @@ impl<'t> Plan<'t> {
                 .kind
                 .children()
                 .iter()
+                .filter(|&&c| self.chain_size(c).is_ok_and(|s| s.fits()))
                 .filter_map(|&c| self.chain(c).ok())
                 .flat_map(|c| (0..c.len()).map(move |i| c.total_rate(i)))
                 .fold(0.0, f64::max)
@@ -648,13 +651,11 @@ impl<'t> Plan<'t> {
                 }
             }
             Representation::Composed => {
-                let budget = self.over_budget.borrow().get(&id).cloned();
-                let budget = match budget {
-                    Some(e) => e,
-                    None => match self.chain(id) {
-                        Err(e) => e,
-                        Ok(_) => unreachable!("a node with a chain is planned as a chain"),
-                    },
+                let budget = match self.chain_size(id)? {
+                    phase::ChainSize::Over(e) | phase::ChainSize::NotMarkovian(e) => e,
+                    phase::ChainSize::Within(_) => {
+                        unreachable!("a node with a chain is planned as a chain")
+                    }
                 };
                 law::curve_by_laws(self, id, times, options, budget)
             }

@@ -46,6 +46,7 @@
 use super::chain_curve::{sample_weighted, shifted_times};
 use super::children::{Children, Representation, ReturnLaw};
 use super::curve_options::CurvePoint;
+use super::phase::ChainSize;
 use super::renewal::Renewal;
 use super::renewal_curve;
 use super::shifted::{self, ShiftedLaw};
@@ -269,9 +270,9 @@ impl Racer {
                 )?)))
             }
             // a chain over the budget (a wide Parallel below): its refusal
-            Representation::Composed | Representation::Book => match plan.chain(id) {
-                Err(e) => Err(e),
-                Ok(c) => Ok(Racer::Chain(c)),
+            Representation::Composed | Representation::Book => match plan.chain_size(id)? {
+                ChainSize::Over(e) | ChainSize::NotMarkovian(e) => Err(e),
+                ChainSize::Within(_) => Ok(Racer::Chain(plan.chain(id)?)),
             },
         }
     }

@@ -63,6 +63,10 @@
 //! cycle and the absorption solves with their exponential method chosen by
 //! work); about 160 lines are comments, 60 tests.
 
+use std::collections::HashMap;
+
+use super::mrg::Policy;
+use super::phase::ChainSize;
 use super::{phase, AnalysisError, Figures};
 use crate::ir::outcomes;
 use crate::ir::{Graph, Op, Outcome};
@@ -116,6 +120,45 @@ pub(super) enum Rest {
         m: usize,
         children: Vec<NodeId>,
     },
+}
+
+/// The size of `R`'s phase chain ([`rest_chain`]), estimated before
+/// building it.
+pub(super) fn rest_size(
+    tree: &Graph,
+    rest: &Rest,
+    max_states: usize,
+) -> Result<ChainSize, AnalysisError> {
+    let mut memo = HashMap::new();
+    match rest {
+        Rest::Node(n) => phase::chain_size(tree, *n, max_states, &mut memo),
+        Rest::Parallel { node, m, children } => {
+            let mut sizes = Vec::with_capacity(children.len());
+            let mut over = None;
+            for &c in children {
+                match phase::chain_size(tree, c, max_states, &mut memo)? {
+                    ChainSize::Within(n) => sizes.push(n),
+                    s @ ChainSize::NotMarkovian(_) => return Ok(s),
+                    s @ ChainSize::Over(_) => {
+                        over.get_or_insert(s);
+                    }
+                }
+            }
+            if let Some(s) = over {
+                return Ok(s);
+            }
+            let policy = Policy::Parallel {
+                success_threshold: *m,
+                failure_threshold: 1,
+            };
+            Ok(phase::product_size(
+                &tree.node(*node).name,
+                &sizes,
+                policy,
+                max_states,
+            ))
+        }
+    }
 }
 
 /// The phase chain of `R`.
@@ -269,7 +312,7 @@ fn series_terms(c: &PhaseChain) -> f64 {
 /// re-run process and the number of re-runs its law's series needs.
 pub(crate) fn series(tree: &Graph, id: NodeId, max_states: usize) -> Option<(NodeId, f64)> {
     let p = parts(tree, id)?;
-    let c = phase::chain_of(tree, p.rerun, max_states).ok()?;
+    let c = phase::chain_within(tree, p.rerun, max_states).ok()??;
     Some((p.process, series_terms(&c)))
 }
 
@@ -284,11 +327,12 @@ pub(crate) fn figures(
         return Ok(Renewal::NotApplicable);
     };
     let name = &tree.node(id).name;
-    let chain = |n: NodeId| match phase::markovian_chain_of(tree, n, max_states) {
-        Ok(Some(c)) => Ok(Ok(c)),
-        Ok(None) => Ok(Err(None)),
-        Err(e @ AnalysisError::StateBudget { .. }) => Ok(Err(Some(e))),
-        Err(e) => Err(e),
+    // a side's chain, `None` where it has none, its refusal where its size
+    // is over the budget (estimated before building)
+    let chain = |n: NodeId| match phase::chain_size(tree, n, max_states, &mut HashMap::new())? {
+        ChainSize::Within(_) => phase::chain_of(tree, n, max_states).map(Ok),
+        ChainSize::NotMarkovian(_) => Ok(Err(None)),
+        ChainSize::Over(e) => Ok(Err(Some(e))),
     };
     let c = match chain(p.rerun)? {
         Ok(c) => c,
@@ -301,16 +345,12 @@ pub(crate) fn figures(
         }
     };
     let terms = series_terms(&c);
-    let r = match rest_chain(tree, &p.rest, max_states).map_or_else(
-        |e| match e {
-            e @ AnalysisError::StateBudget { .. } => Ok(Err(Some(e))),
-            e => Err(e),
-        },
-        |c| Ok(c.ok_or(None)),
-    )? {
-        Ok(r) => r,
-        Err(None) => return Ok(Renewal::NotApplicable),
-        Err(Some(error)) => return Ok(Renewal::TooLarge { error, terms }),
+    let r = match rest_size(tree, &p.rest, max_states)? {
+        ChainSize::Within(_) => {
+            rest_chain(tree, &p.rest, max_states)?.expect("a rest with a chain size has a chain")
+        }
+        ChainSize::NotMarkovian(_) => return Ok(Renewal::NotApplicable),
+        ChainSize::Over(error) => return Ok(Renewal::TooLarge { error, terms }),
     };
     let first = match p.first {
         None => None,

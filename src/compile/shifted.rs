@@ -671,12 +671,9 @@ fn first_return(
             fixed.push(list);
             continue;
         }
-        match phase::markovian_chain_of(tree, c, max_states) {
-            Ok(Some(ch)) if ch.initial_success == 0.0 && ch.initial_failure == 0.0 => {
-                chains.push(ch)
-            }
-            Ok(_) | Err(AnalysisError::StateBudget { .. }) => return Ok(None),
-            Err(e) => return Err(e),
+        match phase::chain_within(tree, c, max_states)? {
+            Some(ch) if ch.initial_success == 0.0 && ch.initial_failure == 0.0 => chains.push(ch),
+            _ => return Ok(None),
         }
     }
     if chains.is_empty() || fixed.is_empty() {

@@ -164,6 +164,10 @@ impl<'a, 'p> Ctx<'a, 'p> {
         }
         let tree = self.plan.tree();
         if !self.on_path[id] {
+            // off the path: its chain where its size is within the budget
+            if !self.plan.chain_size(id).ok()?.fits() {
+                return None;
+            }
             return self.plan.chain(id).ok().map(|c| DChain::constant(&c));
         }
         let max_states = self.plan.max_states();
@@ -979,7 +983,10 @@ pub(crate) fn counted_means(ctx: &mut Ctx, id: NodeId, m: usize, path: usize) ->
             None => {
                 let chains = children
                     .iter()
-                    .map(|&c| ctx.plan.chain(c).ok())
+                    .map(|&c| {
+                        let fits = ctx.plan.chain_size(c).ok()?.fits();
+                        fits.then(|| ctx.plan.chain(c).ok()).flatten()
+                    })
                     .collect::<Option<Vec<_>>>();
                 let g = chains
                     .and_then(|c| CountedGrid::new(&c, m, max_work))

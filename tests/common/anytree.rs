@@ -64,6 +64,55 @@ pub fn random_tree(seed: u64, max_leaves: usize) -> Node {
     node(&mut rng, leaves, 0)
 }
 
+/// [`random_tree`] with every leaf's times made phase-type (a fixed time
+/// `τ` an exponential of mean `τ`, a hybrid's random side its exponential,
+/// a shift dropped): the whole tree has a phase chain.
+#[allow(dead_code)]
+pub fn random_phase_type_tree(seed: u64, max_leaves: usize) -> Node {
+    random_tree(seed, max_leaves).phase_type()
+}
+
+impl Law {
+    fn phase_type(self) -> Law {
+        match self {
+            Law::Fixed(t) => Law::Exp(1.0 / t),
+            Law::Capped(rate, _) => Law::Exp(rate),
+            Law::Shifted(_, l) => l.phase_type(),
+            l => l,
+        }
+    }
+}
+
+impl Node {
+    fn phase_type(self) -> Node {
+        let all = |v: Vec<Node>| v.into_iter().map(Node::phase_type).collect();
+        let one = |b: Box<Node>| Box::new(b.phase_type());
+        match self {
+            Node::Action { ps, s, f } => Node::Action {
+                ps,
+                s: s.phase_type(),
+                f: f.phase_type(),
+            },
+            Node::Condition { ps } => Node::Condition { ps },
+            Node::Sequence(v) => Node::Sequence(all(v)),
+            Node::Fallback(v) => Node::Fallback(all(v)),
+            Node::Parallel { m, f, kids } => Node::Parallel {
+                m,
+                f,
+                kids: all(kids),
+            },
+            Node::IfThenElse(v) => Node::IfThenElse(all(v)),
+            Node::Inverter(c) => Node::Inverter(one(c)),
+            Node::ForceSuccess(c) => Node::ForceSuccess(one(c)),
+            Node::ForceFailure(c) => Node::ForceFailure(one(c)),
+            Node::Retry(k, c) => Node::Retry(k, one(c)),
+            Node::Repeat(k, c) => Node::Repeat(k, one(c)),
+            Node::UntilSuccess(c) => Node::UntilSuccess(one(c)),
+            Node::UntilFailure(c) => Node::UntilFailure(one(c)),
+        }
+    }
+}
+
 fn tenth(rng: &mut Rng) -> f64 {
     rng.random_range(1..=16) as f64 / 8.0
 }
