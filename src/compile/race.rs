@@ -225,17 +225,22 @@ impl Racer {
     fn build_within(plan: &dyn Children, id: NodeId, horizon: f64) -> Result<Racer, AnalysisError> {
         let tree = plan.tree();
         let node = tree.node(id);
-        // the shifted mixture where it holds the subtree within the budget,
-        // else the subtree's composed law (any subtree)
-        let shifted = || match shifted::shifted_law_within(tree, id, plan.max_states(), horizon) {
-            Ok(Some(law)) if law.phases() <= MAX_SHIFTED_PHASES => Ok(Racer::Shifted(law)),
-            // no mixture, or one whose rows cost more than its composed law
-            // (a loop's many re-run counts, each a chain of its own): the law
-            Ok(_) => Racer::law(plan, id, horizon, || AnalysisError::MixedTiming {
-                node: node.name.clone(),
-                leaf: plan.mixed_leaf(id),
-            }),
-            Err(e @ AnalysisError::StateBudget { .. }) => Racer::law(plan, id, horizon, || e),
+        // the shifted mixture where it holds the subtree within
+        // MAX_SHIFTED_PHASES (its rows cost more than the composed law
+        // beyond: a loop's many re-run counts, each a chain of its own),
+        // built within that budget only; else the subtree's composed law
+        // (any subtree)
+        let budget = MAX_SHIFTED_PHASES.min(plan.max_states());
+        let mixed = || AnalysisError::MixedTiming {
+            node: node.name.clone(),
+            leaf: plan.mixed_leaf(id),
+        };
+        let shifted = || match shifted::shifted_law_within(tree, id, budget, horizon) {
+            Ok(Some(law)) => Ok(Racer::Shifted(law)),
+            // no mixture, or a larger one: the law
+            Ok(None) | Err(AnalysisError::StateBudget { .. }) => {
+                Racer::law(plan, id, horizon, mixed)
+            }
             Err(e) => Err(e),
         };
         match plan.representation(id)? {
