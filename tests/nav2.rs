@@ -182,6 +182,46 @@ fn a_shifted_planner_races_the_follower() {
     check_race(&tree, exact, 200_000);
 }
 
+/// A planner re-run back to back (a control node under a PipelineSequence,
+/// restarted at every tick) with mixed timing: Plan succeeds with p = 0.99
+/// after δ + Exp(a), fails after Exp(b). Its series of re-runs would be
+/// about 3,200 long (0.99^3208 ≤ 1e-14): the lowering refused it until
+/// 2026-12-07 (as Nav2's route-graph tree with fitted timings). The race of
+/// the loop L (re-runs until one fails) against Follow — success after
+/// T ~ Exp(λ) with 0.8 — in closed form, with
+/// `L̂(s) = (1 − p)·b/(b + s) / (1 − p·e^{−sδ}·a/(a + s))`:
+/// P(S) = p·0.8·(1 − L̂(λ)), and MTTS = E[Sel] + δ + 1/a + E[T·1{T < L}] /
+/// P(T < L), `E[T·1{T < L}] = (1 − L̂(λ) + λ·L̂′(λ))/λ`.
+#[test]
+fn a_planner_rerun_back_to_back_with_a_long_series_is_answered() {
+    let (p, delta, a, b, lambda) = (0.99, 0.2, 2.0, 4.0, 0.05);
+    let tree = xml(
+        "<PipelineSequence name=\"pipe\">\n<Sel/>\n<Sequence name=\"replan\"><Plan/></Sequence>\n<Follow/>\n</PipelineSequence>",
+        "Sel: {ps: 1.0, mu: 100}\nPlan: {ps: 0.99, success_time: {shift: 0.2, rate: 2}, nu: 4}\n\
+         Follow: {ps: 0.8, mu: 0.05, nu: 0.1}\n",
+    );
+    let n = |s: f64| (1.0 - p) * b / (b + s);
+    let dn = |s: f64| -(1.0 - p) * b / ((b + s) * (b + s));
+    let g = |s: f64| (-s * delta).exp() * a / (a + s);
+    let d = |s: f64| 1.0 - p * g(s);
+    let dd = |s: f64| -p * g(s) * (-delta - 1.0 / (a + s));
+    let l = n(lambda) / d(lambda);
+    let dl = (dn(lambda) * d(lambda) - n(lambda) * dd(lambda)) / (d(lambda) * d(lambda));
+    let ps = p * 0.8 * (1.0 - l);
+    let mtts = 0.01 + delta + 1.0 / a + (1.0 - l + lambda * dl) / lambda / (1.0 - l);
+    let f = analyze(&tree, &Options::default()).expect("analysed").nodes[0];
+    assert!((f.ps - ps).abs() < 1e-9, "ps {} vs {ps}", f.ps);
+    let got = f.mtts.expect("it succeeds");
+    assert!((got - mtts).abs() < 1e-9 * mtts, "MTTS {got} vs {mtts}");
+    // its curve tends to ps, and it and the figures agree with the
+    // simulated tick semantics
+    check_curve(&tree, (ps, mtts, f.mttf.expect("it fails")));
+    let r = sim_root(&tree, 100_000);
+    assert_within_z("ps", &r.nodes[0].ps, ps);
+    assert_within_z("MTTS", r.nodes[0].mtts.as_ref().unwrap(), mtts);
+    assert_within_z("MTTF", r.nodes[0].mttf.as_ref().unwrap(), f.mttf.unwrap());
+}
+
 /// The pipeline's curve: its limit is the closed form's ps, and at a few
 /// times it matches the simulation of Nav2's tick semantics (|z| < 5).
 fn check_curve(tree: &Tree, exact: (f64, f64, f64)) {

@@ -311,8 +311,7 @@ pub struct Analysis {
 /// The tree lowered to the core IR ([`crate::ir::lower`]), or the refusal
 /// naming the Nav2 node that has no exact equivalent where it stands.
 pub fn lower(tree: &Tree) -> Result<Lowered, AnalysisError> {
-    let ps = |sub: &Tree| Some(analyze(sub, &Options::default()).ok()?.nodes[0].ps);
-    crate::ir::lower(tree, &ps).map_err(|e| {
+    crate::ir::lower(tree).map_err(|e| {
         let n = tree.node(e.node);
         AnalysisError::Nav2 {
             node: n.name.clone(),

@@ -88,9 +88,8 @@ pub(crate) enum Renewal {
     Figures(Figures),
     /// The node is not such a race, or a side has no phase chain.
     NotApplicable,
-    /// Such a race, too large for the method; `terms`: the re-runs the
-    /// series would need (infinite when unknown).
-    TooLarge { error: AnalysisError, terms: f64 },
+    /// Such a race, too large for the method.
+    TooLarge { error: AnalysisError },
 }
 
 /// The parts of a renewal race.
@@ -337,27 +336,21 @@ pub(crate) fn figures(
     let c = match chain(p.rerun)? {
         Ok(c) => c,
         Err(None) => return Ok(Renewal::NotApplicable),
-        Err(Some(error)) => {
-            return Ok(Renewal::TooLarge {
-                error,
-                terms: f64::INFINITY,
-            })
-        }
+        Err(Some(error)) => return Ok(Renewal::TooLarge { error }),
     };
-    let terms = series_terms(&c);
     let r = match rest_size(tree, &p.rest, max_states)? {
         ChainSize::Within(_) => {
             rest_chain(tree, &p.rest, max_states)?.expect("a rest with a chain size has a chain")
         }
         ChainSize::NotMarkovian(_) => return Ok(Renewal::NotApplicable),
-        ChainSize::Over(error) => return Ok(Renewal::TooLarge { error, terms }),
+        ChainSize::Over(error) => return Ok(Renewal::TooLarge { error }),
     };
     let first = match p.first {
         None => None,
         Some((d0, c0)) => match chain(c0)? {
             Ok(c0) => Some((d0, c0)),
             Err(None) => return Ok(Renewal::NotApplicable),
-            Err(Some(error)) => return Ok(Renewal::TooLarge { error, terms }),
+            Err(Some(error)) => return Ok(Renewal::TooLarge { error }),
         },
     };
     let nr = r.len();
@@ -389,7 +382,6 @@ pub(crate) fn figures(
             states,
             budget,
         },
-        terms,
     };
     // the numbers kept, as states of the budget (8 numbers a state)
     let cells = (5.0 * (nr as f64).powi(2) + 2.0 * product) / CELLS_PER_STATE;
@@ -403,7 +395,6 @@ pub(crate) fn figures(
                 work,
                 limit: MAX_WORK,
             },
-            terms,
         });
     }
     let first = first.as_ref().map(|(d0, c0)| (c0, *d0));

@@ -33,14 +33,9 @@ impl Lowered {
 }
 
 /// Lowers `tree` to the core IR, or names the Nav2 node that has no exact
-/// equivalent where it stands. `success_probability` is the analysis'
-/// probability that a (sub)tree succeeds, which the lowering of a re-run
-/// loop needs (passed in: the IR does not depend on the engine).
-pub fn lower(
-    tree: &Tree,
-    success_probability: &dyn Fn(&Tree) -> Option<f64>,
-) -> Result<Lowered, NotPrimitive> {
-    Ok(match primitive_view(tree, success_probability)? {
+/// equivalent where it stands.
+pub fn lower(tree: &Tree) -> Result<Lowered, NotPrimitive> {
+    Ok(match primitive_view(tree)? {
         Some(view) => Lowered {
             graph: graph_of(&view.tree),
             image: Some(view.image),

@@ -218,16 +218,7 @@ pub struct View {
 ///   child once (`repeat` 1, the identity).
 ///
 /// Anything else is refused, naming the node.
-///
-/// `success_probability` gives the probability that a tree (a re-run's
-/// subtree on its own) returns Success, or `None` if unknown: the caller's
-/// analysis (the lowering refuses a re-run loop whose series would be too
-/// long to compute, and the length follows from that probability). Passed
-/// in, so that the tree layer does not depend on the analysis.
-pub fn primitive_view(
-    tree: &Tree,
-    success_probability: &dyn Fn(&Tree) -> Option<f64>,
-) -> Result<Option<View>, NotPrimitive> {
+pub fn primitive_view(tree: &Tree) -> Result<Option<View>, NotPrimitive> {
     let nav2 = |k: &NodeKind| {
         matches!(
             k,
@@ -250,7 +241,6 @@ pub fn primitive_view(
         image: vec![usize::MAX; tree.nodes.len()],
         copied: vec![false; tree.nodes.len()],
         roots,
-        success_probability,
     };
     lower.node(Tree::ROOT, None, 0, None)?;
     Ok(Some(View {
@@ -274,8 +264,6 @@ struct Lowering<'a> {
     /// The nodes that become one flow over a RoundRobin's index
     /// ([`index_roots`]), each with the RoundRobin slot.
     roots: HashMap<NodeId, usize>,
-    /// See [`primitive_view`].
-    success_probability: &'a dyn Fn(&Tree) -> Option<f64>,
 }
 
 impl Lowering<'_> {
@@ -488,25 +476,6 @@ impl Lowering<'_> {
                     })
                 }
             };
-            // exact without a series (figures and curve: by the levels when
-            // the wait is periodic and the earlier children are Markovian,
-            // `crate::compile::renewal_curve`, else the race's law — its own
-            // time starts with the first wait — composed with theirs)
-            let renewal = wait.is_some() && renewal_applies(tree, rerun, &children[k + 1..]);
-            if let Some(terms) = long_series(tree, rerun, wait.is_some(), self.success_probability)
-                .filter(|_| !renewal)
-            {
-                return Err(NotPrimitive {
-                    node: pipe,
-                    reason: format!(
-                        "its child '{cname}' runs again while the later children run and fails \
-                         the pipeline when a re-run fails; the exact lowering races that loop \
-                         with the rest, and its law here is a series of about {terms:.0} \
-                         re-runs, more than the {MAX_RERUN_TERMS} the analysis computes in \
-                         about a second"
-                    ),
-                });
-            }
             // Parallel{1, 1}(process, rest)
             let race_name = format!("{pipe_name}/after {cname}");
             let race_path = format!("{}/after {cname}", self.out[seq].path);
@@ -639,90 +608,12 @@ impl Lowering<'_> {
     }
 }
 
-/// Most re-runs in the series of a re-run process with mixed timing (a
-/// RateController's fixed wait, or a leaf with fixed times): the truncated
-/// series of the loop's law costs about K³ (K = 100: about 1 s, K = 300:
-/// about 12 s for a one-phase planner). The figures of a race whose re-run
-/// and rest are Markovian need no series (`crate::compile::renewal`); the
-/// curve and the other races do.
+/// Most re-runs in the series of a re-run process the engine sums as a
+/// series (its truncated series costs about K³: K = 100 about 1 s); a
+/// longer one's race is taken from the process's levels or its composed
+/// law (`crate::compile::race`, `crate::compile::plan`). Never a refusal:
+/// every such race is analysed.
 pub const MAX_RERUN_TERMS: usize = 100;
-
-/// The number of terms of the re-run process's series (re-runs until
-/// `p_again^K ≤ 1e-14`) when its timing is mixed and it exceeds
-/// [`MAX_RERUN_TERMS`]; `None` when the process is fast to analyse (all
-/// exponential without a wait: one phase chain) or its ps is unknown (the
-/// analysis then reports its own error).
-fn long_series(
-    tree: &Tree,
-    rerun: NodeId,
-    waits: bool,
-    success_probability: &dyn Fn(&Tree) -> Option<f64>,
-) -> Option<f64> {
-    let markovian = tree.subtree(rerun).all(|n| match &tree.nodes[n].kind {
-        NodeKind::Action(a) => a.is_markovian(),
-        _ => true,
-    });
-    if markovian && !waits {
-        return None;
-    }
-    let ps = success_probability(&extract(tree, rerun))?;
-    if ps <= 0.0 {
-        return None;
-    }
-    let terms = (1e-14f64.ln() / ps.min(1.0 - 1e-16).ln()).ceil();
-    (terms > MAX_RERUN_TERMS as f64).then_some(terms)
-}
-
-/// Whether the race of a RateController's re-run process against the rest
-/// of the pipeline (`rest`: the later children) is exact without a series:
-/// neither the re-run nor the rest holds a pipeline child that re-runs (nor
-/// does the rest itself, before its last child). A Markovian re-run and
-/// rest have the renewal method (`crate::compile::renewal`); any other the
-/// race of the re-run's law of first failure — from the renewal levels
-/// where the re-run has a phase chain, else its composed law on the rest's
-/// horizon — with the rest's own law (`crate::compile::race::renewal_race`):
-/// its cost follows the rest's time scale over the wait, not the number of
-/// re-runs until the process fails.
-fn renewal_applies(tree: &Tree, rerun: NodeId, rest: &[NodeId]) -> bool {
-    no_rerun(tree, rerun) && rest.iter().all(|&c| no_rerun(tree, c)) && inert(tree, rest)
-}
-
-/// Whether every child but the last of a pipeline changes nothing when
-/// ticked again.
-fn inert(tree: &Tree, kids: &[NodeId]) -> bool {
-    kids.split_last()
-        .is_none_or(|(_, e)| e.iter().all(|&c| retick(tree, c) == Retick::Inert))
-}
-
-/// Whether no pipeline below `id` has a child that re-runs.
-fn no_rerun(tree: &Tree, id: NodeId) -> bool {
-    tree.subtree(id).all(|n| match &tree.nodes[n].kind {
-        NodeKind::Pipeline { children } => inert(tree, children),
-        _ => true,
-    })
-}
-
-/// The subtree rooted at `id` as a tree of its own.
-fn extract(tree: &Tree, id: NodeId) -> Tree {
-    let range = tree.subtree(id);
-    let base = tree.nodes[id].depth;
-    let nodes = tree.nodes[range]
-        .iter()
-        .enumerate()
-        .map(|(k, n)| {
-            let mut n = n.clone();
-            n.depth -= base;
-            n.parent = if k == 0 {
-                None
-            } else {
-                n.parent.map(|p| p - id)
-            };
-            n.kind.children_mut().iter_mut().for_each(|c| *c -= id);
-            n
-        })
-        .collect();
-    Tree { title: None, nodes }
-}
 
 /// Why the RoundRobin `id` may run more than once per run of the root, if it
 /// may: another node shares its index (a copy made by a RecoveryNode), or an
