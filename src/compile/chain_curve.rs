@@ -8,7 +8,7 @@ use super::curve_options::{CurveOptions, CurvePoint, DENSE_TOLERANCE};
 use super::{shifted, AnalysisError};
 use crate::solve::chain::PhaseChain;
 use crate::solve::expm;
-use crate::solve::transient::{self, transient_weighted, uniformization_work};
+use crate::solve::transient::{self, uniformization_work, WeightedSteps};
 
 /// Dropped Poisson mass in each sampled density (the composed laws'
 /// chains, by uniformization).
@@ -131,6 +131,21 @@ pub(crate) fn sample_weighted(
     points: &[f64],
     weights: &[&[f64]],
 ) -> Option<Vec<Vec<f64>>> {
+    sample_weighted_kept(&mut None, chain, points, weights)
+}
+
+/// The most numbers a kept uniformization pass holds (64 MB).
+const MAX_KEPT_SUMS: usize = 1 << 23;
+
+/// [`sample_weighted`] for a caller that samples the same chain again (an
+/// adaptive interpolation's rounds): the uniformization pass is kept in
+/// `pass` and extended, not run again from 0.
+pub(crate) fn sample_weighted_kept(
+    pass: &mut Option<WeightedSteps>,
+    chain: &PhaseChain,
+    points: &[f64],
+    weights: &[&[f64]],
+) -> Option<Vec<Vec<f64>>> {
     // phases that only exit (an action, a mixture of exponentials): closed
     // form, π_i(t) = p_i e^{−q_i t}
     if chain.transitions.iter().all(Vec::is_empty) {
@@ -156,7 +171,14 @@ pub(crate) fn sample_weighted(
                 .collect(),
         );
     }
-    if let Some(rows) = transient_weighted(chain, points, SAMPLE_TOLERANCE, weights) {
+    let steps = pass.get_or_insert_with(|| WeightedSteps::new(chain, weights));
+    let rows = steps.rows(points, SAMPLE_TOLERANCE);
+    if steps.kept() > MAX_KEPT_SUMS {
+        // a long pass is not kept (it would hold its numbers for as long
+        // as its caller lives)
+        *pass = None;
+    }
+    if let Some(rows) = rows {
         return Some(rows);
     }
     if chain.len() + 2 > expm::MAX_DENSE_STATES {

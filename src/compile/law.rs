@@ -75,7 +75,9 @@
 //! about 300 lines are comments.
 
 use super::atoms as det;
-use super::chain_curve::{curve_by_shifted, sample_weighted, SAMPLE_TOLERANCE};
+use super::chain_curve::{
+    curve_by_shifted, sample_weighted, sample_weighted_kept, SAMPLE_TOLERANCE,
+};
 use super::curve_options::CurveOptions;
 use super::mrg::Outcome;
 use super::shifted;
@@ -617,11 +619,23 @@ impl Builder<'_> {
         self.name(d)
     }
 
-    /// The child's law (a chain's sampled).
+    /// The child's law (a chain's sampled, once for a subtree and its
+    /// copies: a RecoveryNode's retries copy the subtree they retry).
     fn law(&self, id: NodeId) -> Result<Law, AnalysisError> {
         match self.piece(id)? {
             Piece::Law(l) => Ok(*l),
-            Piece::Chain(c) => self.chain_law(id, &c),
+            Piece::Chain(c) => {
+                let end = self.end.to_bits();
+                let kept = self.memo.0.borrow().iter().find_map(|(&(n, e), l)| {
+                    (e == end && (n == id || self.tree.same_subtree(n, id))).then(|| l.clone())
+                });
+                if let Some(l) = kept {
+                    return Ok(l);
+                }
+                let law = self.chain_law(id, &c)?;
+                self.memo.0.borrow_mut().insert((id, end), law.clone());
+                Ok(law)
+            }
         }
     }
 
@@ -629,8 +643,9 @@ impl Builder<'_> {
     /// instant returns as atoms at 0.
     fn chain_law(&self, id: NodeId, chain: &PhaseChain) -> Result<Law, AnalysisError> {
         let weights = [&chain.exit_success[..], &chain.exit_failure[..]];
+        let mut pass = None;
         let mut d = self.interpolate(id, 2, &[], |points| {
-            let rows = sample_weighted(chain, points, &weights)
+            let rows = sample_weighted_kept(&mut pass, chain, points, &weights)
                 .ok_or_else(|| stiff(self.tree, id, chain, self.end))?;
             Ok(rows.iter().flat_map(|r| [r[2], r[3]]).collect())
         })?;
@@ -760,9 +775,10 @@ impl Builder<'_> {
                     .expect("exponential and phase-type times have stages")
                     .chain();
                 let weights = [&chain.exit_success[..]];
+                let mut pass = None;
                 let density = self.density(id, &[shift], |points| {
                     let local: Vec<f64> = points.iter().map(|&t| (t - shift).max(0.0)).collect();
-                    let rows = sample_weighted(&chain, &local, &weights)
+                    let rows = sample_weighted_kept(&mut pass, &chain, &local, &weights)
                         .ok_or_else(|| stiff(self.tree, id, &chain, self.end))?;
                     Ok(points
                         .iter()

@@ -43,7 +43,9 @@
 //! counting at instants and between them, and the figures and curve entry
 //! points (about 200 lines are comments, 120 tests).
 
-use super::chain_curve::{sample_weighted, shifted_times};
+use std::cell::RefCell;
+
+use super::chain_curve::{sample_weighted, sample_weighted_kept, shifted_times};
 use super::children::{Children, Representation, ReturnLaw};
 use super::curve_options::CurvePoint;
 use super::phase::ChainSize;
@@ -54,7 +56,7 @@ use super::{counts, AnalysisError, Figures};
 use crate::ir::{Graph, Op};
 use crate::solve::chain::PhaseChain;
 use crate::solve::quadrature::GaussLegendre;
-use crate::solve::transient::uniformization_work;
+use crate::solve::transient::{uniformization_work, WeightedSteps};
 use crate::tree::nav2::MAX_RERUN_TERMS;
 use crate::tree::same_instant;
 use crate::tree::{Duration, NodeId};
@@ -77,8 +79,9 @@ pub(crate) fn is_race(n: usize, m: usize, f: usize) -> bool {
 
 /// The law of a subtree, ready to be evaluated at any times.
 pub(crate) enum Racer {
-    /// An exact phase chain.
-    Chain(PhaseChain),
+    /// An exact phase chain, and its uniformization pass kept between
+    /// calls (the quadrature's rounds ask it at new times).
+    Chain(PhaseChain, Box<RefCell<Option<WeightedSteps>>>),
     /// A shifted phase-type mixture.
     Shifted(ShiftedLaw),
     /// A Parallel whose failure threshold is the book's (F = N − M + 1).
@@ -213,6 +216,11 @@ fn stiff(name: &str, chain: &PhaseChain, times: &[f64]) -> AnalysisError {
 }
 
 impl Racer {
+    /// A chain racer, its pass not run yet.
+    fn chain(c: PhaseChain) -> Racer {
+        Racer::Chain(c, Box::default())
+    }
+
     /// The law of the subtree at `id`, from its planned representation
     /// ([`Plan`]): its phase chain, a shifted mixture (deterministic, mixed
     /// or looping subtrees), or a counted Parallel or race of its children's
@@ -244,10 +252,10 @@ impl Racer {
             Err(e) => Err(e),
         };
         match plan.representation(id)? {
-            Representation::Chain => Ok(Racer::Chain(plan.chain(id)?)),
+            Representation::Chain => Ok(Racer::chain(plan.chain(id)?)),
             // a leaf or a loop: its chain when Markovian
             Representation::Closed | Representation::Loop if plan.markovian(id) => {
-                Ok(Racer::Chain(plan.chain(id)?))
+                Ok(Racer::chain(plan.chain(id)?))
             }
             Representation::Closed | Representation::Loop => shifted(),
             Representation::Atoms | Representation::Shifted => shifted(),
@@ -277,7 +285,7 @@ impl Racer {
             // a chain over the budget (a wide Parallel below): its refusal
             Representation::Composed | Representation::Book => match plan.chain_size(id)? {
                 ChainSize::Over(e) | ChainSize::NotMarkovian(e) => Err(e),
-                ChainSize::Within(_) => Ok(Racer::Chain(plan.chain(id)?)),
+                ChainSize::Within(_) => Ok(Racer::chain(plan.chain(id)?)),
             },
         }
     }
@@ -365,7 +373,7 @@ impl Racer {
     /// [`Race::pass_work`] of this racer.
     fn pass_work(&self, end: f64) -> f64 {
         match self {
-            Racer::Chain(c) => uniformization_work(c, &[end]),
+            Racer::Chain(c, _) => uniformization_work(c, &[end]),
             Racer::Shifted(l) => l
                 .success
                 .iter()
@@ -383,7 +391,7 @@ impl Racer {
     /// Instants at which the subtree may return with positive probability.
     fn instants(&self, out: &mut Vec<f64>) {
         match self {
-            Racer::Chain(c) => {
+            Racer::Chain(c, _) => {
                 if c.initial_success + c.initial_failure > 0.0 {
                     out.push(0.0);
                 }
@@ -406,7 +414,7 @@ impl Racer {
     /// Instants where the subtree's densities may jump or kink.
     fn cuts(&self, out: &mut Vec<f64>) {
         match self {
-            Racer::Chain(_) => {}
+            Racer::Chain(..) => {}
             Racer::Shifted(l) => out.extend(l.shifts()),
             Racer::Counted { children, .. } => children.iter().for_each(|c| c.cuts(out)),
             Racer::Race(r) => out.extend(&r.cuts),
@@ -433,7 +441,7 @@ impl Racer {
     fn fastest(&self) -> f64 {
         let chain_rate = |c: &PhaseChain| (0..c.len()).map(|i| c.total_rate(i)).fold(0.0, f64::max);
         match self {
-            Racer::Chain(c) => chain_rate(c),
+            Racer::Chain(c, _) => chain_rate(c),
             Racer::Shifted(l) => l
                 .success
                 .iter()
@@ -455,10 +463,10 @@ impl Racer {
     /// each time (without a return exactly then).
     fn rows(&self, name: &str, times: &[f64], left: bool) -> Result<Vec<Row>, AnalysisError> {
         match self {
-            Racer::Chain(c) => {
+            Racer::Chain(c, pass) => {
                 let weights = [&c.exit_success[..], &c.exit_failure[..]];
-                let rows =
-                    sample_weighted(c, times, &weights).ok_or_else(|| stiff(name, c, times))?;
+                let rows = sample_weighted_kept(&mut pass.borrow_mut(), c, times, &weights)
+                    .ok_or_else(|| stiff(name, c, times))?;
                 Ok(times
                     .iter()
                     .zip(rows)

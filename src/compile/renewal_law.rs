@@ -50,7 +50,7 @@
 //! fails with an atom at the end of each wait entered by an atom — after
 //! 0, which the composed laws do not hold yet: refused as mixed timing.
 
-use super::chain_curve::sample_weighted;
+use super::chain_curve::sample_weighted_kept;
 use super::renewal_curve::{self, Level};
 use super::AnalysisError;
 use crate::ir::{Graph, Op};
@@ -137,12 +137,15 @@ pub(super) fn law(
             // R alone until the first wait ends
             let r = run.rest();
             let weights = [&r.exit_success[..], &r.exit_failure[..]];
+            let mut pass = None;
             build_on(a, b, true, 2, |points| {
                 let rows =
-                    sample_weighted(r, points, &weights).ok_or_else(|| AnalysisError::Stiff {
-                        node: name.clone(),
-                        work: f64::INFINITY,
-                        limit: f64::INFINITY,
+                    sample_weighted_kept(&mut pass, r, points, &weights).ok_or_else(|| {
+                        AnalysisError::Stiff {
+                            node: name.clone(),
+                            work: f64::INFINITY,
+                            limit: f64::INFINITY,
+                        }
                     })?;
                 Ok(rows.iter().flat_map(|row| [row[2], row[3]]).collect())
             })

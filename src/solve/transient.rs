@@ -448,79 +448,137 @@ pub(crate) fn transient_weighted(
     tolerance: f64,
     weights: &[&[f64]],
 ) -> Option<Vec<Vec<f64>>> {
-    let lambda = max_rate(chain);
-    let horizon = times.iter().copied().fold(0.0, f64::max);
-    let width = 2 + weights.len();
-    if chain.is_empty() || lambda == 0.0 {
-        let mut row = vec![0.0; width];
-        row[0] = chain.initial_success;
-        row[1] = chain.initial_failure;
-        return Some(vec![row; times.len()]);
+    WeightedSteps::new(chain, weights).rows(times, tolerance)
+}
+
+/// [`transient_weighted`]'s pass kept for later calls: the uniformized
+/// chain's steps from the initial distribution are the same whatever the
+/// times asked (only their Poisson mixtures differ), so a caller that asks
+/// again — an adaptive interpolation's rounds, each at new points — extends
+/// the steps it has instead of starting a pass from 0 (the same numbers,
+/// in the same order, as one pass to the latest time).
+pub(crate) struct WeightedSteps {
+    lambda: f64,
+    initial: (f64, f64),
+    empty: bool,
+    weights: Vec<Vec<f64>>,
+    p: Uniformized,
+    state: Vec<f64>,
+    next: Vec<f64>,
+    absorbed: (f64, f64),
+    /// per step, flattened: absorbed S, absorbed F, then π·h for each weight
+    sums: Vec<f64>,
+}
+
+impl WeightedSteps {
+    pub(crate) fn new(chain: &PhaseChain, weights: &[&[f64]]) -> WeightedSteps {
+        let lambda = max_rate(chain);
+        let n = chain.len();
+        let mut state = vec![0.0; n];
+        for &(i, q) in &chain.initial {
+            state[i] += q;
+        }
+        WeightedSteps {
+            lambda,
+            initial: (chain.initial_success, chain.initial_failure),
+            empty: chain.is_empty(),
+            weights: weights.iter().map(|w| w.to_vec()).collect(),
+            p: Uniformized::new(chain, lambda),
+            state,
+            next: vec![0.0; n],
+            absorbed: (0.0, 0.0),
+            sums: Vec::new(),
+        }
     }
-    let max_lt = lambda * horizon;
-    // refuse before allocating the Poisson tables: the pass needs at least
-    // Λt steps
-    let table = max_lt + 10.0 * max_lt.sqrt() + 64.0;
-    if max_lt > MAX_SINGLE_PASS_STEPS as f64 {
-        return None;
-    }
-    let inv = reciprocals(table.min(1e8) as usize);
-    let windows: Vec<PoissonWindow> = times
-        .iter()
-        .map(|&t| poisson_window_with(lambda * t, tolerance, &inv))
-        .collect();
-    let steps = windows
-        .iter()
-        .map(|w| w.left + w.weights.len())
-        .max()
-        .unwrap_or(0);
-    if steps > MAX_SINGLE_PASS_STEPS {
-        return None;
-    }
-    let p = Uniformized::new(chain, lambda);
-    let n = chain.len();
-    let mut state = vec![0.0; n];
-    for &(i, q) in &chain.initial {
-        state[i] += q;
-    }
-    let mut next = vec![0.0; n];
-    let dot = |v: &[f64], h: &[f64]| v.iter().zip(h).map(|(a, b)| a * b).sum::<f64>();
-    // per step, flattened: absorbed S, absorbed F, then π·h for each weight
-    let mut sums = Vec::with_capacity(steps * width);
-    let push = |sums: &mut Vec<f64>, s: f64, f: f64, state: &[f64]| {
-        sums.push(s);
-        sums.push(f);
-        sums.extend(weights.iter().map(|h| dot(state, h)));
-    };
-    let (mut s, mut f) = (0.0, 0.0);
-    push(&mut sums, s, f, &state);
-    for _ in 1..steps {
-        let (ds, df) = p.step(&state, &mut next);
-        s += ds;
-        f += df;
-        std::mem::swap(&mut state, &mut next);
-        next.iter_mut().for_each(|x| *x = 0.0);
-        push(&mut sums, s, f, &state);
-    }
-    Some(
-        windows
+
+    /// `[S, F, π·h₁, ...]` at `times` ([`transient_weighted`]), `None` when
+    /// the pass would take more than [`MAX_SINGLE_PASS_STEPS`] steps.
+    pub(crate) fn rows(&mut self, times: &[f64], tolerance: f64) -> Option<Vec<Vec<f64>>> {
+        let lambda = self.lambda;
+        let horizon = times.iter().copied().fold(0.0, f64::max);
+        let width = 2 + self.weights.len();
+        if self.empty || lambda == 0.0 {
+            let mut row = vec![0.0; width];
+            row[0] = self.initial.0;
+            row[1] = self.initial.1;
+            return Some(vec![row; times.len()]);
+        }
+        let max_lt = lambda * horizon;
+        // refuse before allocating the Poisson tables: the pass needs at
+        // least Λt steps
+        let table = max_lt + 10.0 * max_lt.sqrt() + 64.0;
+        if max_lt > MAX_SINGLE_PASS_STEPS as f64 {
+            return None;
+        }
+        let inv = reciprocals(table.min(1e8) as usize);
+        let windows: Vec<PoissonWindow> = times
             .iter()
-            .map(|w| {
-                let total: f64 = w.weights.iter().sum();
-                let mut acc = vec![0.0; width];
-                for (j, &wk) in w.weights.iter().enumerate() {
-                    let row = &sums[(w.left + j) * width..(w.left + j + 1) * width];
-                    for (a, x) in acc.iter_mut().zip(row) {
-                        *a += wk * x;
+            .map(|&t| poisson_window_with(lambda * t, tolerance, &inv))
+            .collect();
+        let steps = windows
+            .iter()
+            .map(|w| w.left + w.weights.len())
+            .max()
+            .unwrap_or(0);
+        if steps > MAX_SINGLE_PASS_STEPS {
+            return None;
+        }
+        self.extend(steps);
+        let sums = &self.sums;
+        Some(
+            windows
+                .iter()
+                .map(|w| {
+                    let total: f64 = w.weights.iter().sum();
+                    let mut acc = vec![0.0; width];
+                    for (j, &wk) in w.weights.iter().enumerate() {
+                        let row = &sums[(w.left + j) * width..(w.left + j + 1) * width];
+                        for (a, x) in acc.iter_mut().zip(row) {
+                            *a += wk * x;
+                        }
                     }
-                }
-                acc.iter_mut().for_each(|a| *a /= total);
-                acc[0] += chain.initial_success;
-                acc[1] += chain.initial_failure;
-                acc
-            })
-            .collect(),
-    )
+                    acc.iter_mut().for_each(|a| *a /= total);
+                    acc[0] += self.initial.0;
+                    acc[1] += self.initial.1;
+                    acc
+                })
+                .collect(),
+        )
+    }
+
+    /// The numbers the pass holds.
+    pub(crate) fn kept(&self) -> usize {
+        self.sums.len()
+    }
+
+    /// Runs the pass on to `steps` steps (the initial distribution is
+    /// step 0).
+    fn extend(&mut self, steps: usize) {
+        let width = 2 + self.weights.len();
+        let dot = |v: &[f64], h: &[f64]| v.iter().zip(h).map(|(a, b)| a * b).sum::<f64>();
+        let push =
+            |sums: &mut Vec<f64>, (s, f): (f64, f64), state: &[f64], weights: &[Vec<f64>]| {
+                sums.push(s);
+                sums.push(f);
+                sums.extend(weights.iter().map(|h| dot(state, h)));
+            };
+        let done = self.sums.len() / width;
+        if steps == 0 || done >= steps {
+            return;
+        }
+        self.sums.reserve((steps - done) * width);
+        if done == 0 {
+            push(&mut self.sums, self.absorbed, &self.state, &self.weights);
+        }
+        for _ in done.max(1)..steps {
+            let (ds, df) = self.p.step(&self.state, &mut self.next);
+            self.absorbed.0 += ds;
+            self.absorbed.1 += df;
+            std::mem::swap(&mut self.state, &mut self.next);
+            self.next.iter_mut().for_each(|x| *x = 0.0);
+            push(&mut self.sums, self.absorbed, &self.state, &self.weights);
+        }
+    }
 }
 
 #[cfg(test)]
