@@ -23,7 +23,12 @@
 //!   e^{θT_i}` over the children that return (each factor ≥ 1), and by
 //!   their independence `E[e^{θT}; T < ∞] ≤ B = Π_i (M_i(θ) + never_i)`;
 //!   as `e^{θT} ≥ 1`, each outcome's part is at most `B` minus the other
-//!   outcome's probability (the node's figures).
+//!   outcome's probability (the node's figures). A Parallel that returns
+//!   at the first return of any child (M = F = 1: a race, a Timeout, the
+//!   re-planning race) has `T ≤ T_i` on `T_i < ∞` for every child `i`, so
+//!   also `E[e^{θT}; T < ∞] ≤ M_i(θ) + never_i · Π_{j≠i} (M_j(θ) +
+//!   never_j)`: the least of these and `B` (a fast child bounds a race
+//!   with a slow one).
 //!
 //! The bound is an upper bound at every step (no estimate): a time past
 //! [`settled_after`] has all but `ε` of the node's returning mass behind it.
@@ -135,12 +140,32 @@ fn mgf_bound(tree: &Graph, id: NodeId, figures: &[Option<Figures>], theta: f64) 
                     Outcome::Failure => [0.0, geometric(f, s)],
                 }
             }
-            Op::KOfN { children, .. } => {
-                let b: f64 = children.iter().fold(1.0, |b, &c| {
+            Op::KOfN {
+                children,
+                success,
+                failure,
+            } => {
+                let never = |c: NodeId| figures[c - base].map_or(1.0, |f| f.never());
+                let returns = |c: NodeId| {
                     let [s, f] = m(c);
-                    let never = figures[c - base].map_or(1.0, |f| f.never());
-                    mul(b, s + f + never)
-                });
+                    s + f
+                };
+                let product = |skip: Option<NodeId>| {
+                    children
+                        .iter()
+                        .filter(|&&c| Some(c) != skip)
+                        .fold(1.0, |b, &c| mul(b, returns(c) + never(c)))
+                };
+                let mut b = product(None);
+                // returning at the first return of any child (M = F = 1: a
+                // race, a Timeout, the re-planning race): on T_i < ∞,
+                // T ≤ T_i, so the bound is also M_i + never_i·B_{−i}
+                if *success == 1 && *failure == 1 {
+                    for &c in children {
+                        let first = returns(c) + mul(never(c), product(Some(c)));
+                        b = b.min(first);
+                    }
+                }
                 match figures[n - base] {
                     // `b` is at least the mass that returns: both are ≥ 0
                     Some(own) => [(b - own.pf).max(0.0), (b - own.ps).max(0.0)],
@@ -282,6 +307,34 @@ mod tests {
         )
         .unwrap();
         let exact = 2.0 * (1.0 / eps).ln();
+        assert!(t >= exact, "{t} < {exact}");
+        assert!(t < exact + 2.0 * (2.0 * exact).ln() + 4.0, "{t} vs {exact}");
+    }
+
+    /// A race (M = F = 1) of a fast action (Exp(1)) and a slow one
+    /// (Exp(0.001)) returns at the first: `P(T > t) = e^{−1.001 t}`, so the
+    /// bound's time for ε must be at least `ln(1/ε)/1.001`. The product of
+    /// the children's bounds alone is finite only for θ < 0.001 (the slow
+    /// child's): about a thousand times longer; the first-return bound
+    /// `M_fast(θ)` keeps it within a few units of the exact tail.
+    #[test]
+    fn a_race_settles_with_its_fast_child() {
+        let tree = crate::parse_str(
+            "tree:\n  parallel:\n    success_threshold: 1\n    failure_threshold: 1\n    children:\n      - action: {ps: 1, mu: 1}\n      - action: {ps: 1, mu: 0.001}\n",
+            "race.yaml",
+        )
+        .unwrap();
+        let f = |ts: f64| Figures::from_moments([1.0, 0.0, ts, 0.0]);
+        let eps = 1e-13;
+        let t = settled_after(
+            &crate::ir::graph_of(&tree),
+            0,
+            &[Some(f(1.0 / 1.001)), Some(f(1.0)), Some(f(1000.0))],
+            1.0 / 1.001,
+            eps,
+        )
+        .unwrap();
+        let exact = (1.0 / eps).ln() / 1.001;
         assert!(t >= exact, "{t} < {exact}");
         assert!(t < exact + 2.0 * (2.0 * exact).ln() + 4.0, "{t} vs {exact}");
     }
