@@ -263,20 +263,10 @@ fn estimate(
             ChainSize::Within(states)
         }
     };
-    let mut sizes = Vec::with_capacity(node.kind.children().len());
-    let mut first_over = None;
-    for &c in node.kind.children() {
-        match chain_size(tree, c, max_states, memo)? {
-            ChainSize::Within(n) => sizes.push(n),
-            s @ ChainSize::NotMarkovian(_) => return Ok(s),
-            s @ ChainSize::Over(_) => {
-                first_over.get_or_insert(s);
-            }
-        }
-    }
-    if let Some(s) = first_over {
-        return Ok(s);
-    }
+    let sizes = match children_sizes(tree, node.kind.children(), max_states, memo)? {
+        Ok(sizes) => sizes,
+        Err(refusal) => return Ok(refusal),
+    };
     Ok(match &node.kind {
         Op::Leaf(Leaf::Action(a)) => {
             let mut phases = 0.0;
@@ -322,6 +312,29 @@ fn estimate(
             product_size(&node.name, &sizes, policy, max_states)
         }
     })
+}
+
+/// The chain sizes of `children`, all within the budget, or the refusal
+/// of one: a leaf without a phase chain anywhere first, else the first
+/// child over the budget.
+pub(crate) fn children_sizes(
+    tree: &Graph,
+    children: &[NodeId],
+    max_states: usize,
+    memo: &mut HashMap<NodeId, ChainSize>,
+) -> Result<Result<Vec<f64>, ChainSize>, AnalysisError> {
+    let mut sizes = Vec::with_capacity(children.len());
+    let mut first_over = None;
+    for &c in children {
+        match chain_size(tree, c, max_states, memo)? {
+            ChainSize::Within(n) => sizes.push(n),
+            s @ ChainSize::NotMarkovian(_) => return Ok(Err(s)),
+            s @ ChainSize::Over(_) => {
+                first_over.get_or_insert(s);
+            }
+        }
+    }
+    Ok(first_over.map_or(Ok(sizes), Err))
 }
 
 /// The size of the product chain ([`product`]) of a Parallel named `name`

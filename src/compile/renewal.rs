@@ -132,20 +132,10 @@ pub(super) fn rest_size(
     match rest {
         Rest::Node(n) => phase::chain_size(tree, *n, max_states, &mut memo),
         Rest::Parallel { node, m, children } => {
-            let mut sizes = Vec::with_capacity(children.len());
-            let mut over = None;
-            for &c in children {
-                match phase::chain_size(tree, c, max_states, &mut memo)? {
-                    ChainSize::Within(n) => sizes.push(n),
-                    s @ ChainSize::NotMarkovian(_) => return Ok(s),
-                    s @ ChainSize::Over(_) => {
-                        over.get_or_insert(s);
-                    }
-                }
-            }
-            if let Some(s) = over {
-                return Ok(s);
-            }
+            let sizes = match phase::children_sizes(tree, children, max_states, &mut memo)? {
+                Ok(sizes) => sizes,
+                Err(refusal) => return Ok(refusal),
+            };
             let policy = Policy::Parallel {
                 success_threshold: *m,
                 failure_threshold: 1,
