@@ -339,10 +339,12 @@ impl<'t> Plan<'t> {
 
     /// The size of `id`'s phase chain, estimated before building it.
     pub(crate) fn chain_size(&self, id: NodeId) -> Result<phase::ChainSize, AnalysisError> {
-        let mut memo = std::mem::take(&mut *self.sizes.borrow_mut());
-        let size = phase::chain_size(&self.tree, id, self.max_states, &mut memo);
-        *self.sizes.borrow_mut() = memo;
-        size
+        phase::chain_size(
+            &self.tree,
+            id,
+            self.max_states,
+            &mut self.sizes.borrow_mut(),
+        )
     }
 
     /// The exact phase chain of `id` (Parallel nodes' chains are kept).
