@@ -339,11 +339,26 @@ pub(super) fn curve_by_laws(
     times: &[f64],
     options: &CurveOptions,
     fallback: AnalysisError,
+    kept: &Kept,
 ) -> Result<Vec<CurvePoint>, AnalysisError> {
     let end = times.iter().copied().fold(0.0, f64::max);
-    let law = composed_law(children, id, end, options.max_states, |b| {
-        b.opaque(id, fallback)
-    })?;
+    let key = (id, options.max_states);
+    let known = kept
+        .laws
+        .borrow()
+        .get(&key)
+        .filter(|(until, _)| *until >= end)
+        .map(|(_, law)| law.clone());
+    let law = match known {
+        Some(law) => law,
+        None => {
+            let law = std::rc::Rc::new(composed_law(children, id, end, options.max_states, |b| {
+                b.opaque(id, fallback)
+            })?);
+            kept.laws.borrow_mut().insert(key, (end, law.clone()));
+            law
+        }
+    };
     Ok(times
         .iter()
         .map(|&t| {
@@ -358,6 +373,22 @@ pub(super) fn curve_by_laws(
         })
         .collect())
 }
+
+/// What a plan keeps across its curve queries, so that a quadrature's
+/// rounds and a curve's later times do not build a node's law again: the
+/// composed laws, by node and budget — the law of a node on `[0, end]`
+/// answers every later query up to `end` (on a longer horizon it is the
+/// same law up to `end`); a query past it builds the law on its own
+/// horizon — and the first attempts at shifted mixtures.
+#[derive(Default)]
+pub(crate) struct Kept {
+    laws: std::cell::RefCell<std::collections::HashMap<(NodeId, usize), KeptLaw>>,
+    /// The shifted mixtures within their first budget.
+    pub(crate) mixtures: shifted::KeptMixtures,
+}
+
+/// A composed law kept with the end of its horizon.
+type KeptLaw = (f64, std::rc::Rc<Law>);
 
 /// The law of `id` that `build` makes with a fresh builder on `[0, end]`, refused where
 /// it dropped more than [`DROPPED_LIMIT`] of atom mass.
@@ -1903,6 +1934,7 @@ pub(crate) fn loop_curve(
     until: Outcome,
     times: &[f64],
     options: &CurveOptions,
+    kept: &Kept,
 ) -> Result<Vec<CurvePoint>, AnalysisError> {
     let tree = children.tree();
     let node = tree.node(id);
@@ -1915,12 +1947,11 @@ pub(crate) fn loop_curve(
         // `Shifted` rule), else the loop's composed law (`law`: its renewal
         // equation marched in time, any child)
         let first = options.max_states.min(super::shifted::SHIFTED_FIRST);
-        return match shifted::shifted_law(tree, id, first) {
-            Ok(Some(law)) => curve_by_shifted(&law, times, options, &node.name),
-            Ok(None) | Err(AnalysisError::StateBudget { .. }) => {
-                curve_by_laws(children, id, times, options, unbounded())
+        return match kept.mixtures.first(tree, id, first)? {
+            shifted::FirstMixture::Built(law) => curve_by_shifted(&law, times, options, &node.name),
+            shifted::FirstMixture::CannotHold | shifted::FirstMixture::Over(_) => {
+                curve_by_laws(children, id, times, options, unbounded(), kept)
             }
-            Err(e) => Err(e),
         };
     }
     let mut c = phase::chain_of(tree, child, options.max_states)?;

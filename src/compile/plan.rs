@@ -50,7 +50,7 @@ use std::collections::HashMap;
 use super::children::{Children, Representation, ReturnLaw};
 use super::curve_options::{CurveOptions, CurvePoint, Timing};
 use super::mrg::{self, Mrg, Policy};
-use super::shifted::SHIFTED_FIRST;
+use super::shifted::{FirstMixture, SHIFTED_FIRST};
 use super::{
     atoms, book_ctmc, chain_curve, counts, flow, law, parallel_times, phase, race, AnalysisError,
     Figures, Method,
@@ -204,6 +204,8 @@ pub struct Plan<'t> {
     sizes: RefCell<HashMap<NodeId, phase::ChainSize>>,
     /// Laws of counted Parallels by node and horizon (mean times).
     pub(crate) laws: law::LawMemo,
+    /// Composed laws and first shifted mixtures kept across curve queries.
+    kept: law::Kept,
     /// The book's figures of every node (strategy `book`, curves).
     book: OnceCell<Vec<Figures>>,
     /// Races against a renewal process whose loop's series is long:
@@ -231,6 +233,7 @@ impl<'t> Plan<'t> {
             chains: RefCell::default(),
             sizes: RefCell::default(),
             laws: law::LawMemo::default(),
+            kept: law::Kept::default(),
             book: OnceCell::new(),
             long_renewals: OnceCell::new(),
             figures: (0..n).map(|_| OnceCell::new()).collect(),
@@ -541,7 +544,7 @@ impl<'t> Plan<'t> {
             leaf,
         };
         let budget = refusal(self.mixed_leaf(id));
-        law::curve_by_laws(self, id, times, options, budget).map_err(|e| match e {
+        law::curve_by_laws(self, id, times, options, budget, &self.kept).map_err(|e| match e {
             AnalysisError::MixedTiming { leaf, .. } => refusal(leaf),
             e => e,
         })
@@ -583,7 +586,7 @@ impl<'t> Plan<'t> {
                 let Op::Loop { child, until } = node.kind else {
                     unreachable!("planned as a loop")
                 };
-                law::loop_curve(self, id, child, until, times, options)
+                law::loop_curve(self, id, child, until, times, options, &self.kept)
             }
             Representation::Atoms => {
                 let a = atoms::atoms(&self.tree, id, self.max_states)?
@@ -625,17 +628,26 @@ impl<'t> Plan<'t> {
                 // distinct sum of fixed times is a component) the composed
                 // laws are the faster exact answer
                 let first = self.max_states.min(SHIFTED_FIRST);
-                match super::shifted::shifted_law(&self.tree, id, first) {
-                    Ok(Some(law)) => {
+                match self.kept.mixtures.first(&self.tree, id, first)? {
+                    FirstMixture::Built(law) => {
                         chain_curve::curve_by_shifted(&law, times, options, &node.name)
                     }
                     // a form the mixture cannot hold
-                    Ok(None) => law::curve_by_laws(self, id, times, options, mixed),
+                    FirstMixture::CannotHold => {
+                        law::curve_by_laws(self, id, times, options, mixed, &self.kept)
+                    }
                     // too many components: where the composed laws cannot
                     // hold the node either, the mixture within the whole
                     // budget, and the budget is what stops it
-                    Err(budget @ AnalysisError::StateBudget { .. }) => {
-                        match law::curve_by_laws(self, id, times, options, mixed.clone()) {
+                    FirstMixture::Over(budget) => {
+                        match law::curve_by_laws(
+                            self,
+                            id,
+                            times,
+                            options,
+                            mixed.clone(),
+                            &self.kept,
+                        ) {
                             Err(AnalysisError::MixedTiming { .. }) if first < self.max_states => {
                                 match super::shifted::shifted_law(&self.tree, id, self.max_states)?
                                 {
@@ -649,7 +661,6 @@ impl<'t> Plan<'t> {
                             r => r,
                         }
                     }
-                    Err(e) => Err(e),
                 }
             }
             Representation::Composed => {
@@ -659,7 +670,7 @@ impl<'t> Plan<'t> {
                         unreachable!("a node with a chain is planned as a chain")
                     }
                 };
-                law::curve_by_laws(self, id, times, options, budget)
+                law::curve_by_laws(self, id, times, options, budget, &self.kept)
             }
             Representation::Book => {
                 let figs = self.book_figures()?;

@@ -470,6 +470,47 @@ pub const MAX_LOOP_TERMS: usize = 100_000;
 /// cannot hold the node.
 pub(crate) const SHIFTED_FIRST: usize = 1 << 16;
 
+/// What the shifted mixture within [`SHIFTED_FIRST`] gave a node's curve.
+#[derive(Clone)]
+pub(crate) enum FirstMixture {
+    /// The mixture, within that budget.
+    Built(std::rc::Rc<ShiftedLaw>),
+    /// A form the mixture cannot hold (a Parallel below).
+    CannotHold,
+    /// More components than that budget (the error saying how many).
+    Over(AnalysisError),
+}
+
+/// The first attempts at nodes' shifted mixtures, kept by a plan: each is
+/// built once per node and budget, not at every curve query (a
+/// quadrature's rounds ask a child's curve tens of times).
+#[derive(Default)]
+pub(crate) struct KeptMixtures(
+    std::cell::RefCell<std::collections::HashMap<(NodeId, usize), FirstMixture>>,
+);
+
+impl KeptMixtures {
+    /// Node `id`'s mixture within `budget`, built at the first call.
+    pub(crate) fn first(
+        &self,
+        tree: &Graph,
+        id: NodeId,
+        budget: usize,
+    ) -> Result<FirstMixture, AnalysisError> {
+        if let Some(m) = self.0.borrow().get(&(id, budget)) {
+            return Ok(m.clone());
+        }
+        let m = match shifted_law(tree, id, budget) {
+            Ok(Some(law)) => FirstMixture::Built(std::rc::Rc::new(law)),
+            Ok(None) => FirstMixture::CannotHold,
+            Err(e @ AnalysisError::StateBudget { .. }) => FirstMixture::Over(e),
+            Err(e) => return Err(e),
+        };
+        self.0.borrow_mut().insert((id, budget), m.clone());
+        Ok(m)
+    }
+}
+
 /// The law of a loop without a bound over a child with mixed timing: the
 /// geometric series `Σ_k again^{⊛k} ⊛ end` (`again` the child's repeating
 /// outcome — Success for `until_failure` — and `end` the other), truncated
