@@ -10,7 +10,7 @@
 //! **Search.** Up to `max_candidates` orderings (the product of the chosen
 //! nodes' permutations) are enumerated exhaustively. Each candidate only
 //! re-analyses the reordered nodes and their ancestors
-//! ([`compile::reanalyze`]). Beyond the limit:
+//! ([`Model::reorder`]). Beyond the limit:
 //!
 //! * for the mean time `E[T]`, the ordering rule below is exact;
 //! * for other objectives a local search (best improving swap of two
@@ -38,14 +38,15 @@
 //! exhaustive and greedy searches and their budget (about 140 lines are
 //! comments).
 
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use rayon::prelude::*;
 
 use crate::compile::{self, AnalysisError, Figures, Method};
-use crate::curve::CurveOptions;
-use crate::ir::{self, Graph, Op};
+use crate::ir::Op;
+use crate::model::Model;
 use crate::tree::{NodeId, NodeKind, Tree};
 
 /// What to optimise.
@@ -223,11 +224,15 @@ pub struct Comparison {
 
 impl Comparison {
     /// `tree` (the compared tree) with the children of each compared
-    /// Fallback in `candidate`'s order: the tree a candidate stands for.
+    /// Fallback, and of its copies, in `candidate`'s order: the tree a
+    /// candidate stands for.
     pub fn reordered(&self, tree: &Tree, candidate: &Candidate) -> Tree {
+        let copies = Copies::of(tree);
         let mut t = tree.clone();
         for (&node, order) in self.nodes.iter().zip(&candidate.orders) {
-            set_order(&mut t, node, order);
+            for (copy, o) in copies.orders(node, order) {
+                set_order(&mut t, copy, &o);
+            }
         }
         t
     }
@@ -260,6 +265,18 @@ pub enum CompareError {
     /// An analysis failed.
     #[error(transparent)]
     Analysis(#[from] AnalysisError),
+    /// The model refused a query (other than by its analysis).
+    #[error(transparent)]
+    Model(crate::model::Error),
+}
+
+impl From<crate::model::Error> for CompareError {
+    fn from(e: crate::model::Error) -> CompareError {
+        match e {
+            crate::model::Error::Analysis(a) => CompareError::Analysis(a),
+            e => CompareError::Model(e),
+        }
+    }
 }
 
 /// The value minimised (success-by is negated).
@@ -298,58 +315,112 @@ fn permutations(k: usize) -> Vec<Vec<usize>> {
     }
 }
 
-#[derive(Clone)]
+/// The copies of one source Fallback in the tree: a RecoveryNode's
+/// retries (the XML front end unrolls them) and the uses of one SubTree
+/// copy its nodes, which keep the source element's location. An ordering
+/// is of the source element: every copy takes it.
+struct Copies {
+    /// Each copy's original (the first in pre-order), by node.
+    original: HashMap<NodeId, NodeId>,
+    /// Each original's copies, itself first.
+    copies: HashMap<NodeId, Vec<NodeId>>,
+    /// The given children of every Fallback.
+    given: HashMap<NodeId, Vec<NodeId>>,
+    /// Fallbacks that the front end made (a RecoveryNode's unrolled
+    /// attempts: a child shares their location).
+    unrolled: Vec<bool>,
+}
+
+impl Copies {
+    fn of(tree: &Tree) -> Copies {
+        let mut out = Copies {
+            original: HashMap::new(),
+            copies: HashMap::new(),
+            given: HashMap::new(),
+            unrolled: vec![false; tree.nodes.len()],
+        };
+        // (location, children's locations) of a source Fallback
+        let mut seen: HashMap<SourceKey, NodeId> = HashMap::new();
+        for (id, node) in tree.nodes.iter().enumerate() {
+            let NodeKind::Fallback { children } = &node.kind else {
+                continue;
+            };
+            out.given.insert(id, children.clone());
+            let locations: Vec<_> = children.iter().map(|&c| tree.node(c).location).collect();
+            out.unrolled[id] = node.location.is_some() && locations.contains(&node.location);
+            let original = match node.location {
+                Some(at) => *seen.entry((at, locations)).or_insert(id),
+                None => id,
+            };
+            out.original.insert(id, original);
+            out.copies.entry(original).or_default().push(id);
+        }
+        out
+    }
+
+    fn original(&self, id: NodeId) -> NodeId {
+        self.original.get(&id).copied().unwrap_or(id)
+    }
+
+    fn unrolled(&self, id: NodeId) -> bool {
+        self.unrolled[id]
+    }
+
+    /// `order` of original `node`'s children, for it and each copy (the
+    /// copy's children at the same given positions).
+    fn orders(&self, node: NodeId, order: &[NodeId]) -> Vec<(NodeId, Vec<NodeId>)> {
+        let Some(given) = self.given.get(&node) else {
+            return vec![(node, order.to_vec())];
+        };
+        let positions: Vec<usize> = order
+            .iter()
+            .map(|c| given.iter().position(|g| g == c).unwrap_or(0))
+            .collect();
+        self.copies
+            .get(&node)
+            .map_or(&[node][..], Vec::as_slice)
+            .iter()
+            .filter_map(|&copy| {
+                let kids = self.given.get(&copy)?;
+                Some((copy, positions.iter().map(|&p| kids[p]).collect()))
+            })
+            .collect()
+    }
+}
+
+/// A source Fallback: its location and its children's.
+type SourceKey = ((usize, usize), Vec<Option<(usize, usize)>>);
+
+/// The model of the compared tree under the ordering being evaluated.
 struct Evaluator<'a> {
-    /// The compared tree's IR, reordered.
-    tree: Graph,
-    analysis: compile::Analysis,
+    model: Model,
     options: &'a CompareOptions,
-    compile_options: compile::Options,
+    copies: &'a Copies,
 }
 
 impl Evaluator<'_> {
-    fn set_order(&mut self, node: NodeId, order: &[NodeId]) {
-        // a Fallback of the IR: the chain that stops at a Success
-        if let Op::Flow(f) = &mut self.tree.nodes[node].kind {
-            f.children.copy_from_slice(order);
-        }
+    /// Puts the children of `node` (an original) and of its copies in
+    /// `order`.
+    fn set_order(&mut self, node: NodeId, order: &[NodeId]) -> Result<(), CompareError> {
+        let orders = self.copies.orders(node, order);
+        let changes: Vec<(NodeId, &[NodeId])> =
+            orders.iter().map(|(n, o)| (*n, o.as_slice())).collect();
+        Ok(self.model.reorder(&changes)?)
     }
 
     fn children(&self, node: NodeId) -> Vec<NodeId> {
-        self.tree.node(node).kind.children().to_vec()
+        self.model.tree().node(node).kind.children().to_vec()
     }
 
-    fn evaluate(
-        &mut self,
-        changed: &[NodeId],
-        nodes: &[NodeId],
-        given: bool,
-    ) -> Result<Candidate, CompareError> {
-        compile::reanalyze(
-            &self.tree,
-            &mut self.analysis,
-            changed,
-            &self.compile_options,
-        )?;
+    fn evaluate(&self, nodes: &[NodeId], given: bool) -> Result<Candidate, CompareError> {
+        let root = self.model.figures(Tree::ROOT)?;
         let success_by_deadline = match self.options.deadline {
-            Some(d) => Some(
-                compile::curve::curve_of(
-                    &self.tree,
-                    Tree::ROOT,
-                    &[d],
-                    &CurveOptions {
-                        method: self.options.method,
-                        max_states: self.options.max_states,
-                        ..CurveOptions::default()
-                    },
-                )?[0]
-                    .success,
-            ),
+            Some(d) => Some(self.model.curve(Tree::ROOT, &[d])?[0].success),
             None => None,
         };
         Ok(Candidate {
             orders: nodes.iter().map(|&n| self.children(n)).collect(),
-            root: self.analysis.nodes[Tree::ROOT],
+            root,
             success_by_deadline,
             given,
             rank: 0,
@@ -400,9 +471,29 @@ fn prune(objective: Objective, kept: &mut Vec<Scored>, keep: usize) {
     kept.truncate(cut);
 }
 
+/// What a worker thread makes its own model from: the compared tree and
+/// the figures of the given ordering's model (a model stays on its thread).
+struct Seed<'a> {
+    tree: &'a Tree,
+    model_options: compile::Options,
+    known: Vec<Option<Figures>>,
+    options: &'a CompareOptions,
+    copies: &'a Copies,
+}
+
+impl Seed<'_> {
+    fn evaluator(&self) -> Result<Evaluator<'_>, CompareError> {
+        Ok(Evaluator {
+            model: Model::with_known(self.tree, self.model_options, &self.known)?,
+            options: self.options,
+            copies: self.copies,
+        })
+    }
+}
+
 #[allow(clippy::too_many_arguments)]
 fn exhaustive(
-    ev: &Evaluator,
+    seed: &Seed,
     nodes: &[NodeId],
     space: &Space,
     total: u64,
@@ -418,21 +509,19 @@ fn exhaustive(
         .into_par_iter()
         .map(|k| {
             let (lo, hi) = (total * k / chunks, total * (k + 1) / chunks);
-            let mut ev = ev.clone();
+            let mut ev = seed.evaluator()?;
             let mut kept: Vec<Scored> = Vec::new();
             let mut given = None;
             let (mut better, mut tied) = (0u64, 0u64);
             let mut digits = space.digits(lo);
             for (h, &d) in digits.iter().enumerate() {
                 let o = space.order(h, d);
-                ev.set_order(nodes[h], &o);
+                ev.set_order(nodes[h], &o)?;
             }
-            let mut changed: Vec<NodeId> = nodes.to_vec();
             let mut since = 0u64;
             for index in lo..hi {
                 if index > lo {
                     // odometer step
-                    changed.clear();
                     let mut h = nodes.len();
                     while h > 0 {
                         h -= 1;
@@ -442,14 +531,13 @@ fn exhaustive(
                             digits[h] = 0;
                         }
                         let o = space.order(h, digits[h]);
-                        ev.set_order(nodes[h], &o);
-                        changed.push(nodes[h]);
+                        ev.set_order(nodes[h], &o)?;
                         if !wrapped {
                             break;
                         }
                     }
                 }
-                let c = ev.evaluate(&changed, nodes, index == 0)?;
+                let c = ev.evaluate(nodes, index == 0)?;
                 let v = objective_value(objective, &c);
                 if index == 0 {
                     given = Some((v, index, c.clone()));
@@ -515,10 +603,21 @@ pub fn compare_with_progress(
     } else {
         options.nodes.clone()
     };
+    let copies = Copies::of(tree);
     for id in requested {
         let node = tree.node(id);
         match &node.kind {
-            NodeKind::Fallback { children } if children.len() >= 2 => nodes.push(id),
+            NodeKind::Fallback { .. } if copies.unrolled(id) => {
+                if !options.nodes.is_empty() {
+                    return Err(CompareError::NotReorderable(
+                        node.name.clone(),
+                        "unrolled RecoveryNode",
+                    ));
+                }
+            }
+            NodeKind::Fallback { children } if children.len() >= 2 => {
+                nodes.push(copies.original(id))
+            }
             NodeKind::Fallback { .. } => notes.push(format!(
                 "'{}' has a single child: nothing to reorder",
                 node.name
@@ -538,57 +637,19 @@ pub fn compare_with_progress(
     }
     nodes.sort_unstable();
     nodes.dedup();
-    let compile_options = compile::Options {
-        method: options.method,
-        max_states: options.max_states,
-    };
-    let lowered = compile::lower(tree)?;
-    if let Some(image) = &lowered.image {
-        // a RoundRobin whose index the analysis follows: its flow replaces
-        // the nodes between its copies, and the IR's node ids are not the
-        // tree's
-        if let Some(id) = (0..tree.nodes.len()).find(|&i| {
-            matches!(
-                lowered.graph.node(image[i]).kind,
-                Op::Flow(ir::Flow {
-                    graph: ir::FlowGraph::States(_),
-                    ..
-                })
-            ) && !matches!(tree.node(i).kind, NodeKind::Flow(_))
-        }) {
-            let node = tree.node(id);
-            return Err(unreorderable(
-                node,
-                "it is part of the flow that follows a RoundRobin's or SequenceWithMemory's \
-                         index (without wrap_around, or shared by a RecoveryNode's copies); \
-                         reordering a tree with such a flow is not supported",
-            ));
-        }
-        // the Fallbacks as nodes of the lowered tree; one that a pipeline
-        // re-runs has copies there, which an ordering would have to follow
-        for n in &mut nodes {
-            if lowered.copied[*n] {
-                let node = tree.node(*n);
-                return Err(unreorderable(
-                    node,
-                    "it lies in a PipelineSequence child that runs again while the \
-                             later children run; reordering its re-runs is not supported",
-                ));
-            }
-            *n = image[*n];
-        }
-    }
-    let tree = &lowered.graph;
-    let analysis = compile::analysis_of(
-        &compile::Plan::new(tree, compile_options.method, compile_options.max_states),
-        None,
+    let model = Model::with_options(
+        tree,
+        compile::Options {
+            method: options.method,
+            max_states: options.max_states,
+        },
     )?;
     // the objectives and ties assume runs that return: a node that may run
     // for ever (a loop its child cannot end) makes the root's figures depend
     // on the ordering in a way they do not compare; named bottom-up (the
     // last such node in pre-order, e.g. the loop rather than its ancestors)
-    if let Some((id, _)) = analysis
-        .nodes
+    if let Some((id, _)) = model
+        .all_figures()?
         .iter()
         .enumerate()
         .rev()
@@ -597,13 +658,12 @@ pub fn compare_with_progress(
         return Err(CompareError::NeverReturns(tree.node(id).name.clone()));
     }
     let mut ev = Evaluator {
-        tree: tree.clone(),
-        analysis,
+        model,
         options,
-        compile_options,
+        copies: &copies,
     };
     let threads = rayon::current_num_threads().max(1);
-    let mut given = ev.evaluate(&[], &nodes, true)?;
+    let mut given = ev.evaluate(&nodes, true)?;
     given.rank = 1;
     if nodes.is_empty() {
         if options.nodes.is_empty() {
@@ -646,13 +706,16 @@ pub fn compare_with_progress(
         .iter()
         .map(|&k| (1..=k).map(|x| x as f64).product::<f64>())
         .product();
+    // below a count of independent children (a Parallel, a Timeout, a
+    // pipeline's re-planning race), in the core IR
     let under_parallel = nodes.iter().any(|&n| {
-        let mut p = tree.node(n).parent;
+        let graph = ev.model.planned_graph();
+        let mut p = graph.node(ev.model.planned_node(n)).parent;
         while let Some(id) = p {
-            if matches!(tree.node(id).kind, Op::KOfN { .. }) {
+            if matches!(graph.node(id).kind, Op::KOfN { .. }) {
                 return true;
             }
-            p = tree.node(id).parent;
+            p = graph.node(id).parent;
         }
         false
     });
@@ -663,7 +726,8 @@ pub fn compare_with_progress(
     let mut times = Vec::new();
     for _ in 0..3 {
         let start = Instant::now();
-        ev.evaluate(&[last], &nodes, false)?;
+        ev.set_order(last, &ev.children(last))?;
+        ev.evaluate(&nodes, false)?;
         times.push(start.elapsed().as_secs_f64());
     }
     times.sort_by(f64::total_cmp);
@@ -686,8 +750,18 @@ pub fn compare_with_progress(
         };
         let total = space as u64;
         let given_value = objective_value(objective, &given);
+        let seed = Seed {
+            tree,
+            model_options: compile::Options {
+                method: options.method,
+                max_states: options.max_states,
+            },
+            known: ev.model.known_planned_figures(),
+            options,
+            copies: &copies,
+        };
         let (kept, g, better, tied) = exhaustive(
-            &ev,
+            &seed,
             &nodes,
             &sp,
             total,
@@ -731,9 +805,7 @@ pub fn compare_with_progress(
         let mut evaluated = 1u64;
         // ordering rule, bottom-up (children have larger ids)
         for &n in nodes.iter().rev() {
-            let mut kids = ev.children(n);
-            let ratio = |c: NodeId, ev: &Evaluator| {
-                let f = ev.analysis.nodes[c];
+            let ratio = |f: Figures| {
                 let e = f.mean_time();
                 if e > 0.0 {
                     f.ps / e
@@ -743,11 +815,16 @@ pub fn compare_with_progress(
                     0.0
                 }
             };
-            kids.sort_by(|&a, &b| ratio(b, &ev).total_cmp(&ratio(a, &ev)));
-            ev.set_order(n, &kids);
-            compile::reanalyze(&ev.tree, &mut ev.analysis, &[n], &ev.compile_options)?;
+            let mut kids = ev
+                .children(n)
+                .into_iter()
+                .map(|c| Ok((c, ratio(ev.model.figures(c)?))))
+                .collect::<Result<Vec<(NodeId, f64)>, CompareError>>()?;
+            kids.sort_by(|a, b| b.1.total_cmp(&a.1));
+            let kids: Vec<NodeId> = kids.into_iter().map(|k| k.0).collect();
+            ev.set_order(n, &kids)?;
         }
-        let mut best = ev.evaluate(&nodes, &nodes, false)?;
+        let mut best = ev.evaluate(&nodes, false)?;
         evaluated += 1;
         let mut candidates = vec![given.clone()];
         if objective == Objective::MeanTime && !under_parallel {
@@ -779,19 +856,13 @@ pub fn compare_with_progress(
                         for j in i + 1..base.len() {
                             if evaluated >= max_evaluations {
                                 stopped = true;
-                                ev.set_order(n, &base);
-                                compile::reanalyze(
-                                    &ev.tree,
-                                    &mut ev.analysis,
-                                    &[n],
-                                    &ev.compile_options,
-                                )?;
+                                ev.set_order(n, &base)?;
                                 break 'nodes;
                             }
                             let mut o = base.clone();
                             o.swap(i, j);
-                            ev.set_order(n, &o);
-                            let c = ev.evaluate(&[n], &nodes, false)?;
+                            ev.set_order(n, &o)?;
+                            let c = ev.evaluate(&nodes, false)?;
                             evaluated += 1;
                             let target = best_swap.as_ref().map_or(&best, |b| &b.2);
                             let (cv, tv) = (
@@ -803,12 +874,10 @@ pub fn compare_with_progress(
                             }
                         }
                     }
-                    ev.set_order(n, &base);
-                    compile::reanalyze(&ev.tree, &mut ev.analysis, &[n], &ev.compile_options)?;
+                    ev.set_order(n, &base)?;
                 }
                 if let Some((n, o, c)) = best_swap {
-                    ev.set_order(n, &o);
-                    compile::reanalyze(&ev.tree, &mut ev.analysis, &[n], &ev.compile_options)?;
+                    ev.set_order(n, &o)?;
                     candidates.push(best.clone());
                     best = c;
                     improved = !stopped;
@@ -912,20 +981,6 @@ pub fn duration_text(s: f64) -> String {
     } else {
         format!("{:.1e} years", s / (86400.0 * 365.0))
     }
-}
-
-/// A Nav2 node whose place in the lowered tree `compare` cannot reorder,
-/// with why.
-fn unreorderable(node: &crate::tree::Node, reason: &str) -> CompareError {
-    CompareError::Analysis(AnalysisError::Nav2 {
-        node: node.name.clone(),
-        at: node
-            .location
-            .map_or(String::new(), |(l, c)| format!(", line {l}, column {c}")),
-        kind: node.kind.keyword(),
-        path: node.path.clone(),
-        reason: reason.to_string(),
-    })
 }
 
 #[cfg(test)]

@@ -44,6 +44,14 @@ pub enum Error {
         /// Number of nodes of the tree.
         len: usize,
     },
+    /// A reordering that is not a permutation of a Fallback's children.
+    #[error("cannot reorder node '{node}': {why}")]
+    Reorder {
+        /// The node's name.
+        node: String,
+        /// What is wrong.
+        why: String,
+    },
     /// A time point that is negative, infinite or NaN.
     #[error("time point #{index} is {value}: time points must be finite and >= 0")]
     BadTime {
@@ -109,6 +117,33 @@ impl Model {
             image,
             deterministic: std::cell::OnceCell::new(),
         })
+    }
+
+    /// [`Model::with_options`] with the figures `known` of another model
+    /// of the same tree and options ([`Model::known_planned_figures`]):
+    /// the figures that model had computed are not computed again (a
+    /// model stays on its thread; its figures can travel).
+    pub(crate) fn with_known(
+        tree: &Tree,
+        options: Options,
+        known: &[Option<Figures>],
+    ) -> Result<Model, Error> {
+        let model = Model::with_options(tree, options)?;
+        if known.len() == model.plan.tree().nodes.len() {
+            for (i, f) in known.iter().enumerate() {
+                if let Some(f) = f {
+                    model.plan.remember_figures(i, *f);
+                }
+            }
+        }
+        Ok(model)
+    }
+
+    /// The figures computed so far, by node of the core IR.
+    pub(crate) fn known_planned_figures(&self) -> Vec<Option<Figures>> {
+        (0..self.plan.tree().nodes.len())
+            .map(|i| self.plan.known_figures(i))
+            .collect()
     }
 
     /// The tree analysed.
@@ -186,6 +221,95 @@ impl Model {
         )?)
     }
 
+    /// Puts the children of each Fallback `node` of `changes` in its
+    /// `order` (a permutation of them): the model of that equivalent tree
+    /// (Def. 9.10). Where the tree is its own core IR, only those nodes and
+    /// their ancestors are analysed again at the next query (every other
+    /// node's figures are kept); a tree with Nav2 nodes is lowered again
+    /// (its re-run copies and index flows follow the new order). Nothing
+    /// changes where a node is not a Fallback or an order not a permutation
+    /// of its children.
+    pub fn reorder(&mut self, changes: &[(NodeId, &[NodeId])]) -> Result<(), Error> {
+        for &(node, order) in changes {
+            self.check_node(node)?;
+            let n = &self.tree.nodes[node];
+            let refuse = |why: String| Error::Reorder {
+                node: n.name.clone(),
+                why,
+            };
+            let crate::tree::NodeKind::Fallback { children } = &n.kind else {
+                return Err(refuse(format!(
+                    "it is a {}, not a Fallback",
+                    n.kind.keyword()
+                )));
+            };
+            let mut given = children.clone();
+            let mut asked = order.to_vec();
+            given.sort_unstable();
+            asked.sort_unstable();
+            if given != asked {
+                return Err(refuse(format!(
+                    "{order:?} is not a permutation of its children {children:?}"
+                )));
+            }
+        }
+        for &(node, order) in changes {
+            if let crate::tree::NodeKind::Fallback { children } = &mut self.tree.nodes[node].kind {
+                children.copy_from_slice(order);
+            }
+        }
+        if self.image.is_some() {
+            *self = Model::with_options(&self.tree, self.options)?;
+            return Ok(());
+        }
+        // the IR is the tree node for node: its Fallback chains reordered,
+        // the figures of every node off the paths to the root kept
+        let empty = crate::ir::Graph {
+            title: None,
+            nodes: Vec::new(),
+        };
+        let old = std::mem::replace(
+            &mut self.plan,
+            compile::Plan::owned(empty, self.options.method, self.options.max_states),
+        );
+        let known: Vec<Option<Figures>> = (0..self.tree.nodes.len())
+            .map(|i| old.known_figures(i))
+            .collect();
+        let prints = old.known_fingerprints().map(<[u64]>::to_vec);
+        let mut graph = old.into_tree();
+        let mut dirty = vec![false; known.len()];
+        for &(node, order) in changes {
+            if let crate::ir::Op::Flow(flow) = &mut graph.nodes[node].kind {
+                flow.children.copy_from_slice(order);
+            }
+            let mut up = Some(node);
+            while let Some(a) = up.filter(|&a| !dirty[a]) {
+                dirty[a] = true;
+                up = graph.nodes[a].parent;
+            }
+        }
+        // the fingerprints of the nodes on those paths, again (children
+        // first: larger ids)
+        let prints = prints.map(|mut p| {
+            for id in (0..dirty.len()).rev().filter(|&i| dirty[i]) {
+                p[id] = graph.fingerprint(id, &p);
+            }
+            p
+        });
+        self.plan = compile::Plan::owned(graph, self.options.method, self.options.max_states);
+        if let Some(p) = prints {
+            self.plan.remember_fingerprints(p);
+        }
+        for (i, f) in known.into_iter().enumerate() {
+            if let Some(f) = f.filter(|_| !dirty[i]) {
+                self.plan.remember_figures(i, f);
+            }
+        }
+        self.analysis = std::cell::OnceCell::new();
+        self.deterministic = std::cell::OnceCell::new();
+        Ok(())
+    }
+
     /// How the engine represents node `id`'s outcome law (for Nav2 nodes:
     /// the node standing for it in the lowered tree).
     pub fn representation(&self, id: NodeId) -> Result<Representation, Error> {
@@ -197,6 +321,16 @@ impl Model {
     /// lower).
     pub(crate) fn own_plan(&self) -> Option<&compile::Plan<'static>> {
         self.image.is_none().then_some(&self.plan)
+    }
+
+    /// The core IR planned.
+    pub(crate) fn planned_graph(&self) -> &crate::ir::Graph {
+        self.plan.tree()
+    }
+
+    /// The node of the core IR standing for node `id` of the tree.
+    pub(crate) fn planned_node(&self, id: NodeId) -> NodeId {
+        self.planned(id)
     }
 
     fn planned(&self, id: NodeId) -> NodeId {

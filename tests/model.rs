@@ -271,3 +271,46 @@ fn the_model_answers_from_its_own_plan() {
         "{far:?} vs {root:?}"
     );
 }
+
+/// `Model::reorder` (Def. 9.10): a Fallback of two actions put in the
+/// other order has, by its paths, P(S) = 1 − (1 − p1)(1 − p2) either way,
+/// `E[T·1{S}] = p2/mu2 + (1 − p2)·p1·(1/nu2 + 1/mu1)` with the second
+/// action first, and the other figures of the tree kept; a node that is
+/// not a Fallback, or an order that is not a permutation, is refused and
+/// leaves the model as it was.
+#[test]
+fn reorder_gives_the_figures_of_the_equivalent_tree() {
+    let t = tree(
+        "tree: {sequence: {children: [{action: {name: a, ps: 0.9, mu: 2.0, nu: 1.0}}, \
+         {fallback: {name: f, children: [{action: {name: a1, ps: 0.3, mu: 1.0, nu: 2.0}}, \
+         {action: {name: a2, ps: 0.6, mu: 0.5, nu: 4.0}}]}}]}}",
+    );
+    let mut m = Model::new(&t).unwrap();
+    let before = m.figures(2).unwrap();
+    let (p1, mu1, nu1) = (0.3, 1.0, 2.0);
+    let (p2, mu2, nu2) = (0.6, 0.5, 4.0);
+    let given = (p1 / mu1 + (1.0 - p1) * p2 * (1.0 / nu1 + 1.0 / mu2)) / before.ps;
+    assert!((before.mtts.unwrap() - given).abs() < 1e-12, "{before:?}");
+    m.reorder(&[(2, &[4, 3])]).unwrap();
+    let f = m.figures(2).unwrap();
+    assert!((f.ps - (1.0 - 0.7 * 0.4)).abs() < 1e-15);
+    let swapped = (p2 / mu2 + (1.0 - p2) * p1 * (1.0 / nu2 + 1.0 / mu1)) / f.ps;
+    assert!((f.mtts.unwrap() - swapped).abs() < 1e-12, "{f:?}");
+    // both fail after both ran: MTTF = 1/nu1 + 1/nu2 either way
+    assert!((f.mttf.unwrap() - (1.0 / nu1 + 1.0 / nu2)).abs() < 1e-12);
+    // the root: the first action, then the Fallback
+    let root = m.figures(Tree::ROOT).unwrap();
+    assert!((root.ps - 0.9 * f.ps).abs() < 1e-15);
+    assert!((root.mtts.unwrap() - (0.5 + swapped)).abs() < 1e-12);
+    assert_eq!(m.tree().node(2).kind.children(), &[4, 3]);
+    // refusals change nothing
+    let e = m.reorder(&[(1, &[])]).unwrap_err();
+    assert!(e.to_string().contains("not a Fallback"), "{e}");
+    let e = m.reorder(&[(2, &[3, 3])]).unwrap_err();
+    assert!(e.to_string().contains("not a permutation"), "{e}");
+    assert_eq!(m.figures(2).unwrap(), f);
+    assert!(matches!(
+        m.reorder(&[(99, &[])]),
+        Err(Error::NoSuchNode { node: 99, .. })
+    ));
+}

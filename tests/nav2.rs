@@ -644,7 +644,11 @@ fn the_cli_refuses_with_the_node_and_points_to_simulate() {
 
 /// The RoundRobin below a Fallback with a condition, the main branch a
 /// Fallback: the flow keeps those nodes as its children; the simulator
-/// referees the figures (|z| < 5); `compare` refuses the flow.
+/// referees the figures (|z| < 5). `compare` reorders the two Fallbacks
+/// of the source (M and F; the RecoveryNode's unrolled Fallbacks are not
+/// offered), every copy the same way (refused before 2026-12-07: the
+/// flow); the best reordering's figures agree with the simulation of the
+/// reordered tree.
 #[test]
 fn recovery_with_round_robin_behind_a_condition() {
     let tree = xml(
@@ -663,12 +667,47 @@ fn recovery_with_round_robin_behind_a_condition() {
     // the main branch's figures are its own (a Fallback of two actions)
     let m = analyze(&tree, &Options::default()).unwrap().nodes[1];
     assert!((m.ps - (1.0 - 0.7 * 0.5)).abs() < 1e-12);
-    let e = btrel::compare::compare(&tree, &Default::default()).unwrap_err();
-    assert!(
-        e.to_string()
-            .contains("RoundRobin's or SequenceWithMemory's index"),
-        "{e}"
-    );
+    let c = btrel::compare::compare(&tree, &Default::default()).expect("compare answers");
+    let names: Vec<&str> = c
+        .nodes
+        .iter()
+        .map(|&n| tree.node(n).name.as_str())
+        .collect();
+    assert_eq!(names, ["M", "R/recovery 1/F"]);
+    assert_eq!(c.evaluated, 4);
+    for cand in &c.candidates {
+        let t = c.reordered(&tree, cand);
+        // the copies of F (each recovery) in one order
+        let order = |name: &str| -> Vec<String> {
+            let id = (0..t.nodes().len())
+                .find(|&i| t.node(i).name == name)
+                .unwrap();
+            t.node(id)
+                .kind
+                .children()
+                .iter()
+                .map(|&k| t.node(k).name.rsplit('/').next().unwrap().to_string())
+                .collect()
+        };
+        assert_eq!(order("R/recovery 1/F"), order("R/recovery 2/F"));
+        assert_eq!(order("M"), order("R/attempt 2/M"));
+        assert_eq!(order("M"), order("R/attempt 3/M"));
+        if cand.given {
+            continue;
+        }
+        let r = sim_root(&t, 200_000);
+        assert_within_z("ps", &r.nodes[0].ps, cand.root.ps);
+        assert_within_z(
+            "MTTS",
+            r.nodes[0].mtts.as_ref().unwrap(),
+            cand.root.mtts.unwrap(),
+        );
+        assert_within_z(
+            "MTTF",
+            r.nodes[0].mttf.as_ref().unwrap(),
+            cand.root.mttf.unwrap(),
+        );
+    }
 }
 
 /// Issue 29's Nav2 case: the published default tree with fitted timings

@@ -170,6 +170,7 @@ pub(super) fn compare_failure(
     move |e| {
         match e {
         CompareError::Analysis(a) => analysis_failure(cmd, method)(a),
+        CompareError::Model(m) => model_failure(cmd, method)(m),
         CompareError::NotReorderable(name, kind) => Failure::input(format!(
             "node '{name}' is {}: only the children of Fallback nodes can be reordered (Def. 9.10)\n  help: {}",
             with_article(kind),

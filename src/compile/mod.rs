@@ -38,7 +38,7 @@ mod renewal_law;
 pub(crate) mod shifted;
 mod tail;
 
-use crate::ir::{Graph, Leaf, Lowered, Op};
+use crate::ir::{Leaf, Lowered, Op};
 use crate::solve::chain::{AbsorbingChain, Edge, Target};
 use crate::solve::{solve_absorbing, Absorption};
 use crate::tree::{Duration, Kind, NodeId, Tree};
@@ -373,7 +373,7 @@ pub(crate) fn subtree_figures(plan: &Plan, id: NodeId) -> Result<Vec<Figures>, A
     let range = tree.subtree(id);
     let base = range.start;
     let mut figures: Vec<Option<Figures>> = vec![None; range.len()];
-    let prints = tree.fingerprints();
+    let prints = plan.fingerprints();
     let mut seen: std::collections::HashMap<u64, NodeId> = std::collections::HashMap::new();
     // pre-order: children come after their parent, so reverse order is bottom-up
     for n in range.rev() {
@@ -404,36 +404,6 @@ pub(crate) fn subtree_figures(plan: &Plan, id: NodeId) -> Result<Vec<Figures>, A
         figures[n - base] = Some(f);
     }
     Ok(figures.into_iter().flatten().collect())
-}
-
-/// Updates `analysis` after the children of the nodes in `changed` were
-/// reordered: recomputes those nodes and their ancestors, bottom-up, and
-/// reuses every other node's figures. `analysis` must be of the same tree
-/// shape (same node ids) and `options.method` must match: `tree` is the
-/// IR ([`lower`]) with the analysis of that IR.
-pub(crate) fn reanalyze(
-    tree: &Graph,
-    analysis: &mut Analysis,
-    changed: &[NodeId],
-    options: &Options,
-) -> Result<(), AnalysisError> {
-    let mut dirty: Vec<NodeId> = Vec::new();
-    for &c in changed {
-        let mut n = Some(c);
-        while let Some(id) = n {
-            dirty.push(id);
-            n = tree.node(id).parent;
-        }
-    }
-    dirty.sort_unstable();
-    dirty.dedup();
-    let plan = Plan::new(tree, options.method, options.max_states);
-    for &id in dirty.iter().rev() {
-        let f = plan.figures(id, &analysis.children(tree, id))?;
-        check(&f, &tree.node(id).name)?;
-        analysis.nodes[id] = f;
-    }
-    Ok(())
 }
 
 /// Figures of a leaf, identical under both methods.

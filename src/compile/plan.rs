@@ -185,6 +185,11 @@ impl Plan<'static> {
     pub fn owned(tree: Graph, method: Method, max_states: usize) -> Plan<'static> {
         Plan::with_tree(std::borrow::Cow::Owned(tree), method, max_states)
     }
+
+    /// The tree planned, given back (the plan's work is dropped).
+    pub(crate) fn into_tree(self) -> Graph {
+        self.tree.into_owned()
+    }
 }
 
 /// The planned model of one tree under one strategy: every node's
@@ -213,6 +218,9 @@ pub struct Plan<'t> {
     long_renewals: OnceCell<Vec<(NodeId, NodeId)>>,
     /// Every node's figures, once computed ([`super::subtree_figures`]).
     figures: Vec<OnceCell<Figures>>,
+    /// Every node's fingerprint ([`Graph::fingerprints`]: copies of a
+    /// subtree take its figures), made on first use.
+    prints: OnceCell<Vec<u64>>,
 }
 
 impl<'t> Plan<'t> {
@@ -237,6 +245,7 @@ impl<'t> Plan<'t> {
             book: OnceCell::new(),
             long_renewals: OnceCell::new(),
             figures: (0..n).map(|_| OnceCell::new()).collect(),
+            prints: OnceCell::new(),
         }
     }
 
@@ -258,6 +267,21 @@ impl<'t> Plan<'t> {
             .subtree(id)
             .map(|n| self.known_figures(n))
             .collect()
+    }
+
+    /// Every node's fingerprint ([`Graph::fingerprints`]).
+    pub(crate) fn fingerprints(&self) -> &[u64] {
+        self.prints.get_or_init(|| self.tree.fingerprints())
+    }
+
+    /// The fingerprints if they were made.
+    pub(crate) fn known_fingerprints(&self) -> Option<&[u64]> {
+        self.prints.get().map(Vec::as_slice)
+    }
+
+    /// Sets every node's fingerprint (they must be the tree's).
+    pub(crate) fn remember_fingerprints(&self, prints: Vec<u64>) {
+        let _ = self.prints.set(prints);
     }
 
     /// Keeps the figures of node `id`.

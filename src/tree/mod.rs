@@ -778,20 +778,26 @@ impl<K: Kind> Tree<K> {
     /// (kinds and parameters in place, names aside): copies have equal
     /// fingerprints, so `same_subtree` need only confirm equal ones.
     pub fn fingerprints(&self) -> Vec<u64> {
-        use std::hash::{Hash, Hasher};
         let mut out = vec![0u64; self.nodes.len()];
         for id in (0..self.nodes.len()).rev() {
-            // the kind without its children's ids (their fingerprints below)
-            let mut kind = self.nodes[id].kind.clone();
-            kind.children_mut().iter_mut().for_each(|c| *c = 0);
-            let mut h = std::collections::hash_map::DefaultHasher::new();
-            format!("{kind:?}").hash(&mut h);
-            for &c in self.nodes[id].kind.children() {
-                out[c].hash(&mut h);
-            }
-            out[id] = h.finish();
+            out[id] = self.fingerprint(id, &out);
         }
         out
+    }
+
+    /// The fingerprint of node `id` ([`Tree::fingerprints`]) from its
+    /// children's in `prints`.
+    pub fn fingerprint(&self, id: NodeId, prints: &[u64]) -> u64 {
+        use std::hash::{Hash, Hasher};
+        // the kind without its children's ids (their fingerprints below)
+        let mut kind = self.nodes[id].kind.clone();
+        kind.children_mut().iter_mut().for_each(|c| *c = 0);
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        format!("{kind:?}").hash(&mut h);
+        for &c in self.nodes[id].kind.children() {
+            prints[c].hash(&mut h);
+        }
+        h.finish()
     }
 
     /// Whether the subtrees of `a` and `b` are copies of each other (the
