@@ -270,3 +270,45 @@ fn a_timeout_over_a_long_loop_with_a_fixed_wait_is_exact() {
     let sim = simulate_root(&t, 400_000, &times);
     assert_root_and_curve_within_z("timeout over a loop", f, &pts, &sim);
 }
+
+/// A Parallel over a Retry of hybrid actions (fixed successes, shifted
+/// exponential failures): the Retry's shifted mixture has hundreds of
+/// components, and its mean times need none of them (flows of figures),
+/// but the quadrature of the Parallel's mean times read its cut points
+/// from that mixture built within the whole budget, and refused the tree
+/// under `--max-states 300` ("needs a chain of up to 508 states") until
+/// 2026-12-07. Cut points are read within a small budget now: the figures
+/// under 300 states are those under the default budget, and agree with
+/// simulation.
+#[test]
+fn a_parallel_reads_its_cut_points_within_a_small_budget() {
+    let t = tree(
+        "tree:\n  parallel:\n    success_threshold: 2\n    children:\n      - action: {ps: 0.9, mu: 1, nu: 2}\n      - retry:\n          attempts: 6\n          child:\n            sequence:\n              children:\n                - action: {ps: 0.7, success_time: {fixed: 0.11}, failure_time: {shift: 0.013, rate: 2}}\n                - action: {ps: 0.7, success_time: {fixed: 0.23}, failure_time: {shift: 0.029, rate: 3}}\n                - action: {ps: 0.7, success_time: {fixed: 0.37}, failure_time: {shift: 0.047, rate: 5}}\n",
+    );
+    let small = btrel::analyze(
+        &t,
+        &btrel::Options {
+            max_states: 300,
+            ..btrel::Options::default()
+        },
+    )
+    .expect("answered under 300 states")
+    .nodes[0];
+    let f = root_figures(&t);
+    close("ps", small.ps, f.ps);
+    close("MTTS", small.mtts.unwrap(), f.mtts.unwrap());
+    close("MTTF", small.mttf.unwrap(), f.mttf.unwrap());
+    let sim = simulate_root(&t, 400_000, &[]);
+    let r = &sim.nodes[0];
+    assert_within_z("ps", &r.ps, small.ps);
+    assert_within_z(
+        "MTTS",
+        r.mtts.as_ref().expect("successes"),
+        small.mtts.unwrap(),
+    );
+    assert_within_z(
+        "MTTF",
+        r.mttf.as_ref().expect("failures"),
+        small.mttf.unwrap(),
+    );
+}

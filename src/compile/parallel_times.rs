@@ -231,14 +231,27 @@ fn breakpoints(
         }
         Op::Leaf(Leaf::Condition { .. }) => {}
         kind => {
-            if let Some(a) = atoms::atoms(tree, id, max_states)? {
-                out.extend(a.iter().map(|a| a.time));
-            } else if matches!(kind, Op::KOfN { .. }) {
-                for &c in kind.children() {
-                    breakpoints(tree, c, max_states, out)?;
+            // cuts are hints to the quadrature, read within a small budget:
+            // past it there are too many instants to cut at (the panels'
+            // halving finds the jumps), and the whole budget's mixture was
+            // built only to read its shifts — and refused the node past it
+            let budget = max_states.min(shifted::SHIFTED_FIRST);
+            let many = |e: &AnalysisError| matches!(e, AnalysisError::StateBudget { .. });
+            match atoms::atoms(tree, id, budget) {
+                Ok(Some(a)) => out.extend(a.iter().map(|a| a.time)),
+                Err(e) if many(&e) => {}
+                Err(e) => return Err(e),
+                Ok(None) if matches!(kind, Op::KOfN { .. }) => {
+                    for &c in kind.children() {
+                        breakpoints(tree, c, max_states, out)?;
+                    }
                 }
-            } else if let Some(law) = shifted::shifted_law(tree, id, max_states)? {
-                out.extend(law.shifts());
+                Ok(None) => match shifted::shifted_law(tree, id, budget) {
+                    Ok(Some(law)) => out.extend(law.shifts()),
+                    Ok(None) => {}
+                    Err(e) if many(&e) => {}
+                    Err(e) => return Err(e),
+                },
             }
         }
     }
