@@ -314,3 +314,17 @@ fn reorder_gives_the_figures_of_the_equivalent_tree() {
         Err(Error::NoSuchNode { node: 99, .. })
     ));
 }
+
+/// A model can move to another thread (a server, a worker pool); its
+/// caches are per model, not shared.
+#[test]
+fn a_model_can_move_between_threads() {
+    fn send<T: Send>(_: &T) {}
+    let t = tree("tree: {action: {ps: 0.9, mu: 1.0, nu: 2.0}}");
+    let m = Model::new(&t).unwrap();
+    send(&m);
+    let ps = std::thread::spawn(move || m.figures(Tree::ROOT).unwrap().ps)
+        .join()
+        .unwrap();
+    assert!((ps - 0.9).abs() < 1e-15);
+}

@@ -352,9 +352,10 @@ pub(super) fn curve_by_laws(
     let law = match known {
         Some(law) => law,
         None => {
-            let law = std::rc::Rc::new(composed_law(children, id, end, options.max_states, |b| {
-                b.opaque(id, fallback)
-            })?);
+            let law =
+                std::sync::Arc::new(composed_law(children, id, end, options.max_states, |b| {
+                    b.opaque(id, fallback)
+                })?);
             kept.laws.borrow_mut().insert(key, (end, law.clone()));
             law
         }
@@ -388,7 +389,7 @@ pub(crate) struct Kept {
 }
 
 /// A composed law kept with the end of its horizon.
-type KeptLaw = (f64, std::rc::Rc<Law>);
+type KeptLaw = (f64, std::sync::Arc<Law>);
 
 /// The law of `id` that `build` makes with a fresh builder on `[0, end]`, refused where
 /// it dropped more than [`DROPPED_LIMIT`] of atom mass.

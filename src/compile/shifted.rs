@@ -474,7 +474,7 @@ pub(crate) const SHIFTED_FIRST: usize = 1 << 16;
 #[derive(Clone)]
 pub(crate) enum FirstMixture {
     /// The mixture, within that budget.
-    Built(std::rc::Rc<ShiftedLaw>),
+    Built(std::sync::Arc<ShiftedLaw>),
     /// A form the mixture cannot hold (a Parallel below).
     CannotHold,
     /// More components than that budget (the error saying how many).
@@ -501,7 +501,7 @@ impl KeptMixtures {
             return Ok(m.clone());
         }
         let m = match shifted_law(tree, id, budget) {
-            Ok(Some(law)) => FirstMixture::Built(std::rc::Rc::new(law)),
+            Ok(Some(law)) => FirstMixture::Built(std::sync::Arc::new(law)),
             Ok(None) => FirstMixture::CannotHold,
             Err(e @ AnalysisError::StateBudget { .. }) => FirstMixture::Over(e),
             Err(e) => return Err(e),
