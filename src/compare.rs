@@ -231,17 +231,10 @@ impl Comparison {
         let mut t = tree.clone();
         for (&node, order) in self.nodes.iter().zip(&candidate.orders) {
             for (copy, o) in copies.orders(node, order) {
-                set_order(&mut t, copy, &o);
+                t.set_fallback_order(copy, &o);
             }
         }
         t
-    }
-}
-
-/// Puts the children of Fallback `node` in `order` (a permutation of them).
-fn set_order(tree: &mut Tree, node: NodeId, order: &[NodeId]) {
-    if let NodeKind::Fallback { children } = &mut tree.nodes[node].kind {
-        children.copy_from_slice(order);
     }
 }
 

@@ -254,57 +254,14 @@ impl Model {
             }
         }
         for &(node, order) in changes {
-            if let crate::tree::NodeKind::Fallback { children } = &mut self.tree.nodes[node].kind {
-                children.copy_from_slice(order);
-            }
+            self.tree.set_fallback_order(node, order);
         }
         if self.image.is_some() {
             *self = Model::with_options(&self.tree, self.options)?;
             return Ok(());
         }
-        // the IR is the tree node for node: its Fallback chains reordered,
-        // the figures of every node off the paths to the root kept
-        let empty = crate::ir::Graph {
-            title: None,
-            nodes: Vec::new(),
-        };
-        let old = std::mem::replace(
-            &mut self.plan,
-            compile::Plan::owned(empty, self.options.method, self.options.max_states),
-        );
-        let known: Vec<Option<Figures>> = (0..self.tree.nodes.len())
-            .map(|i| old.known_figures(i))
-            .collect();
-        let prints = old.known_fingerprints().map(<[u64]>::to_vec);
-        let mut graph = old.into_tree();
-        let mut dirty = vec![false; known.len()];
-        for &(node, order) in changes {
-            if let crate::ir::Op::Flow(flow) = &mut graph.nodes[node].kind {
-                flow.children.copy_from_slice(order);
-            }
-            let mut up = Some(node);
-            while let Some(a) = up.filter(|&a| !dirty[a]) {
-                dirty[a] = true;
-                up = graph.nodes[a].parent;
-            }
-        }
-        // the fingerprints of the nodes on those paths, again (children
-        // first: larger ids)
-        let prints = prints.map(|mut p| {
-            for id in (0..dirty.len()).rev().filter(|&i| dirty[i]) {
-                p[id] = graph.fingerprint(id, &p);
-            }
-            p
-        });
-        self.plan = compile::Plan::owned(graph, self.options.method, self.options.max_states);
-        if let Some(p) = prints {
-            self.plan.remember_fingerprints(p);
-        }
-        for (i, f) in known.into_iter().enumerate() {
-            if let Some(f) = f.filter(|_| !dirty[i]) {
-                self.plan.remember_figures(i, f);
-            }
-        }
+        // the IR is the tree node for node
+        self.plan.reorder(changes);
         self.analysis = std::cell::OnceCell::new();
         self.deterministic = std::cell::OnceCell::new();
         Ok(())

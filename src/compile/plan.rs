@@ -186,9 +186,49 @@ impl Plan<'static> {
         Plan::with_tree(std::borrow::Cow::Owned(tree), method, max_states)
     }
 
-    /// The tree planned, given back (the plan's work is dropped).
-    pub(crate) fn into_tree(self) -> Graph {
-        self.tree.into_owned()
+    /// Puts the children of each Fallback chain `node` of `changes` in its
+    /// `order` (ids of the IR): the plan of that tree, keeping the figures
+    /// and fingerprints of every node off the paths from those nodes to the
+    /// root (the rest of the plan's work is made again where a query needs
+    /// it).
+    pub(crate) fn reorder(&mut self, changes: &[(NodeId, &[NodeId])]) {
+        let (method, max_states) = (self.method, self.max_states);
+        let empty = Graph {
+            title: None,
+            nodes: Vec::new(),
+        };
+        let old = std::mem::replace(self, Plan::owned(empty, method, max_states));
+        let n = old.tree.nodes.len();
+        let known: Vec<Option<Figures>> = (0..n).map(|i| old.known_figures(i)).collect();
+        let prints = old.prints.into_inner();
+        let mut graph = old.tree.into_owned();
+        let mut dirty = vec![false; n];
+        for &(node, order) in changes {
+            if let Op::Flow(flow) = &mut graph.nodes[node].kind {
+                flow.children.copy_from_slice(order);
+            }
+            let mut up = Some(node);
+            while let Some(a) = up.filter(|&a| !dirty[a]) {
+                dirty[a] = true;
+                up = graph.nodes[a].parent;
+            }
+        }
+        // the fingerprints on those paths again (children first: larger ids)
+        let prints = prints.map(|mut p| {
+            for id in (0..n).rev().filter(|&i| dirty[i]) {
+                p[id] = graph.fingerprint(id, &p);
+            }
+            p
+        });
+        *self = Plan::owned(graph, method, max_states);
+        if let Some(p) = prints {
+            let _ = self.prints.set(p);
+        }
+        for (i, f) in known.into_iter().enumerate() {
+            if let Some(f) = f.filter(|_| !dirty[i]) {
+                self.remember_figures(i, f);
+            }
+        }
     }
 }
 
@@ -272,16 +312,6 @@ impl<'t> Plan<'t> {
     /// Every node's fingerprint ([`Graph::fingerprints`]).
     pub(crate) fn fingerprints(&self) -> &[u64] {
         self.prints.get_or_init(|| self.tree.fingerprints())
-    }
-
-    /// The fingerprints if they were made.
-    pub(crate) fn known_fingerprints(&self) -> Option<&[u64]> {
-        self.prints.get().map(Vec::as_slice)
-    }
-
-    /// Sets every node's fingerprint (they must be the tree's).
-    pub(crate) fn remember_fingerprints(&self, prints: Vec<u64>) {
-        let _ = self.prints.set(prints);
     }
 
     /// Keeps the figures of node `id`.

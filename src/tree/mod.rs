@@ -829,6 +829,14 @@ impl Tree {
     /// The root node's id (always 0).
     pub const ROOT: NodeId = 0;
 
+    /// Puts the children of Fallback `node` in `order` (a permutation of
+    /// them, checked by the caller); nothing for another kind.
+    pub(crate) fn set_fallback_order(&mut self, node: NodeId, order: &[NodeId]) {
+        if let NodeKind::Fallback { children } = &mut self.nodes[node].kind {
+            children.copy_from_slice(order);
+        }
+    }
+
     /// This tree with each action's Success and Failure times replaced by
     /// `times(id, action)` (outcome probabilities and everything else kept):
     /// e.g. the same tree with fitted timing families. Refused, naming the
