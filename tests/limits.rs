@@ -159,3 +159,49 @@ fn a_retry_of_a_mixed_race_has_its_curve() {
     let sim = simulate_root(&t, 200_000, &times);
     assert_root_and_curve_within_z("retry of a mixed race", f, &pts, &sim);
 }
+
+/// Random survey tree 1735 (docs/TESTING.md): a Parallel racing a loop
+/// over fixed times (an atom at every instant of its lattice: 23,707 on
+/// the race's 5,934 s horizon) against a Markovian Retry. Its quadrature
+/// asked the Retry's phase chain at 853,632 times, and each time's Poisson
+/// window (≈ 1,300 terms) was held until all were made: `report` took 48 s
+/// and 13 GB. Now the chain is stepped from time to time (an estimate
+/// chooses it), and the loop's CDF reads running sums of its atoms. Run
+/// under a 2 GB address-space limit; the figures against simulation.
+#[test]
+fn a_race_with_a_lattice_loop_is_reported_within_the_memory_limit() {
+    let yaml = "tree: {parallel: {name: n1, success_threshold: 2, failure_threshold: 1, children: [\
+        {fallback: {name: n2, children: [{until_success: {name: n3, child: {repeat: {name: n4, times: 2, \
+        child: {repeat: {name: n5, times: 2, child: {if_then_else: {name: n6, children: [\
+        {condition: {name: n7, ps: 0.8}}, {action: {name: n8, ps: 0.4, tau_s: 1.25, tau_f: 1.75}}]}}}}}}}}, \
+        {until_failure: {name: n9, child: {fallback: {name: n10, children: [\
+        {action: {name: n11, ps: 0.5, tau_s: 0.625, nu: 0.679}}, \
+        {action: {name: n12, ps: 0.6, success_time: {rate: 1.697}, failure_time: {rate: 0.291}}}, \
+        {retry: {name: n13, attempts: 3, child: {action: {name: n14, ps: 0.7, \
+        success_time: {erlang: {k: 3, rate: 0.546}}, failure_time: {shift: 0.25, rate: 3.162}}}}}]}}}}]}}, \
+        {retry: {name: n15, attempts: 3, child: {force_success: {name: n16, child: {inverter: {name: n17, \
+        child: {retry: {name: n18, attempts: 3, child: {parallel: {name: n19, success_threshold: 2, \
+        failure_threshold: 1, children: [{parallel: {name: n20, success_threshold: 1, failure_threshold: 2, \
+        children: [{condition: {name: n21, ps: 0.5}}, {condition: {name: n22, ps: 0.5}}]}}, \
+        {action: {name: n23, ps: 0.5, success_time: {rate: 2.828}, failure_time: \
+        {hyperexponential: [{p: 0.4, rate: 2.05}, {p: 0.6, rate: 1.926}]}}}]}}}}}}}}}}]}}\n";
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("survey1735.yaml");
+    std::fs::write(&file, yaml).unwrap();
+    let script = format!(
+        "ulimit -v 2000000; exec '{}' report '{}' --format json",
+        env!("CARGO_BIN_EXE_btrel"),
+        file.display()
+    );
+    let o = std::process::Command::new("sh")
+        .args(["-c", &script])
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert_root_matches_simulation(&tree(yaml), 50_000);
+}

@@ -190,6 +190,11 @@ fn non_markovian(tree: &Graph) -> Vec<bool> {
 pub(crate) struct HorizonLaw {
     law: Law,
     end: f64,
+    /// Per part, the running sums of its atoms' masses (`[0]` = 0): a
+    /// race's quadrature asks the CDF at every point of its panels, and a
+    /// loop over fixed times has an atom at every instant of its lattice
+    /// (random survey tree 1735: 23,707 atoms, 853,632 points).
+    prefix: [Vec<f64>; 2],
 }
 
 impl HorizonLaw {
@@ -200,7 +205,32 @@ impl HorizonLaw {
         end: f64,
     ) -> Result<HorizonLaw, AnalysisError> {
         let law = composed_law(children, id, end, children.max_states(), |b| b.law(id))?;
-        Ok(HorizonLaw { law, end })
+        // summed in order, as `Measure::cdf` sums them
+        let prefix = |m: &Measure| {
+            let mut p = Vec::with_capacity(m.atoms.len() + 1);
+            let mut sum = -0.0;
+            p.push(sum);
+            for a in &m.atoms {
+                sum += a.1;
+                p.push(sum);
+            }
+            p
+        };
+        let prefix = [prefix(&law.parts[0]), prefix(&law.parts[1])];
+        Ok(HorizonLaw { law, end, prefix })
+    }
+
+    /// `Measure::cdf` (`left`: `cdf_left`) of part `o` by the running sums.
+    fn cdf(&self, o: usize, t: f64, left: bool) -> f64 {
+        let m = &self.law.parts[o];
+        let k = if left {
+            m.atoms
+                .partition_point(|a| a.0 < t && !same_instant(a.0, t))
+        } else {
+            m.atoms
+                .partition_point(|a| a.0 <= t || same_instant(a.0, t))
+        };
+        self.prefix[o][k] + m.density.as_ref().map_or(0.0, |d| d.integral_to(t))
     }
 }
 
@@ -219,10 +249,9 @@ impl ReturnLaw for HorizonLaw {
             ];
         }
         let p = &self.law.parts;
-        let cdf = |m: &Measure| if left { m.cdf_left(t) } else { m.cdf(t) };
         [
-            cdf(&p[SUCCESS]),
-            cdf(&p[FAILURE]),
+            self.cdf(SUCCESS, t, left),
+            self.cdf(FAILURE, t, left),
             p[SUCCESS].density_at(t),
             p[FAILURE].density_at(t),
         ]
