@@ -172,7 +172,7 @@ pub(crate) fn sample_weighted_kept(
         );
     }
     let steps = pass.get_or_insert_with(|| WeightedSteps::new(chain, weights));
-    let rows = steps.rows(points, SAMPLE_TOLERANCE);
+    let rows = steps.rows_by_cost(points, SAMPLE_TOLERANCE);
     if steps.kept() > MAX_KEPT_SUMS {
         // a long pass is not kept (it would hold its numbers for as long
         // as its caller lives)

@@ -494,18 +494,40 @@ impl WeightedSteps {
         }
     }
 
-    /// `[S, F, π·h₁, ...]` at `times` ([`transient_weighted`]), `None` when
-    /// the pass would take more than [`MAX_SINGLE_PASS_STEPS`] steps.
-    ///
-    /// Two ways, chosen by their cost estimated before either runs: each
+    /// [`Self::rows`], or the same by [`Self::rows_by_intervals`] where
+    /// that costs less, by both costs estimated before either runs: each
     /// time a Poisson mixture of the kept pass's steps (about
     /// `10·sqrt(Λt)` terms a time: cheap for few times, and the pass is
     /// kept for the next call), or, for many times, the chain stepped from
-    /// each time to the next ([`Self::rows_by_intervals`]: about `Λ·Δt + 8`
-    /// steps of the chain an interval, whatever the horizon). A race's
-    /// quadrature asks hundreds of thousands of times on long horizons
-    /// (random survey tree 1735: 853,632 times to 5,934 s at rate 2.8,
-    /// 1,300 terms a time in the mixtures).
+    /// each time to the next (about `Λ·Δt + 8` steps of the chain an
+    /// interval, whatever the horizon). A race's quadrature asks hundreds
+    /// of thousands of times on long horizons (random survey tree 1735:
+    /// 853,632 times to 5,934 s at rate 2.8, 1,300 terms a time in the
+    /// mixtures). The intervals' rounding adds up over the intervals
+    /// (about 1e-16 each), where each mixture's error is its own: callers
+    /// that test convergence at 1e-13 (the sensitivity's count grids) keep
+    /// to [`Self::rows`].
+    pub(crate) fn rows_by_cost(&mut self, times: &[f64], tolerance: f64) -> Option<Vec<Vec<f64>>> {
+        let horizon = times.iter().copied().fold(0.0, f64::max);
+        let max_lt = self.lambda * horizon;
+        if !self.empty && self.lambda > 0.0 && max_lt <= MAX_SINGLE_PASS_STEPS as f64 {
+            let width = (2 + self.weights.len()) as f64;
+            let n = times.len() as f64;
+            let states = self.p.stay.len() as f64;
+            let per_step = self.p.cols.len() as f64 + 2.0 * states;
+            let mixtures = n * (10.0 * max_lt.sqrt() + 8.0) * width;
+            let intervals = (max_lt + 8.0 * n) * per_step + n * width * states;
+            if mixtures > 4.0 * intervals {
+                return Some(self.rows_by_intervals(times, tolerance));
+            }
+        }
+        self.rows(times, tolerance)
+    }
+
+    /// `[S, F, π·h₁, ...]` at `times` ([`transient_weighted`]), `None` when
+    /// the pass would take more than [`MAX_SINGLE_PASS_STEPS`] steps: each
+    /// time a Poisson mixture of the kept pass's steps, its window made
+    /// when its row is (never all at once).
     pub(crate) fn rows(&mut self, times: &[f64], tolerance: f64) -> Option<Vec<Vec<f64>>> {
         let lambda = self.lambda;
         let horizon = times.iter().copied().fold(0.0, f64::max);
@@ -522,13 +544,6 @@ impl WeightedSteps {
         let table = max_lt + 10.0 * max_lt.sqrt() + 64.0;
         if max_lt > MAX_SINGLE_PASS_STEPS as f64 {
             return None;
-        }
-        let n = times.len() as f64;
-        let per_step = (self.p.cols.len() + 2 * self.p.stay.len()) as f64;
-        let mixtures = n * (10.0 * max_lt.sqrt() + 8.0) * width as f64;
-        let intervals = (max_lt + 8.0 * n) * per_step + n * width as f64 * self.p.stay.len() as f64;
-        if mixtures > 4.0 * intervals {
-            return Some(self.rows_by_intervals(times, tolerance));
         }
         let inv = reciprocals(table.min(1e8) as usize);
         // the window of the latest time reaches furthest; one more step is
