@@ -196,9 +196,16 @@ fn random_trees_of_every_kind_and_timing_are_answered_and_agree_with_simulation(
 /// batches of four doubling panels, each batch up to 16 times past where
 /// the mass had settled and every quadrature round a uniformization pass
 /// from 0 to the batch's end (a report of more than 100 s, now 3 s).
+/// From `BTREL_SPEC_FROM=1500`: 1510, an `until_success` run ~100 times
+/// whose run fails at a lattice instant or after a shifted exponential: its
+/// renewal density was marched with every point convolving the thousands
+/// of panels before it within the exponential's reach (a report of 25 s,
+/// now 0.5 s: the exponential's recursion, `ExponentialMarch`); 1735, a
+/// race of a lattice loop against a Markovian Retry (a report of 48 s and
+/// 13 GB, now 1.3 s: `tests/limits.rs`).
 #[test]
 fn survey_regressions() {
-    for seed in [113, 146, 162, 240, 452, 550, 559, 701] {
+    for seed in [113, 146, 162, 240, 452, 550, 559, 701, 1510, 1735] {
         let node = random_tree(seed, 10);
         match check(seed, &node) {
             Ok(true) => {}

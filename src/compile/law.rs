@@ -85,7 +85,7 @@ use crate::compile::children::{Children, ReturnLaw};
 use crate::compile::{counts, phase, renewal_law, AnalysisError};
 use crate::ir::{Flow, FlowGraph, Graph, Leaf, Op};
 use crate::solve::chain::PhaseChain;
-use crate::solve::exponential::ExponentialConvolution;
+use crate::solve::exponential::{ExponentialConvolution, ExponentialMarch};
 use crate::solve::interpolant::{
     build_marching, build_with_breaks, panel_convolution, panel_weights, BuildError, Interpolant,
     POINTS,
@@ -1504,6 +1504,23 @@ impl Builder<'_> {
             }
             settled
         };
+        // g's density in closed form (one exponential stage, shifted, maybe
+        // cut off: `Kernel`): g ⊛ (R's atoms + r before the panel) by the
+        // exponential recursion, linear in the panels (`ExponentialMarch`),
+        // where the general convolution reads every panel within g's reach
+        // at every point (random survey tree 1510: an `until_success` whose
+        // run fails at a lattice instant or after a shifted exponential)
+        let recursion = g
+            .kernel
+            .filter(|k| k.stages.is_none() && k.rate > 0.0)
+            .map(|k| {
+                let mut terms = vec![(k.shift, k.weight)];
+                if k.cap.is_finite() {
+                    terms.push((k.shift + k.cap, -k.weight * (-k.rate * k.cap).exp()));
+                }
+                (terms, ExponentialConvolution::new(k.rate, &atoms, None))
+            });
+        let mut march = g.kernel.map(|k| ExponentialMarch::new(k.rate));
         let density = build_marching(end, &breaks, settled, |done, a, b, points| {
             while done_gauss.len() < done.panels() {
                 done_gauss.push(done.panel_gauss(done_gauss.len()));
@@ -1549,7 +1566,10 @@ impl Builder<'_> {
                 }
                 None => 0,
             };
-            let work = self.work.get() + g_panels.max(1.0) + window as f64;
+            let work = match recursion {
+                Some(_) => self.work.get() + 1.0,
+                None => self.work.get() + g_panels.max(1.0) + window as f64,
+            };
             if work > MAX_CONVOLUTION_WORK {
                 return Err(AnalysisError::ConvolutionWork {
                     node: self.name(id),
@@ -1561,17 +1581,34 @@ impl Builder<'_> {
             self.work.set(work);
             // what does not depend on r on the panel: τ, g ⊛ R_a, g ⊛ r
             // before the panel
-            let supports = (done.support(), g_support);
-            let from_atoms = shifted_many(&atoms, gd, points);
-            let known: Vec<f64> = points
-                .par_iter()
-                .with_min_len(4)
-                .map(|&x| {
-                    gd.map_or(0.0, |g| {
-                        done.convolve_point(g, supports, (&done_gauss, &g_gauss), x)
-                    })
-                })
-                .collect();
+            let (from_atoms, known): (Vec<f64>, Vec<f64>) = match (&recursion, &mut march) {
+                (Some((terms, z_atoms)), Some(z_done)) => {
+                    z_done.catch_up(done);
+                    let sum = |x: f64, z: &dyn Fn(f64) -> f64| {
+                        terms.iter().map(|&(s, w)| w * z(x - s)).sum::<f64>()
+                    };
+                    (
+                        points.iter().map(|&x| sum(x, &|y| z_atoms.at(y))).collect(),
+                        points
+                            .iter()
+                            .map(|&x| sum(x, &|y| z_done.at(done, y)))
+                            .collect(),
+                    )
+                }
+                _ => {
+                    let supports = (done.support(), g_support);
+                    let known = points
+                        .par_iter()
+                        .with_min_len(4)
+                        .map(|&x| {
+                            gd.map_or(0.0, |g| {
+                                done.convolve_point(g, supports, (&done_gauss, &g_gauss), x)
+                            })
+                        })
+                        .collect();
+                    (shifted_many(&atoms, gd, points), known)
+                }
+            };
             let mut rhs = [0.0; POINTS];
             for k in 0..POINTS {
                 let x = points[k];
@@ -1645,11 +1682,23 @@ impl Builder<'_> {
         if x.density.is_none() && y.density.is_none() {
             return Ok(self.measure(atoms, None, Vec::new(), dropped));
         }
-        // a leaf's exponential time: linear in the panels
-        match (x.kernel, y.kernel) {
-            (_, Some(k)) => return self.convolve_kernel(id, x, y, k, atoms, dropped),
-            (Some(k), None) => return self.convolve_kernel(id, y, x, k, atoms, dropped),
-            (None, None) => {}
+        // a leaf's exponential time: linear in the panels; against one
+        // atom (no density) the result's density is that kernel, shifted
+        let kernel_case = match (x.kernel, y.kernel) {
+            (_, Some(k)) => Some((x, y, k)),
+            (Some(k), None) => Some((y, x, k)),
+            (None, None) => None,
+        };
+        if let Some((other, with, k)) = kernel_case {
+            let mut out = self.convolve_kernel(id, other, with, k, atoms, dropped)?;
+            if let ([(tau, a)], None) = (&other.atoms[..], &other.density) {
+                out.kernel = Some(Kernel {
+                    weight: k.weight * a,
+                    shift: k.shift + tau,
+                    ..k
+                });
+            }
+            return Ok(out);
         }
         // a density jumps at an atom plus a jump of the density it shifts
         // (g * h is continuous: its kinks are resolved by halving panels)
@@ -1798,7 +1847,14 @@ impl Builder<'_> {
         };
         let atoms = x.atoms.iter().chain(&y.atoms).copied().collect();
         let breaks = x.breaks.iter().chain(&y.breaks).copied().collect();
-        Ok(self.measure(atoms, density, breaks, x.dropped + y.dropped))
+        let mut out = self.measure(atoms, density, breaks, x.dropped + y.dropped);
+        // the density is one side's: its closed form too
+        out.kernel = match (&x.density, &y.density) {
+            (Some(_), None) => x.kernel,
+            (None, Some(_)) => y.kernel,
+            _ => None,
+        };
+        Ok(out)
     }
 }
 

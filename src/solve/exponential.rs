@@ -96,29 +96,97 @@ impl<'a> ExponentialConvolution<'a> {
 
     /// `∫_a^t e^{−λ(t − v)} g(v) dv` for `[a, t]` within one panel of `g`.
     fn integral(&self, a: f64, t: f64) -> f64 {
-        let Some(g) = self.density else { return 0.0 };
-        let a = a.max(t - REACH / self.rate);
-        if t <= a || a >= g.end() {
+        match self.density {
+            Some(g) => integral(self.rate, g, a, t),
+            None => 0.0,
+        }
+    }
+}
+
+/// `∫_a^t e^{−λ(t − v)} g(v) dv` for `[a, t]` within one panel of `g`.
+fn integral(rate: f64, g: &Interpolant, a: f64, t: f64) -> f64 {
+    let a = a.max(t - REACH / rate);
+    if t <= a || a >= g.end() {
+        return 0.0;
+    }
+    let panel = g.panel_of((a + t) / 2.0);
+    if g.panel_is_zero(panel) {
+        return 0.0;
+    }
+    let parts = ((rate * (t - a) / PART).ceil() as usize).max(1);
+    let width = (t - a) / parts as f64;
+    let rule = rule();
+    let mut total = 0.0;
+    for p in 0..parts {
+        let (c, h) = (a + (p as f64 + 0.5) * width, width / 2.0);
+        let v: [f64; POINTS] = std::array::from_fn(|j| c + h * rule.nodes[j]);
+        let gv = g.eval_block_in(panel, &v);
+        total += h
+            * (0..POINTS)
+                .map(|j| rule.weights[j] * (-rate * (t - v[j])).exp() * gv[j])
+                .sum::<f64>();
+    }
+    total
+}
+
+/// `z = λe^{−λ·} ⊛ g` for a density `g` that grows panel by panel (a
+/// renewal equation marched in time, `compile::law`): the checkpoints of
+/// [`ExponentialConvolution`] at `g`'s panel edges, extended as panels
+/// come ([`Self::catch_up`]); past `g`'s end, `z` is what came before it,
+/// decaying — the convolution with `g` cut at its end.
+#[derive(Debug, Clone)]
+pub(crate) struct ExponentialMarch {
+    rate: f64,
+    /// `g`'s panel edges so far.
+    at: Vec<f64>,
+    /// `z` at each.
+    value: Vec<f64>,
+}
+
+impl ExponentialMarch {
+    /// For rate `λ > 0`, before any panel.
+    pub fn new(rate: f64) -> ExponentialMarch {
+        ExponentialMarch {
+            rate,
+            at: Vec::new(),
+            value: Vec::new(),
+        }
+    }
+
+    /// Takes in the panels of `g` added since the last call (`g` only
+    /// grows: its earlier panels are the ones seen before).
+    pub fn catch_up(&mut self, g: &Interpolant) {
+        let edges = g.edges();
+        if self.at.is_empty() {
+            let Some(&first) = edges.first() else { return };
+            self.at.push(first);
+            self.value.push(0.0);
+        }
+        for &e in &edges[self.at.len()..] {
+            let last = *self.at.last().expect("a checkpoint");
+            let z = *self.value.last().expect("a checkpoint");
+            let next =
+                (-self.rate * (e - last)).exp() * z + self.rate * integral(self.rate, g, last, e);
+            self.at.push(e);
+            self.value.push(next);
+        }
+    }
+
+    /// `z(t)` of `g` as taken in (0 before `g`'s start).
+    pub fn at(&self, g: &Interpolant, t: f64) -> f64 {
+        let Some(&first) = self.at.first() else {
+            return 0.0;
+        };
+        if t <= first {
             return 0.0;
         }
-        let panel = g.panel_of((a + t) / 2.0);
-        if g.panel_is_zero(panel) {
-            return 0.0;
+        let last = self.at.len() - 1;
+        if t >= self.at[last] {
+            return (-self.rate * (t - self.at[last])).exp() * self.value[last];
         }
-        let parts = ((self.rate * (t - a) / PART).ceil() as usize).max(1);
-        let width = (t - a) / parts as f64;
-        let rule = rule();
-        let mut total = 0.0;
-        for p in 0..parts {
-            let (c, h) = (a + (p as f64 + 0.5) * width, width / 2.0);
-            let v: [f64; POINTS] = std::array::from_fn(|j| c + h * rule.nodes[j]);
-            let gv = g.eval_block_in(panel, &v);
-            total += h
-                * (0..POINTS)
-                    .map(|j| rule.weights[j] * (-self.rate * (t - v[j])).exp() * gv[j])
-                    .sum::<f64>();
-        }
-        total
+        let k = self.at.partition_point(|&x| x <= t) - 1;
+        (-self.rate * (t - self.at[k])).exp() * self.value[k]
+            + self.rate * integral(self.rate, g, self.at[k], t)
     }
 }
 
@@ -160,5 +228,28 @@ mod tests {
             let exact = 4.0 * t * (-2.0 * t).exp();
             assert!((z.at(t) - exact).abs() < 1e-14, "t = {t}");
         }
+    }
+
+    /// The marched recursion (as a renewal density's panels come) against
+    /// the closed form of `λe^{−λ·} ⊛ κe^{−κ·}` on the density's domain, and
+    /// past its end the value there decaying (the density cut at its end:
+    /// `z(T)e^{−λ(t − T)}`, by hand).
+    #[test]
+    fn the_march_is_the_convolution_with_the_density_so_far() {
+        let (l, k, end) = (3.0, 0.7, 12.0);
+        let g = density(end, |t| k * (-k * t).exp());
+        let mut z = ExponentialMarch::new(l);
+        assert_eq!(z.at(&g, 1.0), 0.0, "before any panel");
+        z.catch_up(&g);
+        z.catch_up(&g);
+        let exact = |t: f64| l * k * ((-k * t).exp() - (-l * t).exp()) / (l - k);
+        for t in [1e-6, 0.01, 0.7, 3.0, 7.77, 11.99, 12.0] {
+            assert!((z.at(&g, t) - exact(t)).abs() < 1e-13, "t = {t}");
+        }
+        for t in [12.5, 20.0] {
+            let cut = exact(end) * (-l * (t - end)).exp();
+            assert!((z.at(&g, t) - cut).abs() < 1e-13, "t = {t}");
+        }
+        assert_eq!(z.at(&g, -1.0), 0.0);
     }
 }
