@@ -532,10 +532,6 @@ fn library_errors_name_no_command_line_options() {
             states: 1e9,
             budget: 10,
         },
-        AnalysisError::MixedTiming {
-            node: "n".into(),
-            leaf: "a".into(),
-        },
         AnalysisError::Stiff {
             node: "n".into(),
             work: 1e12,

@@ -222,3 +222,34 @@ fn nav2_default_tree_as_published_has_its_curve() {
     let sim = simulate_root(&t, 100_000, &times);
     assert_root_and_curve_within_z("Nav2 default tree", f, &pts, &sim);
 }
+
+/// A re-plan that can fail as it starts (a condition, after each 0.5 s
+/// wait) ends the race at an instant of the wait's lattice: the levels'
+/// densities do not hold those atoms, and the curve of every node above
+/// the race was refused ("'ok' has deterministic, hybrid or shifted
+/// times"). The composed laws' race takes it: the root's curve tends to
+/// `report`'s figures and agrees with simulation (|z| < 5).
+#[test]
+fn a_rerun_that_fails_at_its_start_is_composed() {
+    let t = tree(
+        "tree: {fallback: {name: top, children: [{sequence: {name: s, children: [\
+         {action: {name: pre, ps: 0.9, success_time: {shift: 0.2, rate: 3}, nu: 1}}, \
+         {parallel: {name: race, success_threshold: 1, failure_threshold: 1, children: [\
+         {until_failure: {name: replan, child: {sequence: {children: [\
+         {action: {name: wait, ps: 1.0, tau_s: 0.5}}, {condition: {name: ok, ps: 0.9}}]}}}}, \
+         {sequence: {name: rest, children: [\
+         {action: {name: a, ps: 0.9, mu: 2, failure_time: {erlang: {k: 2, rate: 3}}}}, \
+         {action: {name: b, ps: 0.8, mu: 0.5, nu: 1}}]}}]}}]}}, \
+         {action: {name: c, ps: 0.5, tau_s: 1, nu: 2}}]}}\n",
+    );
+    let times = [0.5, 1.0, 2.0, 5.0];
+    let pts = curve(&t, 0, &times, &CurveOptions::default()).expect("answered");
+    let f = root_figures(&t);
+    let late = root_curve_at(&t, 60.0);
+    assert!(
+        (late.0 - f.ps).abs() < 1e-9 && (late.1 - f.pf).abs() < 1e-9,
+        "{late:?} {f:?}"
+    );
+    let sim = simulate_root(&t, 400_000, &times);
+    assert_root_and_curve_within_z("re-run failing at its start", f, &pts, &sim);
+}

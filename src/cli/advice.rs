@@ -76,7 +76,6 @@ pub(super) fn analysis_failure(cmd: Cmd, method: Method) -> impl Fn(AnalysisErro
     move |e| {
         let exact = method == Method::Exact;
         let has_method = !matches!(cmd, Cmd::ExportPrism | Cmd::Check);
-        let has_timing = matches!(cmd, Cmd::Curve | Cmd::Plot);
         let mut fixes: Vec<String> = Vec::new();
         let book = "`--method book` (the book's approximation)".to_string();
         let simulate = if cmd == Cmd::Check {
@@ -105,15 +104,6 @@ pub(super) fn analysis_failure(cmd: Cmd, method: Method) -> impl Fn(AnalysisErro
                     fixes.push("a larger budget, `--max-states N`".to_string());
                 }
             }
-            AnalysisError::MixedTiming { .. } => {
-                fixes.push(simulate);
-                if has_timing {
-                    fixes.push(
-                        "`--timing deterministic` (every exponential time becomes 1/rate)"
-                            .to_string(),
-                    );
-                }
-            }
             AnalysisError::Stiff { .. } | AnalysisError::ConvolutionWork { .. } => {
                 match cmd {
                     Cmd::Curve => {
@@ -128,12 +118,6 @@ pub(super) fn analysis_failure(cmd: Cmd, method: Method) -> impl Fn(AnalysisErro
                 fixes.push(simulate);
             }
             AnalysisError::Unbounded { .. } | AnalysisError::Nav2 { .. } => fixes.push(simulate),
-            AnalysisError::RenewalInside { start, .. } => {
-                if cmd == Cmd::Curve {
-                    fixes.push(format!("`--node '{start}'` (its exact curve)"));
-                }
-                fixes.push(simulate);
-            }
             AnalysisError::Numerical { .. } | AnalysisError::NeverReturns { .. } => {}
         }
         if cmd == Cmd::Plot && !matches!(e, AnalysisError::NeverReturns { .. }) {

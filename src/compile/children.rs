@@ -76,8 +76,6 @@ pub(crate) trait Children {
     fn chain(&self, id: NodeId) -> Result<PhaseChain, AnalysisError>;
     /// The size of `id`'s phase chain, estimated before building it.
     fn chain_size(&self, id: NodeId) -> Result<ChainSize, AnalysisError>;
-    /// A leaf below `id` that makes its timing mixed (for messages).
-    fn mixed_leaf(&self, id: NodeId) -> String;
     /// The figures of `id`'s subtree computed so far (`None` for the
     /// others; `[k]` is node `id + k`).
     fn known_subtree_figures(&self, id: NodeId) -> Vec<Option<Figures>>;

@@ -359,15 +359,13 @@ pub(crate) fn deadline_figures(
     ]))
 }
 
-/// `π(t)` of `id` from its composed law, at `times`; `fallback` is the
-/// error returned where laws cannot help (its chain's budget error, or the
-/// mixed timing that the shifted mixture could not hold).
+/// `π(t)` of `id` from its composed law, at `times` (any subtree: only a
+/// budget stops it).
 pub(super) fn curve_by_laws(
     children: &dyn Children,
     id: NodeId,
     times: &[f64],
     options: &CurveOptions,
-    fallback: AnalysisError,
     kept: &Kept,
 ) -> Result<Vec<CurvePoint>, AnalysisError> {
     let end = times.iter().copied().fold(0.0, f64::max);
@@ -383,7 +381,7 @@ pub(super) fn curve_by_laws(
         None => {
             let law =
                 std::sync::Arc::new(composed_law(children, id, end, options.max_states, |b| {
-                    b.opaque(id, fallback)
+                    b.opaque(id)
                 })?);
             kept.laws.borrow_mut().insert(key, (end, law.clone()));
             law
@@ -622,23 +620,18 @@ impl Builder<'_> {
 
     /// The child's chain if it has one within the budget, else its law.
     fn piece(&self, id: NodeId) -> Result<Piece, AnalysisError> {
-        let fallback = if self.mixed[id] {
-            AnalysisError::MixedTiming {
-                node: self.name(id),
-                leaf: self.mixed_leaf(id),
+        // the chain where its size, estimated before building, is within
+        // the budget
+        if !self.mixed[id] {
+            let size = phase::chain_size(self.tree, id, self.max_states, &mut Default::default())?;
+            if let phase::ChainSize::Within(_) = size {
+                return Ok(Piece::Chain(phase::chain_of(
+                    self.tree,
+                    id,
+                    self.max_states,
+                )?));
             }
-        } else {
-            match phase::chain_size(self.tree, id, self.max_states, &mut Default::default())? {
-                phase::ChainSize::Within(_) => {
-                    return Ok(Piece::Chain(phase::chain_of(
-                        self.tree,
-                        id,
-                        self.max_states,
-                    )?))
-                }
-                phase::ChainSize::Over(e) | phase::ChainSize::NotMarkovian(e) => e,
-            }
-        };
+        }
         let key = (id, self.end.to_bits());
         if let Some(l) = self.memo.0.borrow().get(&key) {
             return Ok(Piece::Law(Box::new(l.clone())));
@@ -660,24 +653,14 @@ impl Builder<'_> {
                             self.measure(vec![(0.0, atom[1])], Some(failure), Vec::new(), 0.0),
                         ],
                     },
-                    None => self.opaque(id, fallback)?,
+                    None => self.opaque(id)?,
                 },
             }
         } else {
-            self.opaque(id, fallback)?
+            self.opaque(id)?
         };
         self.memo.0.borrow_mut().insert(key, law.clone());
         Ok(Piece::Law(Box::new(law)))
-    }
-
-    /// The first leaf below `id` without a phase-type time.
-    fn mixed_leaf(&self, id: NodeId) -> String {
-        let d = self
-            .tree
-            .subtree(id)
-            .find(|&d| self.mixed[d] && self.tree.node(d).kind.children().is_empty())
-            .unwrap_or(id);
-        self.name(d)
     }
 
     /// The child's law (a chain's sampled, once for a subtree and its
@@ -873,16 +856,12 @@ impl Builder<'_> {
         }
     }
 
-    /// The law of a node without a chain (`fallback` is what its chain
-    /// construction reported, returned where laws cannot help).
-    fn opaque(&self, id: NodeId, fallback: AnalysisError) -> Result<Law, AnalysisError> {
+    /// The composed law of any node (one without a chain within the budget,
+    /// or the top of a composed curve).
+    fn opaque(&self, id: NodeId) -> Result<Law, AnalysisError> {
         let node = self.tree.node(id);
         if let Some(d) = deadline_race(self.tree, id) {
-            match self.deadline(id, &d) {
-                // a child without a composed law: as any race below
-                Err(AnalysisError::Unbounded { .. } | AnalysisError::MixedTiming { .. }) => {}
-                r => return r,
-            }
+            return self.deadline(id, &d);
         }
         // a renewal race whose R has no phase chain: the process's law from
         // its levels raced with R's (`race::renewal_race`)
@@ -946,7 +925,12 @@ impl Builder<'_> {
                 let law = self.law(*child)?;
                 self.unbounded(id, &law, *until == Outcome::Failure)
             }
-            _ => Err(fallback),
+            Op::Leaf(Leaf::Condition { ps }) => Ok(Law {
+                parts: [
+                    self.measure(vec![(0.0, *ps)], None, Vec::new(), 0.0),
+                    self.measure(vec![(0.0, 1.0 - ps)], None, Vec::new(), 0.0),
+                ],
+            }),
         }
     }
 
@@ -2024,9 +2008,6 @@ pub(crate) fn loop_curve(
 ) -> Result<Vec<CurvePoint>, AnalysisError> {
     let tree = children.tree();
     let node = tree.node(id);
-    let unbounded = || AnalysisError::Unbounded {
-        node: node.name.clone(),
-    };
     if !children.markovian(child) {
         // a child with mixed timing: the loop's truncated geometric series
         // as a shifted mixture where it is small (as the planner's
@@ -2035,8 +2016,8 @@ pub(crate) fn loop_curve(
         let first = options.max_states.min(super::shifted::SHIFTED_FIRST);
         return match kept.mixtures.first(tree, id, first)? {
             shifted::FirstMixture::Built(law) => curve_by_shifted(&law, times, options, &node.name),
-            shifted::FirstMixture::CannotHold | shifted::FirstMixture::Over(_) => {
-                curve_by_laws(children, id, times, options, unbounded(), kept)
+            shifted::FirstMixture::CannotHold | shifted::FirstMixture::Over => {
+                curve_by_laws(children, id, times, options, kept)
             }
         };
     }

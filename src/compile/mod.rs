@@ -190,21 +190,6 @@ pub enum AnalysisError {
         /// The budget.
         budget: usize,
     },
-    /// A subtree that mixes deterministic (or hybrid, or shifted) and
-    /// stochastic times in a form none of the exact representations holds,
-    /// where the analysis needs its time distribution.
-    #[error(
-        "node '{node}' mixes deterministic, hybrid or shifted actions (e.g. '{leaf}') with \
-         stochastic ones in a form the exact analysis cannot represent yet (no finite phase \
-         chain, no finitely many return instants, no shifted phase-type mixture), and its time \
-         distribution is needed here"
-    )]
-    MixedTiming {
-        /// The node analysed.
-        node: String,
-        /// A non-exponential leaf in it.
-        leaf: String,
-    },
     /// Uniformization would need too much work (a stiff chain over a long horizon).
     #[error(
         "node '{node}' is too stiff for the transient solver over this horizon (max rate × \
@@ -255,24 +240,6 @@ pub enum AnalysisError {
     Unbounded {
         /// The loop node.
         node: String,
-    },
-    /// A subtree around a race against a renewal process of re-runs (Nav2's
-    /// re-planning), where the curve of the node starting the race is exact
-    /// but its law composed with the rest is not.
-    #[error(
-        "node '{node}' holds '{start}', whose re-runs race its later children (a renewal process \
-         of re-plans): the curve of '{start}' is exact, and its law composes with the rest of \
-         the tree when every other part has exponential or phase-type times, but '{leaf}' has \
-         deterministic, hybrid or shifted times (not supported yet; the figures of every node \
-         are exact)"
-    )]
-    RenewalInside {
-        /// The node whose curve was asked.
-        node: String,
-        /// The node that starts the race (the lowered PipelineSequence).
-        start: String,
-        /// A part around the race whose law does not compose with it.
-        leaf: String,
     },
     /// A Nav2 node (PipelineSequence, RoundRobin, ...) that is not exactly
     /// one of the primitives where it stands ([`crate::tree::nav2::primitive_view`]).

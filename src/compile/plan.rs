@@ -32,10 +32,8 @@
 //! process of re-runs (Nav2's re-planning) and the Sequence that starts it
 //! are answered by its levels (`renewal_curve`), and a node *above* such a
 //! race by the composed outcome laws (`law::curve_by_laws`) when its
-//! loop's series is long, or when the table's representation refuses the
-//! node as mixed timing — the race's own law from its levels
-//! (`renewal_law`); a deterministic, hybrid or shifted part around it is
-//! refused there ([`AnalysisError::RenewalInside`], naming it). Its
+//! loop's series is long — the race's own law from its levels
+//! (`renewal_law`) where they hold it, else the composed laws' race. Its
 //! representation, and so its figures, are the table's.
 //!
 //! The figures of a Sequence, Fallback, decorator or flow come from its
@@ -161,9 +159,6 @@ impl Children for Plan<'_> {
     }
     fn chain(&self, id: NodeId) -> Result<PhaseChain, AnalysisError> {
         Plan::chain(self, id)
-    }
-    fn mixed_leaf(&self, id: NodeId) -> String {
-        Plan::mixed_leaf(self, id)
     }
     fn known_subtree_figures(&self, id: NodeId) -> Vec<Option<Figures>> {
         Plan::known_subtree_figures(self, id)
@@ -563,45 +558,12 @@ impl<'t> Plan<'t> {
                 return Ok(points);
             }
         }
-        // a node above such a race: the race's law (`renewal_law`) composed
-        // with the rest (module docs) — when its series is long, or when the
-        // table's representation cannot hold the race
-        if self.method != Method::Book {
-            if let Some(start) = self.renewal_start(id, true) {
-                return self.around_renewal(id, start, times, options);
-            }
+        // a node above such a race whose series is long: the race's law
+        // (`renewal_law`) composed with the rest (module docs)
+        if self.method != Method::Book && self.holds_long_renewal(id) {
+            return law::curve_by_laws(self, id, times, options, &self.kept);
         }
-        match self.curve_by_representation(id, times, options) {
-            Err(e @ AnalysisError::MixedTiming { .. }) if self.method != Method::Book => {
-                match self.renewal_start(id, false) {
-                    Some(start) => self.around_renewal(id, start, times, options),
-                    None => Err(e),
-                }
-            }
-            r => r,
-        }
-    }
-
-    /// `π(t)` of node `id` above a race against a renewal process started
-    /// by `start`, by the composed laws (module docs).
-    fn around_renewal(
-        &self,
-        id: NodeId,
-        start: NodeId,
-        times: &[f64],
-        options: &CurveOptions,
-    ) -> Result<Vec<CurvePoint>, AnalysisError> {
-        let start = self.tree.node(start).name.clone();
-        let refusal = |leaf: String| AnalysisError::RenewalInside {
-            node: self.tree.node(id).name.clone(),
-            start: start.clone(),
-            leaf,
-        };
-        let budget = refusal(self.mixed_leaf(id));
-        law::curve_by_laws(self, id, times, options, budget, &self.kept).map_err(|e| match e {
-            AnalysisError::MixedTiming { leaf, .. } => refusal(leaf),
-            e => e,
-        })
+        self.curve_by_representation(id, times, options)
     }
 
     /// `π(t)` of node `id` by its representation (the planner's table).
@@ -674,58 +636,20 @@ impl<'t> Plan<'t> {
                     .collect())
             }
             Representation::Shifted => {
-                let mixed = AnalysisError::MixedTiming {
-                    node: node.name.clone(),
-                    leaf: self.mixed_leaf(id),
-                };
                 // the mixture within a smaller budget first: past it (every
-                // distinct sum of fixed times is a component) the composed
-                // laws are the faster exact answer
+                // distinct sum of fixed times is a component), or where the
+                // mixture cannot hold the node, the composed laws
                 let first = self.max_states.min(SHIFTED_FIRST);
                 match self.kept.mixtures.first(&self.tree, id, first)? {
                     FirstMixture::Built(law) => {
                         chain_curve::curve_by_shifted(&law, times, options, &node.name)
                     }
-                    // a form the mixture cannot hold
-                    FirstMixture::CannotHold => {
-                        law::curve_by_laws(self, id, times, options, mixed, &self.kept)
-                    }
-                    // too many components: where the composed laws cannot
-                    // hold the node either, the mixture within the whole
-                    // budget, and the budget is what stops it
-                    FirstMixture::Over(budget) => {
-                        match law::curve_by_laws(
-                            self,
-                            id,
-                            times,
-                            options,
-                            mixed.clone(),
-                            &self.kept,
-                        ) {
-                            Err(AnalysisError::MixedTiming { .. }) if first < self.max_states => {
-                                match super::shifted::shifted_law(&self.tree, id, self.max_states)?
-                                {
-                                    Some(law) => chain_curve::curve_by_shifted(
-                                        &law, times, options, &node.name,
-                                    ),
-                                    None => Err(mixed),
-                                }
-                            }
-                            Err(AnalysisError::MixedTiming { .. }) => Err(budget),
-                            r => r,
-                        }
+                    FirstMixture::CannotHold | FirstMixture::Over => {
+                        law::curve_by_laws(self, id, times, options, &self.kept)
                     }
                 }
             }
-            Representation::Composed => {
-                let budget = match self.chain_size(id)? {
-                    phase::ChainSize::Over(e) | phase::ChainSize::NotMarkovian(e) => e,
-                    phase::ChainSize::Within(_) => {
-                        unreachable!("a node with a chain is planned as a chain")
-                    }
-                };
-                law::curve_by_laws(self, id, times, options, budget, &self.kept)
-            }
+            Representation::Composed => law::curve_by_laws(self, id, times, options, &self.kept),
             Representation::Book => {
                 let figs = self.book_figures()?;
                 let children = node.kind.children();
@@ -758,32 +682,15 @@ impl<'t> Plan<'t> {
         }
     }
 
-    /// The node that starts a race against a renewal process below `id`
-    /// (the Sequence it ends, or the race) whose loop's series is long
-    /// (`long`), or any.
-    fn renewal_start(&self, id: NodeId, long: bool) -> Option<NodeId> {
-        let race = if long {
-            let races = self.long_renewals();
-            if races.is_empty() {
-                return None;
-            }
-            let inside = self.tree.subtree(id);
-            races.iter().find(|(race, _)| inside.contains(race))?.0
-        } else {
-            self.tree.subtree(id).find(|&n| {
-                matches!(self.tree.node(n).kind, Op::KOfN { .. })
-                    && super::renewal::parts(&self.tree, n).is_some()
-            })?
-        };
-        Some(match self.tree.node(race).parent {
-            Some(p)
-                if self.tree.node(p).kind.sequence().is_some()
-                    && self.tree.node(p).kind.children().last() == Some(&race) =>
-            {
-                p
-            }
-            _ => race,
-        })
+    /// Whether a race against a renewal process whose loop's series is long
+    /// lies below `id`.
+    fn holds_long_renewal(&self, id: NodeId) -> bool {
+        let races = self.long_renewals();
+        !races.is_empty()
+            && self
+                .tree
+                .subtree(id)
+                .any(|n| races.iter().any(|r| r.0 == n))
     }
 
     /// The races against a renewal process whose loop's series exceeds
@@ -882,20 +789,6 @@ impl<'t> Plan<'t> {
             figs[id] = self.figures(id, &child_figs)?;
         }
         Ok(self.book.get_or_init(|| figs))
-    }
-
-    /// A leaf below `id` that is neither exponential nor a condition.
-    pub(crate) fn mixed_leaf(&self, id: NodeId) -> String {
-        self.tree
-            .subtree(id)
-            .find(|&d| {
-                matches!(self.tree.node(d).kind, Op::Leaf(Leaf::Action(_)))
-                    && !self.shapes[d].exponential
-            })
-            .map_or_else(
-                || self.tree.node(id).name.clone(),
-                |d| self.tree.node(d).name.clone(),
-            )
     }
 }
 

@@ -239,16 +239,10 @@ impl Racer {
         // built within that budget only; else the subtree's composed law
         // (any subtree)
         let budget = MAX_SHIFTED_PHASES.min(plan.max_states());
-        let mixed = || AnalysisError::MixedTiming {
-            node: node.name.clone(),
-            leaf: plan.mixed_leaf(id),
-        };
         let shifted = || match shifted::shifted_law_within(tree, id, budget, horizon) {
             Ok(Some(law)) => Ok(Racer::Shifted(law)),
             // no mixture, or a larger one: the law
-            Ok(None) | Err(AnalysisError::StateBudget { .. }) => {
-                Racer::law(plan, id, horizon, mixed)
-            }
+            Ok(None) | Err(AnalysisError::StateBudget { .. }) => Racer::law(plan, id, horizon),
             Err(e) => Err(e),
         };
         match plan.representation(id)? {
@@ -299,20 +293,12 @@ impl Racer {
     /// is the interpolation's error, accepted up to [`LAW_ERROR`] and
     /// refused beyond. `refusal`: the error where the subtree's figures are
     /// not known.
-    fn law(
-        plan: &dyn Children,
-        id: NodeId,
-        horizon: f64,
-        refusal: impl FnOnce() -> AnalysisError,
-    ) -> Result<Racer, AnalysisError> {
+    fn law(plan: &dyn Children, id: NodeId, horizon: f64) -> Result<Racer, AnalysisError> {
         let tree = plan.tree();
         if horizon.is_finite() {
             return Ok(Racer::Law(plan.horizon_law(id, horizon)?));
         }
-        let Ok(all) = plan.subtree_figures(id) else {
-            return Err(refusal());
-        };
-        let figures = all[0];
+        let figures = plan.subtree_figures(id)?[0];
         let returns = figures.ps + figures.pf;
         let scale = figures.mtts.unwrap_or(0.0).max(figures.mttf.unwrap_or(0.0));
         let mut end = 32.0 * scale.max(f64::MIN_POSITIVE);
@@ -1092,10 +1078,7 @@ pub(crate) fn renewal_race(
             // process's composed law on [0, horizon] only — R has returned by
             // then, so the race's cost follows R's horizon, not the number of
             // re-runs until the process fails
-            // (a finite horizon asks for no figures: the refusal is unused)
-            None => Racer::law(plan, parts.process, tight, || {
-                numerical(&tree.node(parts.process).name, "its figures are unknown")
-            })?,
+            None => Racer::law(plan, parts.process, tight)?,
         };
     let kids = if children.first() == Some(&parts.process) {
         vec![process, rest]

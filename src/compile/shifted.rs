@@ -477,8 +477,8 @@ pub(crate) enum FirstMixture {
     Built(std::sync::Arc<ShiftedLaw>),
     /// A form the mixture cannot hold (a Parallel below).
     CannotHold,
-    /// More components than that budget (the error saying how many).
-    Over(AnalysisError),
+    /// More components than that budget.
+    Over,
 }
 
 /// The first attempts at nodes' shifted mixtures, kept by a plan: each is
@@ -503,7 +503,7 @@ impl KeptMixtures {
         let m = match shifted_law(tree, id, budget) {
             Ok(Some(law)) => FirstMixture::Built(std::sync::Arc::new(law)),
             Ok(None) => FirstMixture::CannotHold,
-            Err(e @ AnalysisError::StateBudget { .. }) => FirstMixture::Over(e),
+            Err(AnalysisError::StateBudget { .. }) => FirstMixture::Over,
             Err(e) => return Err(e),
         };
         self.0.borrow_mut().insert((id, budget), m.clone());
