@@ -11,6 +11,29 @@ fn wide(child: &str, n: usize, m: usize) -> String {
     format!("{{parallel: {{success_threshold: {m}, children: [{kids}]}}}}")
 }
 
+/// `btrel report` of `yaml` under a 2 GB address-space limit: exits 0 (an
+/// allocation past the limit aborts the process).
+fn report_within_two_gigabytes(yaml: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("tree.yaml");
+    std::fs::write(&file, yaml).unwrap();
+    let script = format!(
+        "ulimit -v 2000000; exec '{}' report '{}' --format json",
+        env!("CARGO_BIN_EXE_btrel"),
+        file.display()
+    );
+    let o = std::process::Command::new("sh")
+        .args(["-c", &script])
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
 #[test]
 fn stiff_action_before_a_wide_parallel_over_a_long_horizon() {
     // a rate-1e6 action, then a Parallel of 16 two-action subtrees (a
@@ -104,24 +127,7 @@ fn a_parallel_that_surely_succeeds_at_once_is_reported_within_the_memory_limit()
             - action: {name: a9, ps: 0.5, tau_s: 0.2, nu: 5}
       - action: {name: a10, ps: 0.7, tau_s: 0.2, tau_f: 0.5}
 ";
-    let dir = tempfile::tempdir().unwrap();
-    let file = dir.path().join("issue29.yaml");
-    std::fs::write(&file, yaml).unwrap();
-    let script = format!(
-        "ulimit -v 2000000; exec '{}' report '{}' --format json",
-        env!("CARGO_BIN_EXE_btrel"),
-        file.display()
-    );
-    let o = std::process::Command::new("sh")
-        .args(["-c", &script])
-        .output()
-        .unwrap();
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    report_within_two_gigabytes(yaml);
     let t = tree(yaml);
     let f = root_figures(&t);
     assert_eq!((f.ps, f.pf), (1.0, 0.0), "{f:?}");
@@ -185,23 +191,6 @@ fn a_race_with_a_lattice_loop_is_reported_within_the_memory_limit() {
         children: [{condition: {name: n21, ps: 0.5}}, {condition: {name: n22, ps: 0.5}}]}}, \
         {action: {name: n23, ps: 0.5, success_time: {rate: 2.828}, failure_time: \
         {hyperexponential: [{p: 0.4, rate: 2.05}, {p: 0.6, rate: 1.926}]}}}]}}}}}}}}}}]}}\n";
-    let dir = tempfile::tempdir().unwrap();
-    let file = dir.path().join("survey1735.yaml");
-    std::fs::write(&file, yaml).unwrap();
-    let script = format!(
-        "ulimit -v 2000000; exec '{}' report '{}' --format json",
-        env!("CARGO_BIN_EXE_btrel"),
-        file.display()
-    );
-    let o = std::process::Command::new("sh")
-        .args(["-c", &script])
-        .output()
-        .unwrap();
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    report_within_two_gigabytes(yaml);
     assert_root_matches_simulation(&tree(yaml), 50_000);
 }

@@ -229,6 +229,52 @@ impl Uniformized {
         u
     }
 
+    /// Advances the distribution `state` by `Λ·dt = lambda_dt` (`state ←
+    /// Σ_k Pois(k; Λ·dt) state·Pᵏ`, the Poisson window truncated within
+    /// `eps`); returns the mass absorbed into Success and Failure
+    /// meanwhile. `next` and `acc` are scratch of `state`'s length.
+    fn advance(
+        &self,
+        lambda_dt: f64,
+        eps: f64,
+        state: &mut Vec<f64>,
+        next: &mut Vec<f64>,
+        acc: &mut [f64],
+    ) -> (f64, f64) {
+        let window = poisson_window(lambda_dt, eps);
+        acc.iter_mut().for_each(|x| *x = 0.0);
+        let (mut acc_s, mut acc_f) = (0.0, 0.0);
+        // v_k = state · P^k, absorbed mass of v_k tracked as s_k, f_k
+        let (mut s_k, mut f_k) = (0.0, 0.0);
+        let last = window.left + window.weights.len();
+        for k in 0..last {
+            if k >= window.left {
+                let w = window.weights[k - window.left];
+                for (a, v) in acc.iter_mut().zip(state.iter()) {
+                    *a += w * v;
+                }
+                acc_s += w * s_k;
+                acc_f += w * f_k;
+            }
+            if k + 1 == last {
+                break;
+            }
+            // one step of P
+            let (ds, df) = self.step(state, next);
+            s_k += ds;
+            f_k += df;
+            std::mem::swap(state, next);
+            next.iter_mut().for_each(|x| *x = 0.0);
+        }
+        // mass absorbed during the interval, on top of what was before
+        let total: f64 = window.weights.iter().sum();
+        let scale = 1.0 / total;
+        for (s, a) in state.iter_mut().zip(acc.iter()) {
+            *s = a * scale;
+        }
+        (acc_s * scale, acc_f * scale)
+    }
+
     /// `next += state · P` on the transient part; returns the mass absorbed
     /// into Success and Failure by this step.
     fn step(&self, state: &[f64], next: &mut [f64]) -> (f64, f64) {
@@ -284,39 +330,9 @@ pub fn transient_by_intervals(
         let t = times[idx];
         let dt = t - now;
         if dt > 0.0 && n > 0 && lambda > 0.0 {
-            let window = poisson_window(lambda * dt, eps);
-            acc.iter_mut().for_each(|x| *x = 0.0);
-            let (mut acc_s, mut acc_f) = (0.0, 0.0);
-            // v_k = state · P^k, absorbed mass of v_k tracked as s_k, f_k
-            let (mut s_k, mut f_k) = (0.0, 0.0);
-            let last = window.left + window.weights.len();
-            for k in 0..last {
-                if k >= window.left {
-                    let w = window.weights[k - window.left];
-                    for (a, v) in acc.iter_mut().zip(&state) {
-                        *a += w * v;
-                    }
-                    acc_s += w * s_k;
-                    acc_f += w * f_k;
-                }
-                if k + 1 == last {
-                    break;
-                }
-                // one step of P
-                let (ds, df) = p.step(&state, &mut next);
-                s_k += ds;
-                f_k += df;
-                std::mem::swap(&mut state, &mut next);
-                next.iter_mut().for_each(|x| *x = 0.0);
-            }
-            // mass absorbed during the interval, on top of what was before
-            let total: f64 = window.weights.iter().sum();
-            let scale = 1.0 / total;
-            for (s, a) in state.iter_mut().zip(&acc) {
-                *s = a * scale;
-            }
-            success += acc_s * scale;
-            failure += acc_f * scale;
+            let (ds, df) = p.advance(lambda * dt, eps, &mut state, &mut next, &mut acc);
+            success += ds;
+            failure += df;
             now = t;
         } else if dt > 0.0 {
             now = t;
@@ -594,7 +610,6 @@ impl WeightedSteps {
         let eps = tolerance / times.len().max(1) as f64;
         let mut state = self.start.clone();
         let (mut next, mut acc) = (vec![0.0; n], vec![0.0; n]);
-        let mut work = vec![0.0; n];
         let (mut success, mut failure) = (0.0, 0.0);
         let mut now = 0.0;
         let mut rows = vec![Vec::new(); times.len()];
@@ -602,36 +617,11 @@ impl WeightedSteps {
             let t = times[idx];
             let dt = t - now;
             if dt > 0.0 {
-                let window = poisson_window(self.lambda * dt, eps);
-                acc.iter_mut().for_each(|x| *x = 0.0);
-                let (mut acc_s, mut acc_f) = (0.0, 0.0);
-                let (mut s_k, mut f_k) = (0.0, 0.0);
-                work.copy_from_slice(&state);
-                let last = window.left + window.weights.len();
-                for k in 0..last {
-                    if k >= window.left {
-                        let w = window.weights[k - window.left];
-                        for (a, v) in acc.iter_mut().zip(&work) {
-                            *a += w * v;
-                        }
-                        acc_s += w * s_k;
-                        acc_f += w * f_k;
-                    }
-                    if k + 1 == last {
-                        break;
-                    }
-                    let (ds, df) = self.p.step(&work, &mut next);
-                    s_k += ds;
-                    f_k += df;
-                    std::mem::swap(&mut work, &mut next);
-                    next.iter_mut().for_each(|x| *x = 0.0);
-                }
-                let total: f64 = window.weights.iter().sum();
-                for (s, a) in state.iter_mut().zip(&acc) {
-                    *s = a / total;
-                }
-                success += acc_s / total;
-                failure += acc_f / total;
+                let (ds, df) =
+                    self.p
+                        .advance(self.lambda * dt, eps, &mut state, &mut next, &mut acc);
+                success += ds;
+                failure += df;
                 now = t;
             }
             let mut row = Vec::with_capacity(width);
