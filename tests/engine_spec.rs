@@ -27,6 +27,39 @@ const HORIZON: f64 = 1e4;
 /// the simulation (its standard error is estimated from those runs).
 const MIN_OUTCOMES: f64 = 50.0;
 
+/// The two-sided tail probability of a 5-standard-error deviation of a
+/// normal variable: a count's Poisson tail below it fails the check.
+const RARE: f64 = 5.7e-7;
+
+/// The probability that a Poisson count of mean `mean` is at least as far
+/// from its mean as `count`, on `count`'s side: `P(X ≥ count)` above the
+/// mean, `P(X ≤ count)` below it.
+fn poisson_tail(count: f64, mean: f64) -> f64 {
+    let k = count as u64;
+    // the terms e^{-λ} λ^j / j! for j = 0..=k
+    let mut term = (-mean).exp();
+    let mut below = 0.0; // P(X < k)
+    for j in 0..k {
+        below += term;
+        term *= mean / (j + 1) as f64;
+    }
+    if count >= mean {
+        (1.0 - below).max(0.0)
+    } else {
+        below + term
+    }
+}
+
+/// The Poisson tails against sums of its probabilities computed apart
+/// (Python, `math.exp(-l) * l**j / math.factorial(j)`).
+#[test]
+fn poisson_tails() {
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b;
+    assert!(close(poisson_tail(1.0, 0.0137), 0.01360658209503196));
+    assert!(close(poisson_tail(5.0, 16.7), 0.0008381680617587639));
+    assert!(close(poisson_tail(10.0, 2.0), 4.6498075017109564e-05));
+}
+
 /// Checks one tree; `Ok(false)` when its Monte Carlo ran past the test's
 /// leaf budget (loops of loops whose runs take ~10^10 leaf runs): then
 /// only the report-equals-limit check was made.
@@ -61,15 +94,32 @@ fn check(seed: u64, node: &Node) -> Result<bool, String> {
         }
         Ok(())
     };
-    // a probability's standard error is the one under the hypothesis, from
-    // the exact value (the score test): the simulated proportion's own
-    // understates it where the outcome is rare (seed 2267: F(0.5) =
-    // 8.3e-4, 5 failures by then in 20,000 runs where 16.7 are expected —
-    // "0.00025 ± 0.00011", z = -5.2, where the exact value's standard error
-    // gives z = -2.9; 100,000,000 simulated runs agree within 1.1 SE)
+    // a probability is tested under the hypothesis, from the exact value:
+    // the simulated proportion's own standard error understates the spread
+    // where the outcome is rare (seed 2267: F(0.5) = 8.3e-4, 5 failures by
+    // then in 20,000 runs where 16.7 are expected — "0.00025 ± 0.00011",
+    // z = -5.2, where the exact value's standard error gives z = -2.9;
+    // 100,000,000 simulated runs agree within 1.1 SE). Where fewer than
+    // MIN_OUTCOMES runs are expected on either side, the count's Poisson
+    // tail is the test (seed 2766: F(0.5) = 6.9e-7, one run of 20,000 by
+    // then where 0.014 are expected — P = 1.4 %, but 8.4 "standard errors")
     let prob = |what: &str, (m, _): (f64, f64), exact: f64| {
-        let se = (exact * (1.0 - exact) / est.runs as f64).max(0.0).sqrt();
-        z(what, (m, se), exact)
+        let n = est.runs as f64;
+        let (count, expected) = if exact <= 0.5 {
+            ((m * n).round(), exact * n)
+        } else {
+            (((1.0 - m) * n).round(), (1.0 - exact) * n)
+        };
+        if expected >= MIN_OUTCOMES || expected <= 0.0 {
+            let se = (exact * (1.0 - exact) / n).max(0.0).sqrt();
+            return z(what, (m, se), exact);
+        }
+        if poisson_tail(count, expected) < RARE {
+            return Err(format!(
+                "{what}: simulated {m} ({count} of {n} runs) vs exact {exact} ({expected:.3} expected)"
+            ));
+        }
+        Ok(())
     };
     prob("ps", est.ps, root.ps)?;
     prob("pf", est.pf, root.pf)?;

@@ -8,7 +8,7 @@ use super::curve_options::{CurveOptions, CurvePoint, DENSE_TOLERANCE};
 use super::{shifted, AnalysisError};
 use crate::solve::chain::PhaseChain;
 use crate::solve::expm;
-use crate::solve::transient::{self, uniformization_work, WeightedSteps};
+use crate::solve::transient::{self, uniformization_work, WeightedSteps, MAX_KEPT_SUMS};
 
 /// Dropped Poisson mass in each sampled density (the composed laws'
 /// chains, by uniformization).
@@ -133,9 +133,6 @@ pub(crate) fn sample_weighted(
 ) -> Option<Vec<Vec<f64>>> {
     sample_weighted_kept(&mut None, chain, points, weights)
 }
-
-/// The most numbers a kept uniformization pass holds (64 MB).
-const MAX_KEPT_SUMS: usize = 1 << 23;
 
 /// [`sample_weighted`] for a caller that samples the same chain again (an
 /// adaptive interpolation's rounds): the uniformization pass is kept in

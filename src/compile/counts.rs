@@ -69,7 +69,9 @@
 
 use crate::solve::chain::PhaseChain;
 use crate::solve::quadrature::{Ellipse, GaussLegendre};
-use crate::solve::transient::{absorption_by_phase, transient_split, PhaseAbsorption, SplitPoint};
+use crate::solve::transient::{
+    absorption_by_phase, transient_split_kept, PhaseAbsorption, SplitPoint, WeightedSteps,
+};
 
 /// Truncation error allowed for each uniformized figure of a child.
 const CHILD_TOLERANCE: f64 = 1e-15;
@@ -192,6 +194,9 @@ pub struct ChildLaw {
     /// Largest exit rate over the smallest (`Λ/q_min`): rounding in
     /// uniformization is about this many unit roundoffs, relative.
     stiffness: f64,
+    /// The uniformization pass, kept across the quadrature's rounds (each
+    /// asks new times: the pass is extended, not run again from 0).
+    pass: std::cell::RefCell<Option<WeightedSteps>>,
 }
 
 /// A child's figures at one time. Each is a Poisson average of a sequence
@@ -242,6 +247,7 @@ impl ChildLaw {
             failure,
             rate,
             closed_form,
+            pass: Default::default(),
         }
     }
 
@@ -298,8 +304,14 @@ impl ChildLaw {
                 .collect());
         }
         let (success, failure) = (self.success, self.failure);
-        let points = transient_split(&self.chain, times, CHILD_TOLERANCE, &self.absorption)
-            .ok_or("a child is too stiff for uniformization over the horizon of its mean times")?;
+        let points = transient_split_kept(
+            &mut self.pass.borrow_mut(),
+            &self.chain,
+            times,
+            CHILD_TOLERANCE,
+            &self.absorption,
+        )
+        .ok_or("a child is too stiff for uniformization over the horizon of its mean times")?;
         Ok(points
             .into_iter()
             .map(|at| ChildPoint {

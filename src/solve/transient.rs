@@ -198,6 +198,7 @@ pub fn transient(chain: &PhaseChain, times: &[f64], tolerance: f64) -> Vec<Curve
 }
 
 /// `P = I + Q/Λ` in compressed rows.
+#[derive(Debug, Clone)]
 struct Uniformized {
     stay: Vec<f64>,
     exit_s: Vec<f64>,
@@ -429,13 +430,35 @@ pub(crate) fn transient_split(
     tolerance: f64,
     absorption: &PhaseAbsorption,
 ) -> Option<Vec<SplitPoint>> {
+    transient_split_kept(&mut None, chain, times, tolerance, absorption)
+}
+
+/// Most numbers a kept pass holds between calls (64 MB); a longer pass is
+/// dropped after its call.
+pub(crate) const MAX_KEPT_SUMS: usize = 1 << 23;
+
+/// [`transient_split`] for a caller that asks the same chain again (a
+/// quadrature's rounds, each at new times): the uniformization pass is kept
+/// in `pass` and extended, not run again from 0 (the same numbers).
+pub(crate) fn transient_split_kept(
+    pass: &mut Option<WeightedSteps>,
+    chain: &PhaseChain,
+    times: &[f64],
+    tolerance: f64,
+    absorption: &PhaseAbsorption,
+) -> Option<Vec<SplitPoint>> {
     let weights = [
         &absorption.to_success[..],
         &absorption.to_failure[..],
         &absorption.time_to_success[..],
         &absorption.time_to_failure[..],
     ];
-    let rows = transient_weighted(chain, times, tolerance, &weights)?;
+    let steps = pass.get_or_insert_with(|| WeightedSteps::new(chain, &weights));
+    let rows = steps.rows(times, tolerance);
+    if steps.kept() > MAX_KEPT_SUMS {
+        *pass = None;
+    }
+    let rows = rows?;
     Some(
         times
             .iter()
@@ -473,6 +496,7 @@ pub(crate) fn transient_weighted(
 /// again — an adaptive interpolation's rounds, each at new points — extends
 /// the steps it has instead of starting a pass from 0 (the same numbers,
 /// in the same order, as one pass to the latest time).
+#[derive(Debug, Clone)]
 pub(crate) struct WeightedSteps {
     lambda: f64,
     initial: (f64, f64),
