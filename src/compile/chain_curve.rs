@@ -8,7 +8,7 @@ use super::curve_options::{CurveOptions, CurvePoint, DENSE_TOLERANCE};
 use super::{shifted, AnalysisError};
 use crate::solve::chain::PhaseChain;
 use crate::solve::expm;
-use crate::solve::transient::{self, uniformization_work, WeightedSteps, MAX_KEPT_SUMS};
+use crate::solve::transient::{self, uniformization_work, WeightedSteps};
 
 /// Dropped Poisson mass in each sampled density (the composed laws'
 /// chains, by uniformization).
@@ -168,13 +168,9 @@ pub(crate) fn sample_weighted_kept(
                 .collect(),
         );
     }
-    let steps = pass.get_or_insert_with(|| WeightedSteps::new(chain, weights));
-    let rows = steps.rows_by_cost(points, SAMPLE_TOLERANCE);
-    if steps.kept() > MAX_KEPT_SUMS {
-        // a long pass is not kept (it would hold its numbers for as long
-        // as its caller lives)
-        *pass = None;
-    }
+    let rows = WeightedSteps::with_kept(pass, chain, weights, |s| {
+        s.rows_by_cost(points, SAMPLE_TOLERANCE)
+    });
     if let Some(rows) = rows {
         return Some(rows);
     }

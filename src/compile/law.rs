@@ -1494,7 +1494,7 @@ impl Builder<'_> {
         // where the general convolution reads every panel within g's reach
         // at every point (random survey tree 1510: an `until_success` whose
         // run fails at a lattice instant or after a shifted exponential)
-        let recursion = g
+        let mut recursion = g
             .kernel
             .filter(|k| k.stages.is_none() && k.rate > 0.0)
             .map(|k| {
@@ -1502,13 +1502,10 @@ impl Builder<'_> {
                 if k.cap.is_finite() {
                     terms.push((k.shift + k.cap, -k.weight * (-k.rate * k.cap).exp()));
                 }
-                (terms, ExponentialConvolution::new(k.rate, &atoms, None))
+                let z_atoms = ExponentialConvolution::new(k.rate, &atoms, None);
+                (terms, z_atoms, ExponentialMarch::new(k.rate))
             });
-        let mut march = g.kernel.map(|k| ExponentialMarch::new(k.rate));
         let density = build_marching(end, &breaks, settled, |done, a, b, points| {
-            while done_gauss.len() < done.panels() {
-                done_gauss.push(done.panel_gauss(done_gauss.len()));
-            }
             // on the panel the equation is linear in its values v:
             // (I − c(M + D)) v = c(known + delays from before), M the
             // panel's convolution with g, D its own delayed values
@@ -1565,8 +1562,8 @@ impl Builder<'_> {
             self.work.set(work);
             // what does not depend on r on the panel: τ, g ⊛ R_a, g ⊛ r
             // before the panel
-            let (from_atoms, known): (Vec<f64>, Vec<f64>) = match (&recursion, &mut march) {
-                (Some((terms, z_atoms)), Some(z_done)) => {
+            let (from_atoms, known): (Vec<f64>, Vec<f64>) = match &mut recursion {
+                Some((terms, z_atoms, z_done)) => {
                     z_done.catch_up(done);
                     let sum = |x: f64, z: &dyn Fn(f64) -> f64| {
                         terms.iter().map(|&(s, w)| w * z(x - s)).sum::<f64>()
@@ -1579,7 +1576,10 @@ impl Builder<'_> {
                             .collect(),
                     )
                 }
-                _ => {
+                None => {
+                    while done_gauss.len() < done.panels() {
+                        done_gauss.push(done.panel_gauss(done_gauss.len()));
+                    }
                     let supports = (done.support(), g_support);
                     let known = points
                         .par_iter()

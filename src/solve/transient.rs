@@ -435,7 +435,7 @@ pub(crate) fn transient_split(
 
 /// Most numbers a kept pass holds between calls (64 MB); a longer pass is
 /// dropped after its call.
-pub(crate) const MAX_KEPT_SUMS: usize = 1 << 23;
+const MAX_KEPT_SUMS: usize = 1 << 23;
 
 /// [`transient_split`] for a caller that asks the same chain again (a
 /// quadrature's rounds, each at new times): the uniformization pass is kept
@@ -453,12 +453,7 @@ pub(crate) fn transient_split_kept(
         &absorption.time_to_success[..],
         &absorption.time_to_failure[..],
     ];
-    let steps = pass.get_or_insert_with(|| WeightedSteps::new(chain, &weights));
-    let rows = steps.rows(times, tolerance);
-    if steps.kept() > MAX_KEPT_SUMS {
-        *pass = None;
-    }
-    let rows = rows?;
+    let rows = WeightedSteps::with_kept(pass, chain, &weights, |s| s.rows(times, tolerance))?;
     Some(
         times
             .iter()
@@ -513,6 +508,24 @@ pub(crate) struct WeightedSteps {
 }
 
 impl WeightedSteps {
+    /// `rows` of the pass kept in `pass` (made for `chain` and `weights` at
+    /// the first call); a pass longer than [`MAX_KEPT_SUMS`] is not kept
+    /// after the call (it would hold its numbers for as long as its caller
+    /// lives).
+    pub(crate) fn with_kept<R>(
+        pass: &mut Option<WeightedSteps>,
+        chain: &PhaseChain,
+        weights: &[&[f64]],
+        rows: impl FnOnce(&mut WeightedSteps) -> R,
+    ) -> R {
+        let steps = pass.get_or_insert_with(|| WeightedSteps::new(chain, weights));
+        let out = rows(steps);
+        if steps.kept() > MAX_KEPT_SUMS {
+            *pass = None;
+        }
+        out
+    }
+
     pub(crate) fn new(chain: &PhaseChain, weights: &[&[f64]]) -> WeightedSteps {
         let lambda = max_rate(chain);
         let n = chain.len();
