@@ -85,7 +85,7 @@ use crate::compile::children::{Children, ReturnLaw};
 use crate::compile::{counts, phase, renewal_law, AnalysisError};
 use crate::ir::{Flow, FlowGraph, Graph, Leaf, Op};
 use crate::solve::chain::PhaseChain;
-use crate::solve::exponential::{ExponentialConvolution, ExponentialMarch};
+use crate::solve::exponential::{erlang_densities, ErlangConvolution, ErlangMarch, MAX_STAGES};
 use crate::solve::interpolant::{
     build_marching, build_with_breaks, panel_convolution, panel_weights, BuildError, Interpolant,
     POINTS,
@@ -802,13 +802,7 @@ impl Builder<'_> {
                 })?;
                 let rest = p * (-rate * cap).exp();
                 let mut m = self.measure(vec![(cap, rest)], Some(density), vec![cap], 0.0);
-                m.kernel = Some(Kernel {
-                    weight: p,
-                    rate,
-                    shift: 0.0,
-                    cap,
-                    stages: None,
-                });
+                m.kernel = Some(Kernel::leaf(rate, 0.0, 1, p, cap));
                 Ok(m)
             }
             // the stages' density, shifted
@@ -832,21 +826,19 @@ impl Builder<'_> {
                 })?;
                 let mut m = self.measure(Vec::new(), Some(density), vec![shift], 0.0);
                 m.kernel = match d {
-                    Duration::Exponential { rate } => Some(Kernel {
-                        weight: p,
-                        rate,
-                        shift,
-                        cap: f64::INFINITY,
-                        stages: None,
-                    }),
+                    Duration::Exponential { rate } => {
+                        Some(Kernel::leaf(rate, shift, 1, p, f64::INFINITY))
+                    }
                     Duration::PhaseType { stages, .. } if kernel_stages(stages) => {
                         let series = stages.series();
-                        Some(Kernel {
-                            weight: p,
-                            rate: series[series.len() - 1],
-                            shift,
-                            cap: f64::INFINITY,
-                            stages: (series.len() > 1).then_some(stages),
+                        let rate = series[series.len() - 1];
+                        Some(if series.iter().all(|&r| r == rate) {
+                            Kernel::leaf(rate, shift, series.len(), p, f64::INFINITY)
+                        } else {
+                            Kernel {
+                                before: Some(stages),
+                                ..Kernel::leaf(rate, shift, 1, p, f64::INFINITY)
+                            }
                         })
                     }
                     _ => None,
@@ -1488,22 +1480,20 @@ impl Builder<'_> {
             }
             settled
         };
-        // g's density in closed form (one exponential stage, shifted, maybe
-        // cut off: `Kernel`): g ⊛ (R's atoms + r before the panel) by the
-        // exponential recursion, linear in the panels (`ExponentialMarch`),
+        // g's density in closed form (`Kernel`: shifted exponential and
+        // Erlang terms of one rate): g ⊛ (R's atoms + r before the panel)
+        // by the Erlang recursion, linear in the panels (`ErlangMarch`),
         // where the general convolution reads every panel within g's reach
-        // at every point (random survey tree 1510: an `until_success` whose
-        // run fails at a lattice instant or after a shifted exponential)
+        // at every point (random survey trees 1510, an `until_success`
+        // whose run fails at a lattice instant or after a shifted
+        // exponential, and 2014, whose run is a Retry of such runs)
         let mut recursion = g
             .kernel
-            .filter(|k| k.stages.is_none() && k.rate > 0.0)
+            .as_ref()
+            .filter(|k| k.before.is_none() && k.rate > 0.0)
             .map(|k| {
-                let mut terms = vec![(k.shift, k.weight)];
-                if k.cap.is_finite() {
-                    terms.push((k.shift + k.cap, -k.weight * (-k.rate * k.cap).exp()));
-                }
-                let z_atoms = ExponentialConvolution::new(k.rate, &atoms, None);
-                (terms, z_atoms, ExponentialMarch::new(k.rate))
+                let z_atoms = ErlangConvolution::new(k.rate, k.stages(), &atoms, None);
+                (k, z_atoms, ErlangMarch::new(k.rate, k.stages()))
             });
         let density = build_marching(end, &breaks, settled, |done, a, b, points| {
             // on the panel the equation is linear in its values v:
@@ -1563,16 +1553,16 @@ impl Builder<'_> {
             // what does not depend on r on the panel: τ, g ⊛ R_a, g ⊛ r
             // before the panel
             let (from_atoms, known): (Vec<f64>, Vec<f64>) = match &mut recursion {
-                Some((terms, z_atoms, z_done)) => {
+                Some((k, z_atoms, z_done)) => {
                     z_done.catch_up(done);
-                    let sum = |x: f64, z: &dyn Fn(f64) -> f64| {
-                        terms.iter().map(|&(s, w)| w * z(x - s)).sum::<f64>()
-                    };
                     (
-                        points.iter().map(|&x| sum(x, &|y| z_atoms.at(y))).collect(),
                         points
                             .iter()
-                            .map(|&x| sum(x, &|y| z_done.at(done, y)))
+                            .map(|&x| k.apply(x, &mut |y, out| z_atoms.at(y, out)))
+                            .collect(),
+                        points
+                            .iter()
+                            .map(|&x| k.apply(x, &mut |y, out| z_done.at(done, y, out)))
                             .collect(),
                     )
                 }
@@ -1648,9 +1638,7 @@ impl Builder<'_> {
                 out.atoms.iter_mut().for_each(|t| t.1 *= c);
                 out.density = b.density.as_ref().map(|d| d.scaled(c));
                 out.dropped = c.abs() * b.dropped + a.dropped * (b.mass() + b.dropped);
-                if let Some(k) = &mut out.kernel {
-                    k.weight *= c;
-                }
+                out.kernel = b.kernel.clone().map(|k| k.scaled(c));
                 return Ok(out);
             }
         }
@@ -1666,22 +1654,26 @@ impl Builder<'_> {
         if x.density.is_none() && y.density.is_none() {
             return Ok(self.measure(atoms, None, Vec::new(), dropped));
         }
-        // a leaf's exponential time: linear in the panels; against one
-        // atom (no density) the result's density is that kernel, shifted
-        let kernel_case = match (x.kernel, y.kernel) {
+        // kernels (leaves' exponential and Erlang times, and what they
+        // compose into): the result's density in closed form where both
+        // sides' are (or have none), else by the Erlang recursion, linear
+        // in the panels
+        if let Some(k) = Kernel::convolution(x, y, end).filter(|k| k.before.is_none()) {
+            let breaks: Vec<f64> = k.terms.iter().map(|t| t.shift).collect();
+            let breaks = self.measure(Vec::new(), None, breaks, 0.0).breaks;
+            let density = self.density(id, &breaks, |points| Ok(k.eval_many(points)))?;
+            let mut out = self.measure(atoms, Some(density), breaks, dropped);
+            out.kernel = Some(k);
+            return Ok(out);
+        }
+        let kernel_case = match (&x.kernel, &y.kernel) {
             (_, Some(k)) => Some((x, y, k)),
             (Some(k), None) => Some((y, x, k)),
             (None, None) => None,
         };
         if let Some((other, with, k)) = kernel_case {
             let mut out = self.convolve_kernel(id, other, with, k, atoms, dropped)?;
-            if let ([(tau, a)], None) = (&other.atoms[..], &other.density) {
-                out.kernel = Some(Kernel {
-                    weight: k.weight * a,
-                    shift: k.shift + tau,
-                    ..k
-                });
-            }
+            out.kernel = Kernel::convolution(x, y, end);
             return Ok(out);
         }
         // a density jumps at an atom plus a jump of the density it shifts
@@ -1744,48 +1736,52 @@ impl Builder<'_> {
     }
 
     /// [`Self::convolve`] where `y`'s density is the closed form `k`:
-    /// `y = atoms + w·λe^{−λ(· − s)}` on `[s, s + c)`, so that
-    /// `x ⊛ y = x ⊛ atoms + w (z(· − s) − e^{−λc} z(· − s − c))` with
-    /// `z = λe^{−λ·} ⊛ x` ([`ExponentialConvolution`]); `atoms` are the
-    /// products of both measures' atoms.
+    /// `y = atoms + Σ w·E_m(· − s)`, so that
+    /// `x ⊛ y = x ⊛ atoms + Σ w·z_m(· − s)` with `z_m = E_m ⊛ x`
+    /// ([`ErlangConvolution`], after `k`'s stages of other rates, if any);
+    /// `atoms` are the products of both measures' atoms.
     fn convolve_kernel(
         &self,
         id: NodeId,
         x: &Measure,
         y: &Measure,
-        k: Kernel,
+        k: &Kernel,
         atoms: Vec<(f64, f64)>,
         dropped: f64,
     ) -> Result<Measure, AnalysisError> {
         let end = self.end;
         // the stages before the last one, one interpolated density each
-        let series = k.stages.map(Stages::series).unwrap_or_default();
+        let series = k.before.map(Stages::series).unwrap_or_default();
         let mut through = std::borrow::Cow::Borrowed(x);
         for &rate in series.iter().take(series.len().saturating_sub(1)) {
-            let z = ExponentialConvolution::new(rate, &through.atoms, through.density.as_ref());
+            let z = ErlangConvolution::new(rate, 1, &through.atoms, through.density.as_ref());
             let jumps: Vec<f64> = through.atoms.iter().map(|a| a.0).collect();
             let density = self.density(id, &jumps, |points| {
-                Ok(points.iter().map(|&t| z.at(t)).collect())
+                Ok(points
+                    .iter()
+                    .map(|&t| {
+                        let mut out = [0.0; MAX_STAGES];
+                        z.at(t, &mut out);
+                        out[0]
+                    })
+                    .collect())
             })?;
             through = std::borrow::Cow::Owned(self.measure(Vec::new(), Some(density), jumps, 0.0));
         }
-        let z = ExponentialConvolution::new(k.rate, &through.atoms, through.density.as_ref());
-        let tail = if k.cap.is_finite() {
-            (-k.rate * k.cap).exp()
-        } else {
-            0.0
-        };
+        let z =
+            ErlangConvolution::new(k.rate, k.stages(), &through.atoms, through.density.as_ref());
         // z jumps at the atoms it convolves (x's; none after a first
-        // stage) and only kinks at x's breaks; the shift and the cut-off
-        // move those jumps, y's atoms x's own
+        // stage) and only kinks at x's breaks; the terms' shifts move those
+        // jumps, y's atoms x's own
         let mut breaks: Vec<f64> = Vec::new();
         let limit = 4 * MAX_BREAKS;
-        let mut from_x: Vec<f64> = through.atoms.iter().map(|a| a.0).collect();
-        from_x.push(0.0);
-        for shift in [k.shift, k.shift + k.cap] {
-            if shift.is_finite() {
-                breaks.extend(from_x.iter().map(|b| b + shift).take_while(|&b| b < end));
-            }
+        let from_x: Vec<f64> = std::iter::once(0.0)
+            .chain(through.atoms.iter().map(|a| a.0))
+            .collect();
+        let mut shifts: Vec<f64> = k.terms.iter().map(|t| t.shift).collect();
+        shifts.dedup();
+        for shift in shifts {
+            breaks.extend(from_x.iter().map(|b| b + shift).take_while(|&b| b < end));
         }
         if x.density.is_some() {
             for &(t, _) in &y.atoms {
@@ -1799,13 +1795,7 @@ impl Builder<'_> {
         breaks.truncate(limit);
         let breaks = self.measure(Vec::new(), None, breaks, 0.0).breaks;
         let density = self.density(id, &breaks, |points| {
-            let kernel = |t: f64| {
-                let mut v = z.at(t - k.shift);
-                if tail > 0.0 {
-                    v -= tail * z.at(t - k.shift - k.cap);
-                }
-                k.weight * v
-            };
+            let kernel = |t: f64| k.apply(t, &mut |u, out| z.at(u, out));
             let kernel: Vec<f64> = if points.len() >= 4096 {
                 points.par_iter().map(|&t| kernel(t)).collect()
             } else {
@@ -1832,11 +1822,15 @@ impl Builder<'_> {
         let atoms = x.atoms.iter().chain(&y.atoms).copied().collect();
         let breaks = x.breaks.iter().chain(&y.breaks).copied().collect();
         let mut out = self.measure(atoms, density, breaks, x.dropped + y.dropped);
-        // the density is one side's: its closed form too
+        // the density is one side's, or the sum of two kernels: its
+        // closed form too
         out.kernel = match (&x.density, &y.density) {
-            (Some(_), None) => x.kernel,
-            (None, Some(_)) => y.kernel,
-            _ => None,
+            (Some(_), None) => x.kernel.clone(),
+            (None, Some(_)) => y.kernel.clone(),
+            _ => match (&x.kernel, &y.kernel) {
+                (Some(a), Some(b)) => Kernel::sum(a, b),
+                _ => None,
+            },
         };
         Ok(out)
     }
@@ -1922,25 +1916,206 @@ struct Measure {
     kernel: Option<Kernel>,
 }
 
-/// A density `weight · λe^{−λ(t − shift)}` on `[shift, shift + cap)`: a
-/// leaf's exponential time, shifted (`shift > 0`) or the random side of a
-/// hybrid (`cap` finite: the atom at the cap is the measure's); with
-/// `stages`, the density of those stages in series, shifted (`cap`
-/// infinite).
-#[derive(Debug, Clone, Copy)]
+/// A density in closed form, `Σ w·E_m(t − s)` over its terms `(s, m, w)`,
+/// `E_m` the Erlang-`m` density of rate `rate` ([`erlang_densities`]): a
+/// leaf's exponential or Erlang time, shifted; the random side of a hybrid
+/// (`w·E_1(t)` cut at the cap: a term `−w e^{−λc}·E_1(t − c)` cancels it
+/// after); and their sums and convolutions — closed under both where the
+/// rates are equal (the convolution of two terms is one term: shifts and
+/// stages add), so that a Retry's or a Sequence's law of a loop over such
+/// leaves keeps its closed form and the loop's renewal equation its linear
+/// march (`ErlangMarch`). With `before`, a hypoexponential leaf's time:
+/// those stages of other rates in series first (all but the last of
+/// `before`'s series; then one term of one stage per shift).
+#[derive(Debug, Clone)]
 struct Kernel {
-    weight: f64,
     rate: f64,
+    terms: Vec<Term>,
+    before: Option<&'static Stages>,
+}
+
+/// `weight·E_stages(t − shift)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Term {
     shift: f64,
-    cap: f64,
-    /// Stages in series before the last one (of rate `rate`): an Erlang
-    /// or hypoexponential time (`None`: one stage).
-    stages: Option<&'static Stages>,
+    stages: usize,
+    weight: f64,
 }
 
 /// Most stages in series that a leaf's time may have to be a kernel (each
-/// is one pass of [`ExponentialConvolution`] and one interpolation).
-const KERNEL_STAGES: u32 = 16;
+/// is one pass of [`ErlangConvolution`] and one interpolation).
+const KERNEL_STAGES: u32 = MAX_STAGES as u32;
+
+/// Most terms a kernel keeps (a sum or convolution with more has none: its
+/// density is interpolated as any other's).
+const MAX_KERNEL_TERMS: usize = 64;
+
+impl Kernel {
+    /// `weight·E_stages(· − shift)`, cut at `shift + cap` (`cap` infinite:
+    /// not cut).
+    fn leaf(rate: f64, shift: f64, stages: usize, weight: f64, cap: f64) -> Kernel {
+        let mut terms = vec![Term {
+            shift,
+            stages,
+            weight,
+        }];
+        if cap.is_finite() {
+            terms.push(Term {
+                shift: shift + cap,
+                stages: 1,
+                weight: -weight * (-rate * cap).exp(),
+            });
+        }
+        Kernel {
+            rate,
+            terms,
+            before: None,
+        }
+    }
+
+    fn scaled(mut self, c: f64) -> Kernel {
+        self.terms.iter_mut().for_each(|t| t.weight *= c);
+        self
+    }
+
+    /// Its largest stage count.
+    fn stages(&self) -> usize {
+        self.terms.iter().map(|t| t.stages).max().unwrap_or(1)
+    }
+
+    /// Its terms summed where they have the same shift and stages, in
+    /// order of shift; `None` past [`MAX_KERNEL_TERMS`].
+    fn merged(mut self) -> Option<Kernel> {
+        self.terms
+            .sort_by(|a, b| a.shift.total_cmp(&b.shift).then(a.stages.cmp(&b.stages)));
+        let mut out: Vec<Term> = Vec::with_capacity(self.terms.len());
+        for t in self.terms {
+            match out
+                .iter_mut()
+                .rev()
+                .take_while(|o| same_instant(o.shift, t.shift))
+                .find(|o| o.stages == t.stages)
+            {
+                Some(o) => o.weight += t.weight,
+                None => out.push(t),
+            }
+        }
+        out.retain(|t| t.weight != 0.0);
+        self.terms = out;
+        (self.terms.len() <= MAX_KERNEL_TERMS).then_some(self)
+    }
+
+    /// The kernel of `x + y`'s density where both densities are kernels.
+    fn sum(x: &Kernel, y: &Kernel) -> Option<Kernel> {
+        if x.rate != y.rate || x.before.is_some() || y.before.is_some() {
+            return None;
+        }
+        let mut k = x.clone();
+        k.terms.extend_from_slice(&y.terms);
+        k.merged()
+    }
+
+    /// The kernel of `x ⊛ y`'s density, for measures whose densities are
+    /// kernels or none (at least one a kernel), within `[0, end]`: each
+    /// one's atoms shift the other's terms, and two terms of one rate
+    /// convolve into one (`E_m ⊛ E_n = E_{m+n}`).
+    fn convolution(x: &Measure, y: &Measure, end: f64) -> Option<Kernel> {
+        let closed = |m: &Measure| m.density.is_none() || m.kernel.is_some();
+        if !closed(x) || !closed(y) {
+            return None;
+        }
+        let (kx, ky) = (x.kernel.as_ref(), y.kernel.as_ref());
+        let first = kx.or(ky)?;
+        if let (Some(a), Some(b)) = (kx, ky) {
+            if a.rate != b.rate || a.before.is_some() || b.before.is_some() {
+                return None;
+            }
+        }
+        let within = |s: f64| s <= end || same_instant(s, end);
+        let mut terms = Vec::new();
+        for (m, k) in [(x, ky), (y, kx)] {
+            let Some(k) = k else { continue };
+            if m.atoms.len() * k.terms.len() > 4 * MAX_KERNEL_TERMS {
+                return None;
+            }
+            for &(tau, a) in &m.atoms {
+                for t in &k.terms {
+                    if within(t.shift + tau) {
+                        terms.push(Term {
+                            shift: t.shift + tau,
+                            weight: t.weight * a,
+                            ..*t
+                        });
+                    }
+                }
+            }
+        }
+        if let (Some(a), Some(b)) = (kx, ky) {
+            if a.terms.len() * b.terms.len() > 4 * MAX_KERNEL_TERMS {
+                return None;
+            }
+            for s in &a.terms {
+                for t in &b.terms {
+                    if s.stages + t.stages > MAX_STAGES {
+                        return None;
+                    }
+                    if within(s.shift + t.shift) {
+                        terms.push(Term {
+                            shift: s.shift + t.shift,
+                            stages: s.stages + t.stages,
+                            weight: s.weight * t.weight,
+                        });
+                    }
+                }
+            }
+        }
+        Kernel {
+            rate: first.rate,
+            terms,
+            before: first.before,
+        }
+        .merged()
+    }
+
+    /// Its density at each of `points` (`before` none).
+    fn eval_many(&self, points: &[f64]) -> Vec<f64> {
+        let mut e = [0.0; MAX_STAGES];
+        let e = &mut e[..self.stages()];
+        points
+            .iter()
+            .map(|&x| {
+                let mut v = 0.0;
+                for t in &self.terms {
+                    if t.shift > x {
+                        break;
+                    }
+                    erlang_densities(self.rate, x - t.shift, &mut e[..t.stages]);
+                    v += t.weight * e[t.stages - 1];
+                }
+                v
+            })
+            .collect()
+    }
+
+    /// `Σ w·z_m(x − s)`: its convolution with what `z(y, out)` gives as
+    /// `z_1(y), …, z_m(y)` (one call per distinct shift).
+    fn apply(&self, x: f64, z: &mut dyn FnMut(f64, &mut [f64])) -> f64 {
+        let mut out = [0.0; MAX_STAGES];
+        let mut v = 0.0;
+        let mut last = None;
+        for t in &self.terms {
+            if t.shift > x {
+                break;
+            }
+            if last != Some(t.shift) {
+                z(x - t.shift, &mut out);
+                last = Some(t.shift);
+            }
+            v += t.weight * out[t.stages - 1];
+        }
+        v
+    }
+}
 
 impl Measure {
     /// `δ₀`.

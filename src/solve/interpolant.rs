@@ -292,19 +292,7 @@ impl Interpolant {
             return 0.0;
         }
         let (a, b) = (self.edges[k], self.edges[k + 1]);
-        let x = if b > a {
-            ((2.0 * t - a - b) / (b - a)).clamp(-1.0, 1.0)
-        } else {
-            0.0
-        };
-        let c = &self.chebyshev[k * POINTS..(k + 1) * POINTS];
-        let (mut b1, mut b2) = (0.0, 0.0);
-        for &ck in c[1..].iter().rev() {
-            let b0 = ck + 2.0 * x * b1 - b2;
-            b2 = b1;
-            b1 = b0;
-        }
-        c[0] + x * b1 - b2
+        chebyshev_sum(&self.chebyshev[k * POINTS..(k + 1) * POINTS], a, b, t)
     }
 
     /// [`Self::eval_in`] at the [`POINTS`] instants `ts`, all in panel `k`:
@@ -967,6 +955,30 @@ fn chebyshev_row(a: f64, b: f64, y: f64) -> [f64; POINTS] {
         t[c] = 2.0 * x * t[c - 1] - t[c - 2];
     }
     t
+}
+
+/// The Chebyshev coefficients of the polynomial of a panel whose values at
+/// its [`panel_points`] are `v` (for [`chebyshev_sum`]).
+pub(crate) fn chebyshev_coefficients(v: &[f64; POINTS]) -> [f64; POINTS] {
+    let c = &basis().coefficients;
+    std::array::from_fn(|k| (0..POINTS).map(|j| c[k][j] * v[j]).sum())
+}
+
+/// `Σ c_k T_k(x)` at `t` of panel `[a, b]` (`x` its place in `[−1, 1]`),
+/// by Clenshaw's recurrence.
+pub(crate) fn chebyshev_sum(c: &[f64], a: f64, b: f64, t: f64) -> f64 {
+    let x = if b > a {
+        ((2.0 * t - a - b) / (b - a)).clamp(-1.0, 1.0)
+    } else {
+        0.0
+    };
+    let (mut b1, mut b2) = (0.0, 0.0);
+    for &ck in c[1..].iter().rev() {
+        let b0 = ck + 2.0 * x * b1 - b2;
+        b2 = b1;
+        b1 = b0;
+    }
+    c[0] + x * b1 - b2
 }
 
 /// `ℓ_j(y)`: the weights with which the polynomial of panel `[a, b]`
