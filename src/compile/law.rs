@@ -622,14 +622,25 @@ impl Builder<'_> {
     fn piece(&self, id: NodeId) -> Result<Piece, AnalysisError> {
         // the chain where its size, estimated before building, is within
         // the budget
+        // (a loop unrolled into many copies: the loop's cyclic chain, and
+        // the composed laws above it)
         if !self.mixed[id] {
             let size = phase::chain_size(self.tree, id, self.max_states, &mut Default::default())?;
-            if let phase::ChainSize::Within(_) = size {
-                return Ok(Piece::Chain(phase::chain_of(
-                    self.tree,
-                    id,
-                    self.max_states,
-                )?));
+            if let phase::ChainSize::Within(n) = size {
+                if n <= phase::LONG_UNROLLED || !phase::holds_loop(self.tree, id) {
+                    return Ok(Piece::Chain(phase::chain_of(
+                        self.tree,
+                        id,
+                        self.max_states,
+                    )?));
+                }
+                if let Op::Loop { child, until } = self.tree.node(id).kind {
+                    let c = phase::chain_of(self.tree, child, self.max_states)?;
+                    return Ok(Piece::Chain(phase::cyclic_loop(
+                        c,
+                        until == Outcome::Success,
+                    )));
+                }
             }
         }
         let key = (id, self.end.to_bits());
@@ -2196,15 +2207,12 @@ pub(crate) fn loop_curve(
             }
         };
     }
-    let mut c = phase::chain_of(tree, child, options.max_states)?;
-    // work with "again" as the Success exit, then swap back
     let until_success = until == Outcome::Success;
-    if until_success {
-        std::mem::swap(&mut c.exit_success, &mut c.exit_failure);
-        std::mem::swap(&mut c.initial_success, &mut c.initial_failure);
-    }
-    let again0 = c.initial_success;
-    if again0 >= 1.0 || (c.initial.is_empty() && c.initial_failure <= 0.0) {
+    let c = phase::cyclic_loop(
+        phase::chain_of(tree, child, options.max_states)?,
+        until_success,
+    );
+    if c.len() == 1 && c.total_rate(0) == 0.0 && c.initial_success + c.initial_failure == 0.0 {
         // the child never ends the loop: it runs forever
         return Ok(times
             .iter()
@@ -2216,19 +2224,6 @@ pub(crate) fn loop_curve(
             })
             .collect());
     }
-    let scale = 1.0 / (1.0 - again0);
-    let entry: Vec<(usize, f64)> = c.initial.iter().map(|&(j, p)| (j, p * scale)).collect();
-    let end0 = c.initial_failure * scale;
-    for i in 0..c.len() {
-        let again = std::mem::take(&mut c.exit_success[i]);
-        if again > 0.0 {
-            c.transitions[i].extend(entry.iter().map(|&(j, p)| (j, again * p)));
-            c.exit_failure[i] += again * end0;
-        }
-    }
-    c.initial = entry;
-    c.initial_success = 0.0;
-    c.initial_failure = end0;
     let work = uniformization_work(&c, times);
     if work > options.max_work {
         return Err(AnalysisError::Stiff {
@@ -2237,13 +2232,7 @@ pub(crate) fn loop_curve(
             limit: options.max_work,
         });
     }
-    let mut points = transient::transient(&c, times, options.tolerance);
-    if until_success {
-        for p in &mut points {
-            std::mem::swap(&mut p.success, &mut p.failure);
-        }
-    }
-    Ok(points)
+    Ok(transient::transient(&c, times, options.tolerance))
 }
 
 #[cfg(test)]

@@ -451,7 +451,16 @@ pub(crate) fn parallel_by_counts(
         .iter()
         .flat_map(|c| (0..c.len()).map(|i| c.total_rate(i)))
         .fold(0.0, f64::max);
-    if fastest * 32.0 * longest > STIFF_STEPS {
+    // and the passes' work: steps times the chains' phases and moves (a
+    // loop's chain is its child's, unrolled to where its repetitions end
+    // but for 1e-14: survey tree 2786's counted Parallel has a loop child of
+    // 36,126 phases whose passes over 60,000 steps took 113 s)
+    let steps = fastest * 32.0 * longest;
+    let moves: f64 = chains
+        .iter()
+        .map(|c| (c.len() + c.transitions.iter().map(Vec::len).sum::<usize>()) as f64)
+        .sum();
+    if steps > STIFF_STEPS || steps * moves > STIFF_WORK {
         let (ps, pf) = counts::status_by_counts(
             &child_figs.iter().map(|f| (f.ps, f.pf)).collect::<Vec<_>>(),
             m,
@@ -477,6 +486,11 @@ pub(crate) fn parallel_by_counts(
 /// counted Parallel's mean times come from composed laws rather than the
 /// certified quadrature ([`counts`] module docs).
 pub(crate) const STIFF_STEPS: f64 = 1e5;
+
+/// Work of the certified quadrature's uniformization passes (steps over 32
+/// × the longest child mean, times the children's phases and moves) beyond
+/// which a counted Parallel's mean times come from composed laws.
+pub(crate) const STIFF_WORK: f64 = 1e8;
 
 /// Figures of a counted Parallel from composed laws: P(S), P(F) by counting
 /// the children's exact figures, the mean times as first moments of the

@@ -549,6 +549,55 @@ pub fn unrolled_loop(
     })
 }
 
+/// The loop's exact cyclic chain over its child's chain `c`: the exit that
+/// repeats the child ("again") re-enters the child's entry distribution,
+/// an instantaneous "again" folded in by renormalising the entry (the
+/// entry is `initial / (1 − p₀)`). Cyclic: only for solvers that need no
+/// order of the phases (uniformization: `loop_curve`, a composed law's
+/// sampled chain). The trap ([`trap`]) where the child never ends the loop.
+pub fn cyclic_loop(mut c: PhaseChain, until_success: bool) -> PhaseChain {
+    // work with "again" as the Success exit, then swap back
+    let swap = |c: &mut PhaseChain| {
+        if until_success {
+            std::mem::swap(&mut c.exit_success, &mut c.exit_failure);
+            std::mem::swap(&mut c.initial_success, &mut c.initial_failure);
+        }
+    };
+    swap(&mut c);
+    let again0 = c.initial_success;
+    if again0 >= 1.0 || (c.initial.is_empty() && c.initial_failure <= 0.0) {
+        return trap();
+    }
+    let scale = 1.0 / (1.0 - again0);
+    let entry: Vec<(usize, f64)> = c.initial.iter().map(|&(j, p)| (j, p * scale)).collect();
+    let end0 = c.initial_failure * scale;
+    for i in 0..c.len() {
+        let again = std::mem::take(&mut c.exit_success[i]);
+        if again > 0.0 {
+            c.transitions[i].extend(entry.iter().map(|&(j, p)| (j, again * p)));
+            c.exit_failure[i] += again * end0;
+        }
+    }
+    c.initial = entry;
+    c.initial_success = 0.0;
+    c.initial_failure = end0;
+    swap(&mut c);
+    c
+}
+
+/// Phases of an unrolled chain holding a loop past which the loop's cyclic
+/// chain ([`cyclic_loop`]) samples its law and its ancestors take composed
+/// laws (`Plan::long_unrolled`, `law::Builder::piece`): uniformization
+/// steps every copy of the unrolled chain (survey tree 2786: a Repeat over
+/// an `until_success` unrolled into 36,126 phases, six of its own).
+pub const LONG_UNROLLED: f64 = 4096.0;
+
+/// Whether the subtree of `id` holds a loop without a bound.
+pub fn holds_loop(tree: &Graph, id: NodeId) -> bool {
+    tree.subtree(id)
+        .any(|n| matches!(tree.node(n).kind, Op::Loop { .. }))
+}
+
 /// What [`unrolled_loop`] makes of a child's chain, before it builds it.
 enum LoopShape {
     /// The child never ends the loop: one trap phase.

@@ -21,7 +21,7 @@
 //! | 2 | strategy `book`, a control node | [`Representation::Book`]: the book's CTMC over the node's MRG, children as exponential actions |
 //! | 3 | `until_failure` / `until_success` | [`Representation::Loop`]: the cyclic chain over the child's phase chain, or the shifted law's truncated series |
 //! | 4 | every leaf below deterministic (or a condition), no loop | [`Representation::Atoms`]: the finitely many return instants |
-//! | 5 | every leaf below phase-type (exponential, Erlang, hypoexponential), the chain within the budget (a Parallel with the book's thresholds: its product ≤ [`super::PRODUCT_LIMIT`]) | [`Representation::Chain`]: the exact phase chain |
+//! | 5 | every leaf below phase-type (exponential, Erlang, hypoexponential), the chain within the budget (a Parallel with the book's thresholds: its product ≤ [`super::PRODUCT_LIMIT`]; a loop below unrolled into at most [`phase::LONG_UNROLLED`] phases in all) | [`Representation::Chain`]: the exact phase chain |
 //! | 5b | a map (inverter, force decorator) | [`Representation::Mapped`]: its child's law, its outcomes mapped |
 //! | 6 | a Parallel with the book's thresholds (`F ≥ N − M + 1`) | [`Representation::Counted`]: the count programme over the children's own laws |
 //! | 7 | a Parallel whose two thresholds can both be met | [`Representation::Race`]: the race of the children's laws |
@@ -349,7 +349,7 @@ impl<'t> Plan<'t> {
         if shape.deterministic && !shape.looped {
             return Ok(Representation::Atoms);
         }
-        if shape.exponential && self.chain_fits(id)? {
+        if shape.exponential && self.chain_fits(id)? && !self.long_unrolled(id)? {
             return Ok(Representation::Chain);
         }
         if matches!(kind, Op::Map { .. }) {
@@ -387,6 +387,17 @@ impl<'t> Plan<'t> {
             }
         }
         Ok(self.chain_size(id)?.fits())
+    }
+
+    /// Whether `id`'s chain holds a loop unrolled into many copies (over
+    /// [`phase::LONG_UNROLLED`] phases in all): its uniformization passes
+    /// step every copy, where the composed laws take the loop's own cyclic
+    /// chain.
+    fn long_unrolled(&self, id: NodeId) -> Result<bool, AnalysisError> {
+        if !self.shapes[id].looped {
+            return Ok(false);
+        }
+        Ok(matches!(self.chain_size(id)?, phase::ChainSize::Within(n) if n > phase::LONG_UNROLLED))
     }
 
     /// The size of `id`'s phase chain, estimated before building it.
