@@ -1501,10 +1501,16 @@ impl Builder<'_> {
         let mut recursion = g
             .kernel
             .as_ref()
-            .filter(|k| k.before.is_none() && k.rate > 0.0)
+            .filter(|k| k.before.is_none() && k.positive())
             .map(|k| {
-                let z_atoms = ErlangConvolution::new(k.rate, k.stages(), &atoms, None);
-                (k, z_atoms, ErlangMarch::new(k.rate, k.stages()))
+                let rates = k.rates();
+                let z_atoms: Vec<ErlangConvolution> = rates
+                    .iter()
+                    .map(|&(r, m)| ErlangConvolution::new(r, m, &atoms, None))
+                    .collect();
+                let z_done: Vec<ErlangMarch> =
+                    rates.iter().map(|&(r, m)| ErlangMarch::new(r, m)).collect();
+                (k, rates, z_atoms, z_done)
             });
         let density = build_marching(end, &breaks, settled, |done, a, b, points| {
             // on the panel the equation is linear in its values v:
@@ -1564,16 +1570,18 @@ impl Builder<'_> {
             // what does not depend on r on the panel: τ, g ⊛ R_a, g ⊛ r
             // before the panel
             let (from_atoms, known): (Vec<f64>, Vec<f64>) = match &mut recursion {
-                Some((k, z_atoms, z_done)) => {
-                    z_done.catch_up(done);
+                Some((k, rates, z_atoms, z_done)) => {
+                    z_done.iter_mut().for_each(|z| z.catch_up(done));
                     (
                         points
                             .iter()
-                            .map(|&x| k.apply(x, &mut |y, out| z_atoms.at(y, out)))
+                            .map(|&x| k.apply(rates, x, &mut |r, y, out| z_atoms[r].at(y, out)))
                             .collect(),
                         points
                             .iter()
-                            .map(|&x| k.apply(x, &mut |y, out| z_done.at(done, y, out)))
+                            .map(|&x| {
+                                k.apply(rates, x, &mut |r, y, out| z_done[r].at(done, y, out))
+                            })
                             .collect(),
                     )
                 }
@@ -1779,8 +1787,11 @@ impl Builder<'_> {
             })?;
             through = std::borrow::Cow::Owned(self.measure(Vec::new(), Some(density), jumps, 0.0));
         }
-        let z =
-            ErlangConvolution::new(k.rate, k.stages(), &through.atoms, through.density.as_ref());
+        let rates = k.rates();
+        let z: Vec<ErlangConvolution> = rates
+            .iter()
+            .map(|&(r, m)| ErlangConvolution::new(r, m, &through.atoms, through.density.as_ref()))
+            .collect();
         // z jumps at the atoms it convolves (x's; none after a first
         // stage) and only kinks at x's breaks; the terms' shifts move those
         // jumps, y's atoms x's own
@@ -1806,7 +1817,7 @@ impl Builder<'_> {
         breaks.truncate(limit);
         let breaks = self.measure(Vec::new(), None, breaks, 0.0).breaks;
         let density = self.density(id, &breaks, |points| {
-            let kernel = |t: f64| k.apply(t, &mut |u, out| z.at(u, out));
+            let kernel = |t: f64| k.apply(&rates, t, &mut |r, u, out| z[r].at(u, out));
             let kernel: Vec<f64> = if points.len() >= 4096 {
                 points.par_iter().map(|&t| kernel(t)).collect()
             } else {
@@ -1927,28 +1938,31 @@ struct Measure {
     kernel: Option<Kernel>,
 }
 
-/// A density in closed form, `Σ w·E_m(t − s)` over its terms `(s, m, w)`,
-/// `E_m` the Erlang-`m` density of rate `rate` ([`erlang_densities`]): a
-/// leaf's exponential or Erlang time, shifted; the random side of a hybrid
-/// (`w·E_1(t)` cut at the cap: a term `−w e^{−λc}·E_1(t − c)` cancels it
-/// after); and their sums and convolutions — closed under both where the
-/// rates are equal (the convolution of two terms is one term: shifts and
-/// stages add), so that a Retry's or a Sequence's law of a loop over such
-/// leaves keeps its closed form and the loop's renewal equation its linear
-/// march (`ErlangMarch`). With `before`, a hypoexponential leaf's time:
-/// those stages of other rates in series first (all but the last of
-/// `before`'s series; then one term of one stage per shift).
+/// A density in closed form, `Σ w·E_m(λ; t − s)` over its terms
+/// `(s, λ, m, w)`, `E_m(λ; ·)` the Erlang-`m` density of rate `λ`
+/// ([`erlang_densities`]): a leaf's exponential or Erlang time, shifted;
+/// the random side of a hybrid (`w·E_1(t)` cut at the cap: a term
+/// `−w e^{−λc}·E_1(t − c)` cancels it after); and their sums and
+/// convolutions — closed under both: two terms of one rate convolve into
+/// one (shifts and stages add), two of different rates into terms of both
+/// by partial fractions (where their weights stay within
+/// [`MAX_AMPLIFICATION`] of the factors': close rates cancel), so that a
+/// Retry's or a Sequence's law over such leaves keeps its closed form and a
+/// loop over it its linear renewal march (`ErlangMarch`, one per rate).
+/// With `before`, a hypoexponential leaf's time: those stages of other
+/// rates in series first (all but the last of `before`'s series; then terms
+/// of one stage of the last rate, one per shift).
 #[derive(Debug, Clone)]
 struct Kernel {
-    rate: f64,
     terms: Vec<Term>,
     before: Option<&'static Stages>,
 }
 
-/// `weight·E_stages(t − shift)`.
+/// `weight·E_stages(rate; t − shift)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Term {
     shift: f64,
+    rate: f64,
     stages: usize,
     weight: f64,
 }
@@ -1961,24 +1975,31 @@ const KERNEL_STAGES: u32 = MAX_STAGES as u32;
 /// density is interpolated as any other's).
 const MAX_KERNEL_TERMS: usize = 64;
 
+/// Largest ratio of a kernel convolution's total absolute weight to its
+/// factors' product: partial fractions of close rates cancel, each factor
+/// of 10 costing a digit of the density's accuracy (1e4: ~1e-12 of its
+/// scale left).
+const MAX_AMPLIFICATION: f64 = 1e4;
+
 impl Kernel {
-    /// `weight·E_stages(· − shift)`, cut at `shift + cap` (`cap` infinite:
-    /// not cut).
+    /// `weight·E_stages(rate; · − shift)`, cut at `shift + cap` (`cap`
+    /// infinite: not cut).
     fn leaf(rate: f64, shift: f64, stages: usize, weight: f64, cap: f64) -> Kernel {
         let mut terms = vec![Term {
             shift,
+            rate,
             stages,
             weight,
         }];
         if cap.is_finite() {
             terms.push(Term {
                 shift: shift + cap,
+                rate,
                 stages: 1,
                 weight: -weight * (-rate * cap).exp(),
             });
         }
         Kernel {
-            rate,
             terms,
             before: None,
         }
@@ -1989,26 +2010,48 @@ impl Kernel {
         self
     }
 
-    /// Its largest stage count.
-    fn stages(&self) -> usize {
-        self.terms.iter().map(|t| t.stages).max().unwrap_or(1)
+    /// Its distinct rates, each with its largest stage count.
+    fn rates(&self) -> Vec<(f64, usize)> {
+        let mut out: Vec<(f64, usize)> = Vec::new();
+        for t in &self.terms {
+            match out.iter_mut().find(|r| r.0 == t.rate) {
+                Some(r) => r.1 = r.1.max(t.stages),
+                None => out.push((t.rate, t.stages)),
+            }
+        }
+        out
     }
 
-    /// Its terms summed where they have the same shift and stages, in
+    /// Whether every rate is positive (the recursions need it).
+    fn positive(&self) -> bool {
+        self.terms.iter().all(|t| t.rate > 0.0)
+    }
+
+    /// Its terms summed where they have the same shift, rate and stages, in
     /// order of shift; `None` past [`MAX_KERNEL_TERMS`].
     fn merged(mut self) -> Option<Kernel> {
-        self.terms
-            .sort_by(|a, b| a.shift.total_cmp(&b.shift).then(a.stages.cmp(&b.stages)));
+        self.terms.sort_by(|a, b| {
+            a.shift
+                .total_cmp(&b.shift)
+                .then(a.rate.total_cmp(&b.rate))
+                .then(a.stages.cmp(&b.stages))
+        });
         let mut out: Vec<Term> = Vec::with_capacity(self.terms.len());
         for t in self.terms {
             match out
                 .iter_mut()
                 .rev()
                 .take_while(|o| same_instant(o.shift, t.shift))
-                .find(|o| o.stages == t.stages)
+                .find(|o| o.rate == t.rate && o.stages == t.stages)
             {
                 Some(o) => o.weight += t.weight,
-                None => out.push(t),
+                None => out.push(Term {
+                    shift: out
+                        .last()
+                        .filter(|o| same_instant(o.shift, t.shift))
+                        .map_or(t.shift, |o| o.shift),
+                    ..t
+                }),
             }
         }
         out.retain(|t| t.weight != 0.0);
@@ -2018,7 +2061,7 @@ impl Kernel {
 
     /// The kernel of `x + y`'s density where both densities are kernels.
     fn sum(x: &Kernel, y: &Kernel) -> Option<Kernel> {
-        if x.rate != y.rate || x.before.is_some() || y.before.is_some() {
+        if x.before.is_some() || y.before.is_some() {
             return None;
         }
         let mut k = x.clone();
@@ -2026,10 +2069,50 @@ impl Kernel {
         k.merged()
     }
 
+    /// `E_m(a) ⊛ E_n(b)` as terms at shift `shift`, `weight` times: one
+    /// term for one rate, else by partial fractions of
+    /// `aᵐbⁿ/((s + a)ᵐ(s + b)ⁿ)`: the weight of `E_k(a)` is
+    /// `a^{m−k} bⁿ (−1)^{m−k} C(n + m − k − 1, m − k) / (b − a)^{n+m−k}`,
+    /// and symmetrically for `b`.
+    fn pair(s: &Term, t: &Term, out: &mut Vec<Term>) -> Option<()> {
+        let shift = s.shift + t.shift;
+        let weight = s.weight * t.weight;
+        if s.rate == t.rate {
+            if s.stages + t.stages > MAX_STAGES {
+                return None;
+            }
+            out.push(Term {
+                shift,
+                rate: s.rate,
+                stages: s.stages + t.stages,
+                weight,
+            });
+            return Some(());
+        }
+        for (x, y) in [(s, t), (t, s)] {
+            let (a, b, m, n) = (x.rate, y.rate, x.stages, y.stages);
+            for k in 1..=m {
+                let j = m - k;
+                // C(n + j − 1, j)
+                let binomial: f64 = (1..=j).map(|i| (n + i - 1) as f64 / i as f64).product();
+                let sign = if j % 2 == 0 { 1.0 } else { -1.0 };
+                let w =
+                    sign * binomial * (a / (b - a)).powi(j as i32) * (b / (b - a)).powi(n as i32);
+                out.push(Term {
+                    shift,
+                    rate: a,
+                    stages: k,
+                    weight: weight * w,
+                });
+            }
+        }
+        Some(())
+    }
+
     /// The kernel of `x ⊛ y`'s density, for measures whose densities are
     /// kernels or none (at least one a kernel), within `[0, end]`: each
-    /// one's atoms shift the other's terms, and two terms of one rate
-    /// convolve into one (`E_m ⊛ E_n = E_{m+n}`).
+    /// one's atoms shift the other's terms, and two terms convolve by
+    /// [`Self::pair`].
     fn convolution(x: &Measure, y: &Measure, end: f64) -> Option<Kernel> {
         let closed = |m: &Measure| m.density.is_none() || m.kernel.is_some();
         if !closed(x) || !closed(y) {
@@ -2038,7 +2121,7 @@ impl Kernel {
         let (kx, ky) = (x.kernel.as_ref(), y.kernel.as_ref());
         let first = kx.or(ky)?;
         if let (Some(a), Some(b)) = (kx, ky) {
-            if a.rate != b.rate || a.before.is_some() || b.before.is_some() {
+            if a.before.is_some() || b.before.is_some() {
                 return None;
             }
         }
@@ -2065,23 +2148,20 @@ impl Kernel {
             if a.terms.len() * b.terms.len() > 4 * MAX_KERNEL_TERMS {
                 return None;
             }
+            let from = terms.len();
             for s in &a.terms {
                 for t in &b.terms {
-                    if s.stages + t.stages > MAX_STAGES {
-                        return None;
-                    }
                     if within(s.shift + t.shift) {
-                        terms.push(Term {
-                            shift: s.shift + t.shift,
-                            stages: s.stages + t.stages,
-                            weight: s.weight * t.weight,
-                        });
+                        Self::pair(s, t, &mut terms)?;
                     }
                 }
             }
+            let total = |ts: &[Term]| ts.iter().map(|t| t.weight.abs()).sum::<f64>();
+            if total(&terms[from..]) > MAX_AMPLIFICATION * total(&a.terms) * total(&b.terms) {
+                return None;
+            }
         }
         Kernel {
-            rate: first.rate,
             terms,
             before: first.before,
         }
@@ -2091,7 +2171,6 @@ impl Kernel {
     /// Its density at each of `points` (`before` none).
     fn eval_many(&self, points: &[f64]) -> Vec<f64> {
         let mut e = [0.0; MAX_STAGES];
-        let e = &mut e[..self.stages()];
         points
             .iter()
             .map(|&x| {
@@ -2100,7 +2179,7 @@ impl Kernel {
                     if t.shift > x {
                         break;
                     }
-                    erlang_densities(self.rate, x - t.shift, &mut e[..t.stages]);
+                    erlang_densities(t.rate, x - t.shift, &mut e[..t.stages]);
                     v += t.weight * e[t.stages - 1];
                 }
                 v
@@ -2108,9 +2187,15 @@ impl Kernel {
             .collect()
     }
 
-    /// `Σ w·z_m(x − s)`: its convolution with what `z(y, out)` gives as
-    /// `z_1(y), …, z_m(y)` (one call per distinct shift).
-    fn apply(&self, x: f64, z: &mut dyn FnMut(f64, &mut [f64])) -> f64 {
+    /// `Σ w·z_m(λ; x − s)`: its convolution with what `z(r, y, out)` gives
+    /// as `z_1(y), …, z_m(y)` for the `r`-th of [`Self::rates`] (one call
+    /// per distinct shift and rate).
+    fn apply(
+        &self,
+        rates: &[(f64, usize)],
+        x: f64,
+        z: &mut dyn FnMut(usize, f64, &mut [f64]),
+    ) -> f64 {
         let mut out = [0.0; MAX_STAGES];
         let mut v = 0.0;
         let mut last = None;
@@ -2118,9 +2203,13 @@ impl Kernel {
             if t.shift > x {
                 break;
             }
-            if last != Some(t.shift) {
-                z(x - t.shift, &mut out);
-                last = Some(t.shift);
+            if last != Some((t.shift, t.rate)) {
+                let r = rates
+                    .iter()
+                    .position(|r| r.0 == t.rate)
+                    .expect("the kernel's own rates");
+                z(r, x - t.shift, &mut out);
+                last = Some((t.shift, t.rate));
             }
             v += t.weight * out[t.stages - 1];
         }
@@ -2327,5 +2416,87 @@ mod tests {
         };
         let err = with_builder(end, |b| b.renewal(0, &forever, &t)).unwrap_err();
         assert!(matches!(err, AnalysisError::Unbounded { .. }), "{err}");
+    }
+
+    /// The density of one kernel term's pair product at `t`.
+    fn pair_density(s: Term, t: Term, x: f64) -> f64 {
+        let mut terms = Vec::new();
+        Kernel::pair(&s, &t, &mut terms).expect("within the stages");
+        Kernel {
+            terms,
+            before: None,
+        }
+        .merged()
+        .expect("few terms")
+        .eval_many(&[x])[0]
+    }
+
+    fn term(rate: f64, stages: usize) -> Term {
+        Term {
+            shift: 0.0,
+            rate,
+            stages,
+            weight: 1.0,
+        }
+    }
+
+    /// Partial fractions of two rates against closed forms by hand:
+    /// `E_1(a) ⊛ E_1(b) = ab(e^{−at} − e^{−bt})/(b − a)` and
+    /// `E_2(λ) ⊛ E_1(κ) = λ²κ[e^{−κt} − e^{−λt} − (λ − κ)te^{−λt}]/(λ − κ)²`;
+    /// one rate: `E_2 ⊛ E_3 = E_5`; and `E_2(a) ⊛ E_3(b)` against the
+    /// convolution integral by Simpson's rule on 20,000 intervals.
+    #[test]
+    fn kernel_terms_convolve_by_partial_fractions() {
+        let (a, b): (f64, f64) = (0.7, 2.3);
+        for x in [0.01f64, 0.5, 2.0, 7.5] {
+            let exact = a * b * ((-a * x).exp() - (-b * x).exp()) / (b - a);
+            let got = pair_density(term(a, 1), term(b, 1), x);
+            assert!((got - exact).abs() < 1e-14, "t = {x}: {got} vs {exact}");
+            let (l, k) = (a, b);
+            let d = l - k;
+            let exact =
+                l * l * k * ((-k * x).exp() - (-l * x).exp() - d * x * (-l * x).exp()) / (d * d);
+            let got = pair_density(term(l, 2), term(k, 1), x);
+            assert!((got - exact).abs() < 1e-14, "t = {x}: {got} vs {exact}");
+            let e5 = a.powi(5) * x.powi(4) * (-a * x).exp() / 24.0;
+            let got = pair_density(term(a, 2), term(a, 3), x);
+            assert!((got - e5).abs() < 1e-15, "t = {x}: {got} vs {e5}");
+            let erlang = |r: f64, m: i32, u: f64| {
+                let fact: f64 = (1..m).map(f64::from).product();
+                r * (r * u).powi(m - 1) * (-r * u).exp() / fact
+            };
+            let n = 20_000;
+            let h = x / n as f64;
+            let simpson: f64 = (0..=n)
+                .map(|i| {
+                    let u = i as f64 * h;
+                    let c = if i == 0 || i == n {
+                        1.0
+                    } else if i % 2 == 1 {
+                        4.0
+                    } else {
+                        2.0
+                    };
+                    c * erlang(a, 2, u) * erlang(b, 3, x - u)
+                })
+                .sum::<f64>()
+                * h
+                / 3.0;
+            let got = pair_density(term(a, 2), term(b, 3), x);
+            assert!((got - simpson).abs() < 1e-12, "t = {x}: {got} vs {simpson}");
+        }
+    }
+
+    /// Close rates cancel in partial fractions: their convolution keeps no
+    /// kernel past the amplification limit.
+    #[test]
+    fn close_rates_keep_no_kernel() {
+        let k = |rate: f64| Measure {
+            kernel: Some(Kernel::leaf(rate, 0.0, 3, 1.0, f64::INFINITY)),
+            density: Some(build1(10.0, |_| 0.0)),
+            ..Measure::default()
+        };
+        assert!(Kernel::convolution(&k(1.0), &k(1.001), 10.0).is_none());
+        assert!(Kernel::convolution(&k(1.0), &k(3.0), 10.0).is_some());
     }
 }
