@@ -636,10 +636,8 @@ impl Builder<'_> {
                 }
                 if let Op::Loop { child, until } = self.tree.node(id).kind {
                     let c = phase::chain_of(self.tree, child, self.max_states)?;
-                    return Ok(Piece::Chain(phase::cyclic_loop(
-                        c,
-                        until == Outcome::Success,
-                    )));
+                    let cyclic = phase::cyclic_loop(c, until == Outcome::Success);
+                    return Ok(Piece::Chain(cyclic.unwrap_or_else(phase::trap)));
                 }
             }
         }
@@ -1945,8 +1943,8 @@ struct Measure {
 /// `−w e^{−λc}·E_1(t − c)` cancels it after); and their sums and
 /// convolutions — closed under both: two terms of one rate convolve into
 /// one (shifts and stages add), two of different rates into terms of both
-/// by partial fractions (where their weights stay within
-/// [`MAX_AMPLIFICATION`] of the factors': close rates cancel), so that a
+/// by partial fractions (while the cancellation they bring, tracked across
+/// convolutions, stays within [`MAX_AMPLIFICATION`]), so that a
 /// Retry's or a Sequence's law over such leaves keeps its closed form and a
 /// loop over it its linear renewal march (`ErlangMarch`, one per rate).
 /// With `before`, a hypoexponential leaf's time: those stages of other
@@ -1956,6 +1954,10 @@ struct Measure {
 struct Kernel {
     terms: Vec<Term>,
     before: Option<&'static Stages>,
+    /// How far `Σ |w|` exceeds what the same laws would have without
+    /// partial fractions (1 for a leaf; products along convolutions): the
+    /// cancellation its evaluation suffers, at most [`MAX_AMPLIFICATION`].
+    amplification: f64,
 }
 
 /// `weight·E_stages(rate; t − shift)`.
@@ -1975,11 +1977,14 @@ const KERNEL_STAGES: u32 = MAX_STAGES as u32;
 /// density is interpolated as any other's).
 const MAX_KERNEL_TERMS: usize = 64;
 
-/// Largest ratio of a kernel convolution's total absolute weight to its
-/// factors' product: partial fractions of close rates cancel, each factor
-/// of 10 costing a digit of the density's accuracy (1e4: ~1e-12 of its
-/// scale left).
-const MAX_AMPLIFICATION: f64 = 1e4;
+/// Largest [`Kernel::amplification`]: partial fractions of close rates
+/// cancel, each factor of 10 costing a digit of the density's accuracy,
+/// and a density evaluated with rounding noise far above its own size
+/// makes its interpolation halve panels without end (a trial that took
+/// hypoexponential leaves as partial fractions, checking each convolution
+/// only against its factors, ran out of memory on survey tree 1531: a
+/// Retry 4 over rates 1.236 and 1.218, 136 a factor).
+const MAX_AMPLIFICATION: f64 = 1e3;
 
 impl Kernel {
     /// `weight·E_stages(rate; · − shift)`, cut at `shift + cap` (`cap`
@@ -2002,6 +2007,7 @@ impl Kernel {
         Kernel {
             terms,
             before: None,
+            amplification: 1.0,
         }
     }
 
@@ -2066,6 +2072,7 @@ impl Kernel {
         }
         let mut k = x.clone();
         k.terms.extend_from_slice(&y.terms);
+        k.amplification = x.amplification.max(y.amplification);
         k.merged()
     }
 
@@ -2127,6 +2134,7 @@ impl Kernel {
         }
         let within = |s: f64| s <= end || same_instant(s, end);
         let mut terms = Vec::new();
+        let mut amplification = kx.or(ky).map_or(1.0, |k| k.amplification);
         for (m, k) in [(x, ky), (y, kx)] {
             let Some(k) = k else { continue };
             if m.atoms.len() * k.terms.len() > 4 * MAX_KERNEL_TERMS {
@@ -2156,14 +2164,28 @@ impl Kernel {
                     }
                 }
             }
+            // the pairs' own cancellation: their weights against the
+            // products' (both no less than 1 where partial fractions apply)
             let total = |ts: &[Term]| ts.iter().map(|t| t.weight.abs()).sum::<f64>();
-            if total(&terms[from..]) > MAX_AMPLIFICATION * total(&a.terms) * total(&b.terms) {
+            let products: f64 = a.terms.iter().map(|s| s.weight.abs()).sum::<f64>()
+                * b.terms.iter().map(|t| t.weight.abs()).sum::<f64>();
+            let pairs = if products > 0.0 {
+                (total(&terms[from..]) / products).max(1.0)
+            } else {
+                1.0
+            };
+            amplification = amplification
+                .max(kx.map_or(1.0, |k| k.amplification))
+                .max(ky.map_or(1.0, |k| k.amplification))
+                .max(a.amplification * b.amplification * pairs);
+            if amplification > MAX_AMPLIFICATION {
                 return None;
             }
         }
         Kernel {
             terms,
             before: first.before,
+            amplification,
         }
         .merged()
     }
@@ -2301,7 +2323,7 @@ pub(crate) fn loop_curve(
         phase::chain_of(tree, child, options.max_states)?,
         until_success,
     );
-    if c.len() == 1 && c.total_rate(0) == 0.0 && c.initial_success + c.initial_failure == 0.0 {
+    let Some(c) = c else {
         // the child never ends the loop: it runs forever
         return Ok(times
             .iter()
@@ -2312,7 +2334,7 @@ pub(crate) fn loop_curve(
                 running: 1.0,
             })
             .collect());
-    }
+    };
     let work = uniformization_work(&c, times);
     if work > options.max_work {
         return Err(AnalysisError::Stiff {
@@ -2425,6 +2447,7 @@ mod tests {
         Kernel {
             terms,
             before: None,
+            amplification: 1.0,
         }
         .merged()
         .expect("few terms")
@@ -2498,5 +2521,23 @@ mod tests {
         };
         assert!(Kernel::convolution(&k(1.0), &k(1.001), 10.0).is_none());
         assert!(Kernel::convolution(&k(1.0), &k(3.0), 10.0).is_some());
+        // one stage each at 1 and 1.02: weights 51 and −50, amplification
+        // 101, kept; its convolution with itself would be 101² > 1e3: none
+        let one = |rate: f64| Measure {
+            kernel: Some(Kernel::leaf(rate, 0.0, 1, 1.0, f64::INFINITY)),
+            density: Some(build1(10.0, |_| 0.0)),
+            ..Measure::default()
+        };
+        let hypo = Kernel::convolution(&one(1.0), &one(1.02), 10.0).expect("kept");
+        assert!(
+            (hypo.amplification - 101.0).abs() < 1e-9,
+            "{}",
+            hypo.amplification
+        );
+        let m = Measure {
+            kernel: Some(hypo),
+            ..one(1.0)
+        };
+        assert!(Kernel::convolution(&m, &m, 10.0).is_none());
     }
 }

@@ -554,8 +554,9 @@ pub fn unrolled_loop(
 /// an instantaneous "again" folded in by renormalising the entry (the
 /// entry is `initial / (1 − p₀)`). Cyclic: only for solvers that need no
 /// order of the phases (uniformization: `loop_curve`, a composed law's
-/// sampled chain). The trap ([`trap`]) where the child never ends the loop.
-pub fn cyclic_loop(mut c: PhaseChain, until_success: bool) -> PhaseChain {
+/// sampled chain). `None` where the child never ends the loop (it runs
+/// forever).
+pub fn cyclic_loop(mut c: PhaseChain, until_success: bool) -> Option<PhaseChain> {
     // work with "again" as the Success exit, then swap back
     let swap = |c: &mut PhaseChain| {
         if until_success {
@@ -566,7 +567,7 @@ pub fn cyclic_loop(mut c: PhaseChain, until_success: bool) -> PhaseChain {
     swap(&mut c);
     let again0 = c.initial_success;
     if again0 >= 1.0 || (c.initial.is_empty() && c.initial_failure <= 0.0) {
-        return trap();
+        return None;
     }
     let scale = 1.0 / (1.0 - again0);
     let entry: Vec<(usize, f64)> = c.initial.iter().map(|&(j, p)| (j, p * scale)).collect();
@@ -582,7 +583,7 @@ pub fn cyclic_loop(mut c: PhaseChain, until_success: bool) -> PhaseChain {
     c.initial_success = 0.0;
     c.initial_failure = end0;
     swap(&mut c);
-    c
+    Some(c)
 }
 
 /// Phases of an unrolled chain holding a loop past which the loop's cyclic
