@@ -626,8 +626,8 @@ impl Builder<'_> {
         // the composed laws above it)
         if !self.mixed[id] {
             let size = phase::chain_size(self.tree, id, self.max_states, &mut Default::default())?;
-            if let phase::ChainSize::Within(n) = size {
-                if n <= phase::LONG_UNROLLED || !phase::holds_loop(self.tree, id) {
+            if size.fits() {
+                if !phase::long_unrolled(&size, phase::holds_loop(self.tree, id)) {
                     return Ok(Piece::Chain(phase::chain_of(
                         self.tree,
                         id,

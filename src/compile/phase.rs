@@ -593,6 +593,13 @@ pub fn cyclic_loop(mut c: PhaseChain, until_success: bool) -> Option<PhaseChain>
 /// an `until_success` unrolled into 36,126 phases, six of its own).
 pub const LONG_UNROLLED: f64 = 4096.0;
 
+/// Whether a chain of `size` holding a loop (`looped`) is a loop unrolled
+/// into more than [`LONG_UNROLLED`] phases: the one test of the planner's
+/// chain rule and of a composed law's chain pieces.
+pub(crate) fn long_unrolled(size: &ChainSize, looped: bool) -> bool {
+    looped && matches!(size, ChainSize::Within(n) if *n > LONG_UNROLLED)
+}
+
 /// Whether the subtree of `id` holds a loop without a bound.
 pub fn holds_loop(tree: &Graph, id: NodeId) -> bool {
     tree.subtree(id)

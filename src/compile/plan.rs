@@ -397,7 +397,7 @@ impl<'t> Plan<'t> {
         if !self.shapes[id].looped {
             return Ok(false);
         }
-        Ok(matches!(self.chain_size(id)?, phase::ChainSize::Within(n) if n > phase::LONG_UNROLLED))
+        Ok(phase::long_unrolled(&self.chain_size(id)?, true))
     }
 
     /// The size of `id`'s phase chain, estimated before building it.
