@@ -179,6 +179,29 @@ fn non_markovian(tree: &Graph) -> Vec<bool> {
     out
 }
 
+/// The width below which a segment between two breaks of a density
+/// starts as one panel ([`build_with_breaks`]): `1/λ`, `λ` the fastest rate
+/// of any leaf's time in the tree (every phase of a composed law runs at
+/// one of them), 0 without one.
+fn narrow_segment(tree: &Graph) -> f64 {
+    let fastest = tree
+        .nodes
+        .iter()
+        .filter_map(|n| match &n.kind {
+            Op::Leaf(Leaf::Action(a)) => Some([a.success, a.failure]),
+            _ => None,
+        })
+        .flatten()
+        .flatten()
+        .map(|d| d.fastest_rate())
+        .fold(0.0, f64::max);
+    if fastest > 0.0 {
+        1.0 / fastest
+    } else {
+        0.0
+    }
+}
+
 /// A Parallel with thresholds M = 1, F = 1 over a deadline — an action that
 /// fails at a fixed time `D > 0` and cannot succeed — and one other child:
 /// A subtree's composed outcome law on `[0, end]`, as a child of a race
@@ -347,6 +370,7 @@ pub(crate) fn deadline_figures(
         max_states,
         memo: &memo,
         mixed: &mixed,
+        narrow: narrow_segment(tree),
         work: std::cell::Cell::new(0.0),
     };
     let law = b.deadline(id, &race)?;
@@ -437,6 +461,7 @@ fn composed_law(
         max_states,
         memo: &memo,
         mixed: &mixed,
+        narrow: narrow_segment(tree),
         work: std::cell::Cell::new(0.0),
     };
     let law = build(&b)?;
@@ -516,6 +541,7 @@ pub(crate) fn counted_parallel_times(
             max_states,
             memo,
             mixed: &mixed,
+            narrow: narrow_segment(tree),
             work: std::cell::Cell::new(0.0),
         };
         // laws depend on the horizon
@@ -575,6 +601,8 @@ struct Builder<'a> {
     memo: &'a LawMemo,
     /// [`non_markovian`] of the tree.
     mixed: &'a [bool],
+    /// [`narrow_segment`] of the tree.
+    narrow: f64,
     /// Work of the convolutions so far (see [`MAX_CONVOLUTION_WORK`]).
     work: std::cell::Cell<f64>,
 }
@@ -598,7 +626,7 @@ impl Builder<'_> {
         breaks: &[f64],
         sample: impl FnMut(&[f64]) -> Result<Vec<f64>, AnalysisError>,
     ) -> Result<Vec<Interpolant>, AnalysisError> {
-        build_with_breaks(self.end, breaks, k, sample).map_err(|e| match e {
+        build_with_breaks(self.end, breaks, self.narrow, k, sample).map_err(|e| match e {
             BuildError::Sample(e) => e,
             BuildError::NotConverged => AnalysisError::Numerical {
                 node: self.name(id),
@@ -1510,7 +1538,7 @@ impl Builder<'_> {
                     rates.iter().map(|&(r, m)| ErlangMarch::new(r, m)).collect();
                 (k, rates, z_atoms, z_done)
             });
-        let density = build_marching(end, &breaks, settled, |done, a, b, points| {
+        let density = build_marching(end, &breaks, self.narrow, settled, |done, a, b, points| {
             // on the panel the equation is linear in its values v:
             // (I − c(M + D)) v = c(known + delays from before), M the
             // panel's convolution with g, D its own delayed values
@@ -2367,6 +2395,7 @@ mod tests {
             max_states: 1_000_000,
             memo: &memo,
             mixed: &mixed,
+            narrow: narrow_segment(&tree),
             work: std::cell::Cell::new(0.0),
         };
         f(&b)

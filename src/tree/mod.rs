@@ -504,6 +504,16 @@ pub enum Duration {
 }
 
 impl Duration {
+    /// The largest rate of its random part (1/s; 0 for a fixed time): how
+    /// fast its density can change.
+    pub fn fastest_rate(&self) -> f64 {
+        match *self {
+            Duration::Exponential { rate } | Duration::TruncatedExponential { rate, .. } => rate,
+            Duration::Fixed { .. } => 0.0,
+            Duration::PhaseType { stages, .. } => stages.fastest(),
+        }
+    }
+
     /// Why this is not a valid duration (`None` when it is): a rate must be
     /// finite and > 0, a time, cap or shift finite and >= 0 (stages are
     /// valid by construction).

@@ -326,6 +326,15 @@ impl Stages {
         (0..usize::from(self.len)).map(|i| (self.rates[i], self.counts[i]))
     }
 
+    /// The largest total rate of a phase (1/s): how fast the law's density
+    /// can change.
+    pub fn fastest(&self) -> f64 {
+        match self.general {
+            Some(g) => g.q.iter().copied().fold(0.0, f64::max),
+            None => self.iter().map(|(r, _)| r).fold(0.0, f64::max),
+        }
+    }
+
     /// Total number of stages (of phases, for a general law).
     pub fn phases(&self) -> u32 {
         match self.general {
