@@ -431,7 +431,7 @@ pub(super) fn curve_by_laws(
 /// composed laws, by node and budget — the law of a node on `[0, end]`
 /// answers every later query up to `end` (on a longer horizon it is the
 /// same law up to `end`); a query past it builds the law on its own
-/// horizon — and the first attempts at shifted mixtures.
+/// horizon — and the nodes' shifted mixtures.
 #[derive(Default)]
 pub(crate) struct Kept {
     laws: std::cell::RefCell<std::collections::HashMap<(NodeId, usize), KeptLaw>>,
@@ -2339,7 +2339,7 @@ pub(crate) fn loop_curve(
         // `Shifted` rule), else the loop's composed law (`law`: its renewal
         // equation marched in time, any child)
         let first = options.max_states.min(super::shifted::SHIFTED_FIRST);
-        return match kept.mixtures.first(tree, id, first)? {
+        return match kept.mixtures.first(tree, id, first, options.max_states)? {
             shifted::FirstMixture::Built(law) => curve_by_shifted(&law, times, options, &node.name),
             shifted::FirstMixture::CannotHold | shifted::FirstMixture::Over => {
                 curve_by_laws(children, id, times, options, kept)

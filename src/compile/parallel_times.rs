@@ -233,8 +233,8 @@ fn breakpoints(
         kind => {
             // cuts are hints to the quadrature, read within a small budget:
             // past it there are too many instants to cut at (the panels'
-            // halving finds the jumps), and the whole budget's mixture was
-            // built only to read its shifts — and refused the node past it
+            // halving finds the jumps); a mixture's shifts come from its
+            // sizes, no chain built
             let budget = max_states.min(shifted::SHIFTED_FIRST);
             let many = |e: &AnalysisError| matches!(e, AnalysisError::StateBudget { .. });
             match atoms::atoms(tree, id, budget) {
@@ -246,12 +246,11 @@ fn breakpoints(
                         breakpoints(tree, c, max_states, out)?;
                     }
                 }
-                Ok(None) => match shifted::shifted_law(tree, id, budget) {
-                    Ok(Some(law)) => out.extend(law.shifts()),
-                    Ok(None) => {}
-                    Err(e) if many(&e) => {}
-                    Err(e) => return Err(e),
-                },
+                Ok(None) => {
+                    if let Some(shifts) = shifted::mixture_shifts(tree, id, budget)? {
+                        out.extend(shifts);
+                    }
+                }
             }
         }
     }

@@ -25,7 +25,7 @@
 //! | 5b | a map (inverter, force decorator) | [`Representation::Mapped`]: its child's law, its outcomes mapped |
 //! | 6 | a Parallel with the book's thresholds (`F ≥ N − M + 1`) | [`Representation::Counted`]: the count programme over the children's own laws |
 //! | 7 | a Parallel whose two thresholds can both be met | [`Representation::Race`]: the race of the children's laws |
-//! | 8 | a leaf below is deterministic, hybrid or shifted | [`Representation::Shifted`]: the shifted phase-type mixture; where it exceeds the budget (every distinct sum of fixed times is a component; a curve tries it within `SHIFTED_FIRST` = 65,536 phases first) or cannot hold a Parallel below, the curve comes from the composed outcome laws with atoms at any instant ([`law`]) |
+//! | 8 | a leaf below is deterministic, hybrid or shifted | [`Representation::Shifted`]: the shifted phase-type mixture; where it exceeds the budget (every distinct sum of fixed times is a component; a curve takes it where its size, estimated before building (`shifted::mixture_size`), is within `SHIFTED_FIRST` = 65,536 phases) or cannot hold a Parallel below, the curve comes from the composed outcome laws with atoms at any instant ([`law`]) |
 //! | 9 | otherwise (a chain over the budget: a wide Parallel below) | [`Representation::Composed`]: the composed outcome laws (interpolated densities) |
 //!
 //! One rule goes before the table for the curve: a race against a renewal
@@ -651,7 +651,11 @@ impl<'t> Plan<'t> {
                 // distinct sum of fixed times is a component), or where the
                 // mixture cannot hold the node, the composed laws
                 let first = self.max_states.min(SHIFTED_FIRST);
-                match self.kept.mixtures.first(&self.tree, id, first)? {
+                match self
+                    .kept
+                    .mixtures
+                    .first(&self.tree, id, first, self.max_states)?
+                {
                     FirstMixture::Built(law) => {
                         chain_curve::curve_by_shifted(&law, times, options, &node.name)
                     }

@@ -239,11 +239,17 @@ impl Racer {
         // built within that budget only; else the subtree's composed law
         // (any subtree)
         let budget = MAX_SHIFTED_PHASES.min(plan.max_states());
-        let shifted = || match shifted::shifted_law_within(tree, id, budget, horizon) {
-            Ok(Some(law)) => Ok(Racer::Shifted(law)),
+        let shifted = || match shifted::mixture_size(tree, id, budget, horizon)? {
+            shifted::MixtureSize::Holds(_) => {
+                match shifted::shifted_law_within(tree, id, plan.max_states(), horizon)? {
+                    Some(law) => Ok(Racer::Shifted(law)),
+                    None => Racer::law(plan, id, horizon),
+                }
+            }
             // no mixture, or a larger one: the law
-            Ok(None) | Err(AnalysisError::StateBudget { .. }) => Racer::law(plan, id, horizon),
-            Err(e) => Err(e),
+            shifted::MixtureSize::CannotHold | shifted::MixtureSize::Over => {
+                Racer::law(plan, id, horizon)
+            }
         };
         match plan.representation(id)? {
             Representation::Chain => Ok(Racer::chain(plan.chain(id)?)),

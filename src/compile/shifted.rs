@@ -47,27 +47,161 @@ use crate::solve::chain::PhaseChain;
 use crate::tree::same_instant;
 use crate::tree::{Duration, FlowNext, NodeId};
 
-/// One term `weight · (δ_shift ⊛ PH(chain))` of an outcome's law.
+/// One term `weight · (δ_shift ⊛ PH(chain))` of an outcome's law; with
+/// `P` = [`Size`], only the term's size and outcome probabilities.
 #[derive(Debug, Clone)]
-pub(crate) struct Component {
+pub(crate) struct Component<P = PhaseChain> {
     /// Deterministic delay before the chain starts (s).
     pub shift: f64,
     /// Signed weight.
     pub weight: f64,
     /// Phase chain in counted/lost form (module docs).
-    pub chain: PhaseChain,
+    pub chain: P,
 }
 
 /// A node's outcome law: the components of its Success and its Failure.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct ShiftedLaw {
+#[derive(Debug, Clone)]
+pub(crate) struct ShiftedLaw<P = PhaseChain> {
     /// Components of the Success sub-distribution.
-    pub success: Vec<Component>,
+    pub success: Vec<Component<P>>,
     /// Components of the Failure sub-distribution.
-    pub failure: Vec<Component>,
+    pub failure: Vec<Component<P>>,
 }
 
-impl ShiftedLaw {
+impl<P> Default for ShiftedLaw<P> {
+    fn default() -> Self {
+        ShiftedLaw {
+            success: Vec::new(),
+            failure: Vec::new(),
+        }
+    }
+}
+
+/// What the mixture's algebra needs of a component's chain: the chain
+/// itself (the law), or its [`Size`] only (the estimate made before
+/// building it: [`mixture_size`]).
+pub(crate) trait Part: Clone {
+    /// An empty chain returning the counted outcome at once.
+    fn atom() -> Self;
+    /// A chain.
+    fn of_chain(chain: PhaseChain) -> Self;
+    /// Its phases.
+    fn len(&self) -> usize;
+    /// Whether it has no phase (an atom).
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// The probability of the counted outcome at once.
+    fn instant(&self) -> f64;
+    /// This chain, then `next` where this one's counted exit is taken.
+    fn then(&self, next: &Self) -> Self;
+    /// The exits exchanged: Failure counted.
+    fn swapped(self) -> Self;
+    /// The probability of the counted outcome.
+    fn counted(&self) -> f64;
+}
+
+impl Part for PhaseChain {
+    fn atom() -> Self {
+        PhaseChain {
+            initial_success: 1.0,
+            ..PhaseChain::default()
+        }
+    }
+    fn of_chain(chain: PhaseChain) -> Self {
+        chain
+    }
+    fn len(&self) -> usize {
+        PhaseChain::len(self)
+    }
+    fn instant(&self) -> f64 {
+        self.initial_success
+    }
+    fn then(&self, next: &Self) -> Self {
+        phase::concatenate(vec![self.clone(), next.clone()], true)
+    }
+    fn swapped(mut self) -> Self {
+        std::mem::swap(&mut self.exit_success, &mut self.exit_failure);
+        std::mem::swap(&mut self.initial_success, &mut self.initial_failure);
+        self
+    }
+    fn counted(&self) -> f64 {
+        outcome_probabilities(self)[0]
+    }
+}
+
+/// P(counted), P(lost) of a chain run from its start.
+fn outcome_probabilities(chain: &PhaseChain) -> [f64; 2] {
+    let mut out = [chain.initial_success, chain.initial_failure];
+    if PhaseChain::is_empty(chain) {
+        return out;
+    }
+    let a = crate::solve::transient::absorption_by_phase(chain);
+    for &(i, p) in &chain.initial {
+        out[0] += p * a.to_success[i];
+        out[1] += p * a.to_failure[i];
+    }
+    out
+}
+
+/// A chain's size and outcome probabilities, without its phases: the
+/// mixture's algebra over these sizes a mixture before building it.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Size {
+    phases: usize,
+    /// P(counted at once), P(lost at once).
+    instant: [f64; 2],
+    /// P(counted), P(lost).
+    outcome: [f64; 2],
+}
+
+impl Part for Size {
+    fn atom() -> Self {
+        Size {
+            phases: 0,
+            instant: [1.0, 0.0],
+            outcome: [1.0, 0.0],
+        }
+    }
+    fn of_chain(chain: PhaseChain) -> Self {
+        Size {
+            phases: chain.len(),
+            instant: [chain.initial_success, chain.initial_failure],
+            outcome: outcome_probabilities(&chain),
+        }
+    }
+    fn len(&self) -> usize {
+        self.phases
+    }
+    fn instant(&self) -> f64 {
+        self.instant[0]
+    }
+    fn then(&self, next: &Self) -> Self {
+        Size {
+            phases: self.phases + next.phases,
+            instant: [
+                self.instant[0] * next.instant[0],
+                self.instant[1] + self.instant[0] * next.instant[1],
+            ],
+            outcome: [
+                self.outcome[0] * next.outcome[0],
+                self.outcome[1] + self.outcome[0] * next.outcome[1],
+            ],
+        }
+    }
+    fn swapped(self) -> Self {
+        Size {
+            phases: self.phases,
+            instant: [self.instant[1], self.instant[0]],
+            outcome: [self.outcome[1], self.outcome[0]],
+        }
+    }
+    fn counted(&self) -> f64 {
+        self.outcome[0]
+    }
+}
+
+impl<P: Part> ShiftedLaw<P> {
     /// Every shift, for the instants where the law's CDFs may jump or kink.
     pub fn shifts(&self) -> impl Iterator<Item = f64> + '_ {
         self.success.iter().chain(&self.failure).map(|c| c.shift)
@@ -83,21 +217,16 @@ impl ShiftedLaw {
 }
 
 /// Exchanges the exits so that Failure is counted.
-fn count_failure(mut c: PhaseChain) -> PhaseChain {
-    std::mem::swap(&mut c.exit_success, &mut c.exit_failure);
-    std::mem::swap(&mut c.initial_success, &mut c.initial_failure);
-    c
+fn count_failure(c: PhaseChain) -> PhaseChain {
+    c.swapped()
 }
 
 /// An atom: an empty chain returning the counted outcome at once.
-fn atom(shift: f64, weight: f64) -> Component {
+fn atom<P: Part>(shift: f64, weight: f64) -> Component<P> {
     Component {
         shift,
         weight,
-        chain: PhaseChain {
-            initial_success: 1.0,
-            ..PhaseChain::default()
-        },
+        chain: P::atom(),
     }
 }
 
@@ -111,7 +240,7 @@ fn exponential(rate: f64) -> PhaseChain {
 }
 
 /// The components of an outcome of probability `p` taking `d`.
-fn leaf_side(p: f64, d: Option<Duration>) -> Vec<Component> {
+fn leaf_side<P: Part>(p: f64, d: Option<Duration>) -> Vec<Component<P>> {
     if p <= 0.0 {
         return Vec::new();
     }
@@ -121,26 +250,27 @@ fn leaf_side(p: f64, d: Option<Duration>) -> Vec<Component> {
         Some(Duration::Exponential { rate }) => vec![Component {
             shift: 0.0,
             weight: p,
-            chain: exponential(rate),
+            chain: P::of_chain(exponential(rate)),
         }],
         // Erlang, hypoexponential, shifted: the stages' chain after the shift
         Some(Duration::PhaseType { shift, stages }) => vec![Component {
             shift,
             weight: p,
-            chain: stages.chain(),
+            chain: P::of_chain(stages.chain()),
         }],
         Some(Duration::TruncatedExponential { rate, cap }) => {
             let tail = (-rate * cap).exp();
+            let chain = P::of_chain(exponential(rate));
             vec![
                 Component {
                     shift: 0.0,
                     weight: p,
-                    chain: exponential(rate),
+                    chain: chain.clone(),
                 },
                 Component {
                     shift: cap,
                     weight: -p * tail,
-                    chain: exponential(rate),
+                    chain,
                 },
                 atom(cap, p * tail),
             ]
@@ -156,19 +286,19 @@ fn starts_by(shift: f64, horizon: f64) -> bool {
 }
 
 /// Merges atoms at the same instant and drops zero weights.
-fn tidy(mut comps: Vec<Component>) -> Vec<Component> {
+fn tidy<P: Part>(mut comps: Vec<Component<P>>) -> Vec<Component<P>> {
     comps.retain(|c| c.weight != 0.0);
-    let (mut atoms, mut rest): (Vec<Component>, Vec<Component>) =
+    let (mut atoms, mut rest): (Vec<Component<P>>, Vec<Component<P>>) =
         comps.into_iter().partition(|c| c.chain.is_empty());
     atoms.sort_by(|a, b| a.shift.total_cmp(&b.shift));
-    let mut merged: Vec<Component> = Vec::with_capacity(atoms.len());
+    let mut merged: Vec<Component<P>> = Vec::with_capacity(atoms.len());
     for a in atoms {
         match merged.last_mut() {
             Some(l) if same_instant(l.shift, a.shift) => {
-                l.weight += a.weight * a.chain.initial_success;
+                l.weight += a.weight * a.chain.instant();
             }
             _ => {
-                let w = a.weight * a.chain.initial_success;
+                let w = a.weight * a.chain.instant();
                 merged.push(atom(a.shift, w));
             }
         }
@@ -180,12 +310,12 @@ fn tidy(mut comps: Vec<Component>) -> Vec<Component> {
 /// `a ⊛ b` for every pair, or `Err(size)` — before allocating anything —
 /// when the result would hold more than `room` phases (each component
 /// counted as at least one), `size` an upper bound of what it would hold.
-fn convolve(
-    a: &[Component],
-    b: &[Component],
+fn convolve<P: Part>(
+    a: &[Component<P>],
+    b: &[Component<P>],
     room: usize,
     horizon: f64,
-) -> Result<Vec<Component>, f64> {
+) -> Result<Vec<Component<P>>, f64> {
     // the pairs that start by the horizon and their phases
     let (mut pairs, mut size) = (0usize, 0.0f64);
     for x in a {
@@ -208,7 +338,7 @@ fn convolve(
             out.push(Component {
                 shift: x.shift + y.shift,
                 weight: x.weight * y.weight,
-                chain: phase::concatenate(vec![x.chain.clone(), y.chain.clone()], true),
+                chain: x.chain.then(&y.chain),
             });
         }
     }
@@ -216,7 +346,7 @@ fn convolve(
 }
 
 /// Phases held by `parts` (each component counted as at least one).
-fn held(parts: &[&[Component]]) -> usize {
+fn held<P: Part>(parts: &[&[Component<P>]]) -> usize {
     parts
         .iter()
         .flat_map(|p| p.iter())
@@ -256,9 +386,71 @@ pub fn shifted_law_within(
     max_states: usize,
     horizon: f64,
 ) -> Result<Option<ShiftedLaw>, AnalysisError> {
+    mixture(tree, id, max_states, horizon)
+}
+
+/// How large a node's shifted mixture would be ([`mixture_size`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum MixtureSize {
+    /// This many phases (each component counted as at least one), within
+    /// the limit asked.
+    Holds(usize),
+    /// More than the limit asked.
+    Over,
+    /// A form the mixture cannot hold (a Parallel below that mixes
+    /// timings, other than a first-return race).
+    CannotHold,
+}
+
+/// The size of node `id`'s shifted mixture on `[0, horizon]`, made
+/// before building it: the mixture's algebra run over the chains' sizes
+/// and outcome probabilities only ([`Size`]: shifts, weights, atoms merged
+/// at equal instants, a loop's number of terms — but no chain built past
+/// the Markovian subtrees' own and no chain concatenated), stopped as soon
+/// as it passes `limit` phases. A caller picks the mixture or another
+/// representation by it, then builds the mixture it picked.
+pub(crate) fn mixture_size(
+    tree: &Graph,
+    id: NodeId,
+    limit: usize,
+    horizon: f64,
+) -> Result<MixtureSize, AnalysisError> {
+    match mixture::<Size>(tree, id, limit, horizon) {
+        Ok(Some(law)) => Ok(MixtureSize::Holds(law.phases())),
+        Ok(None) => Ok(MixtureSize::CannotHold),
+        // the algebra's own limit, met before allocating (`convolve`,
+        // `within_budget`, the loop's terms, the atoms' instants)
+        Err(AnalysisError::StateBudget { .. }) => Ok(MixtureSize::Over),
+        Err(e) => Err(e),
+    }
+}
+
+/// The shifts of node `id`'s shifted mixture — the instants where its
+/// CDFs may jump or kink — where it holds within `limit` phases, from the
+/// algebra over sizes ([`mixture_size`]; no chain is built): `None` past
+/// the limit or where the mixture cannot hold the node.
+pub(crate) fn mixture_shifts(
+    tree: &Graph,
+    id: NodeId,
+    limit: usize,
+) -> Result<Option<Vec<f64>>, AnalysisError> {
+    match mixture::<Size>(tree, id, limit, f64::INFINITY) {
+        Ok(law) => Ok(law.map(|l| l.shifts().collect())),
+        Err(AnalysisError::StateBudget { .. }) => Ok(None),
+        Err(e) => Err(e),
+    }
+}
+
+/// [`shifted_law_within`] over any [`Part`]: the law, or its sizes.
+fn mixture<P: Part>(
+    tree: &Graph,
+    id: NodeId,
+    max_states: usize,
+    horizon: f64,
+) -> Result<Option<ShiftedLaw<P>>, AnalysisError> {
     let law = shifted_law_unclipped(tree, id, max_states, horizon)?;
     Ok(law.map(|l| {
-        let clip = |v: Vec<Component>| -> Vec<Component> {
+        let clip = |v: Vec<Component<P>>| -> Vec<Component<P>> {
             v.into_iter()
                 .filter(|c| starts_by(c.shift, horizon))
                 .collect()
@@ -270,12 +462,12 @@ pub fn shifted_law_within(
     }))
 }
 
-fn shifted_law_unclipped(
+fn shifted_law_unclipped<P: Part>(
     tree: &Graph,
     id: NodeId,
     max_states: usize,
     horizon: f64,
-) -> Result<Option<ShiftedLaw>, AnalysisError> {
+) -> Result<Option<ShiftedLaw<P>>, AnalysisError> {
     let node = tree.node(id);
     // Markovian subtrees: their exact chain, one component per outcome
     if let Some(chain) = phase::markovian_chain_of(tree, id, max_states)? {
@@ -283,12 +475,12 @@ fn shifted_law_unclipped(
             success: vec![Component {
                 shift: 0.0,
                 weight: 1.0,
-                chain: chain.clone(),
+                chain: P::of_chain(chain.clone()),
             }],
             failure: vec![Component {
                 shift: 0.0,
                 weight: 1.0,
-                chain: count_failure(chain),
+                chain: P::of_chain(count_failure(chain)),
             }],
         }));
     }
@@ -304,12 +496,12 @@ fn shifted_law_unclipped(
     let children = node.kind.children();
     let mut laws = Vec::with_capacity(children.len());
     for &c in children {
-        match shifted_law_within(tree, c, max_states, horizon)? {
+        match mixture(tree, c, max_states, horizon)? {
             Some(l) => laws.push(l),
             None => return Ok(None),
         }
     }
-    let check = |l: ShiftedLaw| -> Result<ShiftedLaw, AnalysisError> {
+    let check = |l: ShiftedLaw<P>| -> Result<ShiftedLaw<P>, AnalysisError> {
         let phases = l.phases();
         if phases > max_states {
             return Err(budget(tree, id, phases as f64, max_states));
@@ -361,7 +553,10 @@ fn shifted_law_unclipped(
         // a first-return race (a Timeout) over Markovian and deterministic
         // children; any other mixed Parallel is answered where it is
         Op::KOfN { .. } => match first_return(tree, id, max_states)? {
-            Some(law) => law,
+            Some(law) => ShiftedLaw {
+                success: parts_of(law.success),
+                failure: parts_of(law.failure),
+            },
             None => return Ok(None),
         },
         _ => return Ok(None),
@@ -369,7 +564,19 @@ fn shifted_law_unclipped(
     check(law).map(Some)
 }
 
-fn from_atoms(list: &[Atom]) -> ShiftedLaw {
+/// Components of chains as components of any [`Part`].
+fn parts_of<P: Part>(comps: Vec<Component>) -> Vec<Component<P>> {
+    comps
+        .into_iter()
+        .map(|c| Component {
+            shift: c.shift,
+            weight: c.weight,
+            chain: P::of_chain(c.chain),
+        })
+        .collect()
+}
+
+fn from_atoms<P: Part>(list: &[Atom]) -> ShiftedLaw<P> {
     let mut law = ShiftedLaw::default();
     for a in list {
         let c = atom(a.time, a.prob);
@@ -383,14 +590,14 @@ fn from_atoms(list: &[Atom]) -> ShiftedLaw {
 
 /// Children run one after the other while they return the "continue"
 /// outcome (Success for a Sequence, Failure for a Fallback).
-fn in_turn(
-    laws: Vec<ShiftedLaw>,
+fn in_turn<P: Part>(
+    laws: Vec<ShiftedLaw<P>>,
     sequence: bool,
     tree: &Graph,
     id: NodeId,
     max_states: usize,
     horizon: f64,
-) -> Result<ShiftedLaw, AnalysisError> {
+) -> Result<ShiftedLaw<P>, AnalysisError> {
     // `going`: the law of having continued through the children so far
     let mut going = vec![atom(0.0, 1.0)];
     let mut stopped = Vec::new();
@@ -427,25 +634,15 @@ fn in_turn(
 }
 
 /// Probability that a component's run ends in its counted outcome.
-fn counted_probability(c: &Component) -> f64 {
-    let chain = &c.chain;
-    if chain.is_empty() {
-        return c.weight * chain.initial_success;
-    }
-    let a = crate::solve::transient::absorption_by_phase(chain);
-    let from_start: f64 = chain
-        .initial
-        .iter()
-        .map(|&(i, p)| p * a.to_success[i])
-        .sum();
-    c.weight * (chain.initial_success + from_start)
+fn counted_probability<P: Part>(c: &Component<P>) -> f64 {
+    c.weight * c.chain.counted()
 }
 
 /// Refuses (a budget error) once the components of a fold, still going
 /// and stopped, hold more than `max_states` phases in all.
-fn within_budget(
-    going: &[Component],
-    stopped: &[Component],
+fn within_budget<P: Part>(
+    going: &[Component<P>],
+    stopped: &[Component<P>],
     tree: &Graph,
     id: NodeId,
     max_states: usize,
@@ -464,10 +661,9 @@ fn within_budget(
 /// Most repetitions a loop's series may take ([`loop_series`]).
 pub const MAX_LOOP_TERMS: usize = 100_000;
 
-/// Most phases the shifted mixture may hold on its first attempt at a
-/// node's curve: past it the composed laws answer (exact too, and faster
-/// there); the mixture gets the whole `--max-states` only where the laws
-/// cannot hold the node.
+/// Most phases the shifted mixture may hold, by its estimated size
+/// ([`mixture_size`]), to give a node's curve: past it the composed laws
+/// answer (exact too, and faster there).
 pub(crate) const SHIFTED_FIRST: usize = 1 << 16;
 
 /// What the shifted mixture within [`SHIFTED_FIRST`] gave a node's curve.
@@ -481,30 +677,35 @@ pub(crate) enum FirstMixture {
     Over,
 }
 
-/// The first attempts at nodes' shifted mixtures, kept by a plan: each is
-/// built once per node and budget, not at every curve query (a
-/// quadrature's rounds ask a child's curve tens of times).
+/// Nodes' shifted mixtures (or why none), kept by a plan: each is
+/// estimated and built once per node and budget, not at every curve query
+/// (a quadrature's rounds ask a child's curve tens of times).
 #[derive(Default)]
 pub(crate) struct KeptMixtures(
     std::cell::RefCell<std::collections::HashMap<(NodeId, usize), FirstMixture>>,
 );
 
 impl KeptMixtures {
-    /// Node `id`'s mixture within `budget`, built at the first call.
+    /// Node `id`'s mixture within `budget` phases ([`mixture_size`]),
+    /// built at the first call (within `max_states`, which the estimate
+    /// leaves room for).
     pub(crate) fn first(
         &self,
         tree: &Graph,
         id: NodeId,
         budget: usize,
+        max_states: usize,
     ) -> Result<FirstMixture, AnalysisError> {
         if let Some(m) = self.0.borrow().get(&(id, budget)) {
             return Ok(m.clone());
         }
-        let m = match shifted_law(tree, id, budget) {
-            Ok(Some(law)) => FirstMixture::Built(std::sync::Arc::new(law)),
-            Ok(None) => FirstMixture::CannotHold,
-            Err(AnalysisError::StateBudget { .. }) => FirstMixture::Over,
-            Err(e) => return Err(e),
+        let m = match mixture_size(tree, id, budget, f64::INFINITY)? {
+            MixtureSize::Holds(_) => match shifted_law(tree, id, budget.max(max_states))? {
+                Some(law) => FirstMixture::Built(std::sync::Arc::new(law)),
+                None => FirstMixture::CannotHold,
+            },
+            MixtureSize::CannotHold => FirstMixture::CannotHold,
+            MixtureSize::Over => FirstMixture::Over,
         };
         self.0.borrow_mut().insert((id, budget), m.clone());
         Ok(m)
@@ -520,14 +721,14 @@ impl KeptMixtures {
 /// (and no probability of an outcome: the loop's P(end) is 1 by its own
 /// figures). Refused with a budget error when K exceeds
 /// [`MAX_LOOP_TERMS`] or the components exceed `max_states` phases.
-fn loop_series(
-    l: ShiftedLaw,
+fn loop_series<P: Part>(
+    l: ShiftedLaw<P>,
     until_success: bool,
     tree: &Graph,
     id: NodeId,
     max_states: usize,
     horizon: f64,
-) -> Result<ShiftedLaw, AnalysisError> {
+) -> Result<ShiftedLaw<P>, AnalysisError> {
     let (mut again, mut end) = if until_success {
         (l.failure, l.success)
     } else {
@@ -543,11 +744,11 @@ fn loop_series(
     // rest renormalised by 1 − p₀, as for a child with a phase chain
     // (`phase::unrolled_loop`) — survey tree 6 repeated at once 86% of the
     // time and unrolled 230 rounds of it
-    let instant = |c: &Component| c.chain.is_empty() && c.shift == 0.0;
+    let instant = |c: &Component<P>| c.chain.is_empty() && c.shift == 0.0;
     let p0: f64 = again
         .iter()
         .filter(|c| instant(c))
-        .map(|c| c.weight * c.chain.initial_success)
+        .map(|c| c.weight * c.chain.instant())
         .sum();
     if p0 > 0.0 && p0 < 1.0 {
         again.retain(|c| !instant(c));
@@ -615,16 +816,16 @@ fn loop_series(
 /// carried forward state by state — convolved with the state's child's
 /// Success and Failure laws and added to the entry law of the state each
 /// leads to, or to the node's outcome.
-fn through_flow(
-    laws: &[ShiftedLaw],
+fn through_flow<P: Part>(
+    laws: &[ShiftedLaw<P>],
     flow: &Flow,
     tree: &Graph,
     id: NodeId,
     max_states: usize,
     horizon: f64,
-) -> Result<ShiftedLaw, AnalysisError> {
+) -> Result<ShiftedLaw<P>, AnalysisError> {
     let states = flow.states();
-    let mut entered: Vec<Vec<Component>> = vec![Vec::new(); states.len()];
+    let mut entered: Vec<Vec<Component<P>>> = vec![Vec::new(); states.len()];
     entered[0].push(atom(0.0, 1.0));
     let mut out = ShiftedLaw::default();
     for (i, s) in states.iter().enumerate() {
@@ -854,6 +1055,83 @@ fn first_exit_product(chains: &[PhaseChain]) -> PhaseChain {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn graph(yaml: &str) -> crate::ir::Graph {
+        let tree = crate::parse_str(yaml, "t.yaml").expect("a tree");
+        crate::ir::graph_of(&tree)
+    }
+
+    /// The size estimate, by hand: a Sequence of `k` actions each
+    /// succeeding after 1 s and failing after 2 s fails at `j − 1 + 2` for
+    /// the `j`-th failure (k distinct atoms) and succeeds at `k` (one):
+    /// `k + 1` components, an atom counted as one phase. With an
+    /// exponential action second — a chain of two phases, one per outcome
+    /// (entered with ps and pf), as Success and Failure take different
+    /// rates — Success is one component (shift 1, two phases) and Failure
+    /// an atom at 2 plus one (shift 1, two phases): 5.
+    /// Past the limit: `Over`; a Parallel that needs both children and mixes
+    /// timings: `CannotHold`. Every estimate equals the size of the mixture
+    /// then built, and `Over` is what building within the limit refuses.
+    #[test]
+    fn mixture_sizes_are_known_before_building() {
+        let fixed = "{action: {ps: 0.5, tau_s: 1, tau_f: 2}}";
+        let seq = |k: usize| {
+            format!(
+                "tree:\n  sequence:\n    children: [{}]\n",
+                vec![fixed; k].join(", ")
+            )
+        };
+        for k in [1usize, 2, 5, 12] {
+            let g = graph(&seq(k));
+            assert_eq!(
+                mixture_size(&g, 0, 1000, f64::INFINITY).unwrap(),
+                MixtureSize::Holds(k + 1),
+                "k = {k}"
+            );
+            let built = shifted_law(&g, 0, 1000).unwrap().expect("a mixture");
+            assert_eq!(built.phases(), k + 1);
+            assert_eq!(
+                mixture_size(&g, 0, k, f64::INFINITY).unwrap(),
+                MixtureSize::Over
+            );
+            assert!(matches!(
+                shifted_law(&g, 0, k),
+                Err(AnalysisError::StateBudget { .. })
+            ));
+            let shifts = mixture_shifts(&g, 0, 1000).unwrap().expect("shifts");
+            let mut expected: Vec<f64> = (1..=k).map(|j| (j + 1) as f64).collect();
+            expected.push(k as f64);
+            let mut got = shifts.clone();
+            got.sort_by(f64::total_cmp);
+            expected.sort_by(f64::total_cmp);
+            assert_eq!(got, expected, "k = {k}");
+        }
+        let g = graph(&format!(
+            "tree:\n  sequence:\n    children: [{fixed}, {{action: {{ps: 0.5, mu: 2, nu: 3}}}}]\n"
+        ));
+        assert_eq!(
+            mixture_size(&g, 0, 1000, f64::INFINITY).unwrap(),
+            MixtureSize::Holds(5)
+        );
+        assert_eq!(shifted_law(&g, 0, 1000).unwrap().unwrap().phases(), 5);
+        let g = graph(&format!(
+            "tree:\n  parallel:\n    success_threshold: 2\n    children: [{fixed}, {{action: {{ps: 0.5, mu: 2, nu: 3}}}}]\n"
+        ));
+        assert_eq!(
+            mixture_size(&g, 0, 1000, f64::INFINITY).unwrap(),
+            MixtureSize::CannotHold
+        );
+        assert!(shifted_law(&g, 0, 1000).unwrap().is_none());
+        // a loop: its terms counted from the repetition's probability as
+        // the law's are (0.5ᴷ ≤ 1e-14: K = 47 atoms at 1, 2, …, 47 s)
+        let g =
+            graph("tree:\n  until_success:\n    child: {action: {ps: 0.5, tau_s: 1, tau_f: 1}}\n");
+        assert_eq!(
+            mixture_size(&g, 0, 1000, f64::INFINITY).unwrap(),
+            MixtureSize::Holds(47)
+        );
+        assert_eq!(shifted_law(&g, 0, 1000).unwrap().unwrap().phases(), 47);
+    }
 
     /// `until_failure(Fallback(condition 0.8, fail at 1 s))`: the child
     /// succeeds at once with 0.8 (a repetition in no time) and otherwise
