@@ -647,9 +647,10 @@ impl<'t> Plan<'t> {
                     .collect())
             }
             Representation::Shifted => {
-                // the mixture within a smaller budget first: past it (every
-                // distinct sum of fixed times is a component), or where the
-                // mixture cannot hold the node, the composed laws
+                // the mixture where its estimated size is within a smaller
+                // budget: past it (every distinct sum of fixed times is a
+                // component), or where the mixture cannot hold the node,
+                // the composed laws
                 let first = self.max_states.min(SHIFTED_FIRST);
                 match self
                     .kept

@@ -236,8 +236,8 @@ impl Racer {
         // the shifted mixture where it holds the subtree within
         // MAX_SHIFTED_PHASES (its rows cost more than the composed law
         // beyond: a loop's many re-run counts, each a chain of its own),
-        // built within that budget only; else the subtree's composed law
-        // (any subtree)
+        // by its size estimated before building (`mixture_size`); else the
+        // subtree's composed law (any subtree)
         let budget = MAX_SHIFTED_PHASES.min(plan.max_states());
         let shifted = || match shifted::mixture_size(tree, id, budget, horizon)? {
             shifted::MixtureSize::Holds(_) => {
