@@ -40,7 +40,7 @@ pub struct CurvePoint {
 pub(crate) const DEFAULT_TOLERANCE: f64 = 1e-13;
 
 /// A window of Poisson(λ) weights with a rigorous bound on the mass outside.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct PoissonWindow {
     /// First index kept.
     pub left: usize,
@@ -64,15 +64,28 @@ fn reciprocals(len: usize) -> Vec<f64> {
 
 /// [`poisson_window`] with a table of reciprocals `inv[k] = 1/k`.
 fn poisson_window_with(lambda: f64, eps: f64, inv: &[f64]) -> PoissonWindow {
+    let mut out = PoissonWindow {
+        left: 0,
+        weights: Vec::new(),
+        outside: 0.0,
+    };
+    poisson_window_into(lambda, eps, inv, &mut out);
+    out
+}
+
+/// [`poisson_window_with`] written into `out`, its weights' buffer reused
+/// (a chain stepped from time to time makes one window an interval:
+/// hundreds of thousands in a race's quadrature).
+fn poisson_window_into(lambda: f64, eps: f64, inv: &[f64], out: &mut PoissonWindow) {
     let recip = |k: usize| -> f64 { inv.get(k).copied().unwrap_or_else(|| 1.0 / k as f64) };
     let inv_lambda = 1.0 / lambda.max(f64::MIN_POSITIVE);
     assert!(lambda >= 0.0 && lambda.is_finite());
+    out.weights.clear();
     if lambda == 0.0 {
-        return PoissonWindow {
-            left: 0,
-            weights: vec![1.0],
-            outside: 0.0,
-        };
+        out.left = 0;
+        out.weights.push(1.0);
+        out.outside = 0.0;
+        return;
     }
     // log w_m at the mode, via lgamma-free Stirling series for accuracy
     let mode = lambda.floor() as usize;
@@ -83,7 +96,28 @@ fn poisson_window_with(lambda: f64, eps: f64, inv: &[f64]) -> PoissonWindow {
     // at most r = λ/(k+2), so Σ_{j>k} w_j ≤ w_{k+1}/(1−r); the test below is
     // that bound ≤ half, multiplied out to avoid divisions.
     let expected_right = (lambda + 8.0 * lambda.sqrt() + 16.0) as usize;
-    let mut weights = Vec::with_capacity(2 * expected_right.saturating_sub(mode) + 2);
+    let weights = &mut out.weights;
+    weights.reserve(2 * expected_right.saturating_sub(mode) + 2);
+    // left side first, from the mode down, then put in increasing order:
+    // w_{k-1} = w_k k/λ; every earlier ratio is at most (k−1)/λ, so
+    // Σ_{j≤k−1} w_j ≤ w_{k−1}/(1 − (k−1)/λ)
+    let mut k = mode;
+    let mut left_tail = 0.0;
+    let mut w = wm;
+    while k > 0 {
+        let prev = w * k as f64 * inv_lambda;
+        let km1 = k as f64 - 1.0;
+        if prev * lambda <= half * (lambda - km1) {
+            left_tail = prev * lambda / (lambda - km1);
+            break;
+        }
+        weights.push(prev);
+        w = prev;
+        k -= 1;
+    }
+    let left = mode - weights.len();
+    weights.reverse();
+    // the mode and the right side: w_{k+1} = w_k λ/(k+1)
     weights.push(wm);
     let mut k = mode;
     let mut w = wm;
@@ -99,31 +133,8 @@ fn poisson_window_with(lambda: f64, eps: f64, inv: &[f64]) -> PoissonWindow {
         w = next;
         k += 1;
     }
-    // left side: w_{k-1} = w_k k/λ; every earlier ratio is at most (k−1)/λ,
-    // so Σ_{j≤k−1} w_j ≤ w_{k−1}/(1 − (k−1)/λ)
-    let mut left_w = Vec::new();
-    let mut k = mode;
-    let mut left_tail = 0.0;
-    let mut w = wm;
-    while k > 0 {
-        let prev = w * k as f64 * inv_lambda;
-        let km1 = k as f64 - 1.0;
-        if prev * lambda <= half * (lambda - km1) {
-            left_tail = prev * lambda / (lambda - km1);
-            break;
-        }
-        left_w.push(prev);
-        w = prev;
-        k -= 1;
-    }
-    let left = mode - left_w.len();
-    left_w.reverse();
-    left_w.extend(weights);
-    PoissonWindow {
-        left,
-        weights: left_w,
-        outside: left_tail + right_tail,
-    }
+    out.left = left;
+    out.outside = left_tail + right_tail;
 }
 
 /// ln k! (exact sum for small k, Stirling series beyond).
@@ -233,16 +244,17 @@ impl Uniformized {
     /// Advances the distribution `state` by `Λ·dt = lambda_dt` (`state ←
     /// Σ_k Pois(k; Λ·dt) state·Pᵏ`, the Poisson window truncated within
     /// `eps`); returns the mass absorbed into Success and Failure
-    /// meanwhile. `next` and `acc` are scratch of `state`'s length.
+    /// meanwhile. `next` and `acc` are scratch of `state`'s length,
+    /// `window` of the Poisson weights.
     fn advance(
         &self,
         lambda_dt: f64,
         eps: f64,
         state: &mut Vec<f64>,
-        next: &mut Vec<f64>,
-        acc: &mut [f64],
+        (next, acc, window): (&mut Vec<f64>, &mut [f64], &mut PoissonWindow),
     ) -> (f64, f64) {
-        let window = poisson_window(lambda_dt, eps);
+        poisson_window_into(lambda_dt, eps, &[], window);
+        let window = &*window;
         acc.iter_mut().for_each(|x| *x = 0.0);
         let (mut acc_s, mut acc_f) = (0.0, 0.0);
         // v_k = state · P^k, absorbed mass of v_k tracked as s_k, f_k
@@ -337,12 +349,18 @@ pub fn transient_by_intervals(
     ];
     let mut next = vec![0.0; n];
     let mut acc = vec![0.0; n];
+    let mut window = PoissonWindow::default();
     let p = Uniformized::new(chain, lambda.max(f64::MIN_POSITIVE));
     for &idx in &order {
         let t = times[idx];
         let dt = t - now;
         if dt > 0.0 && n > 0 && lambda > 0.0 {
-            let (ds, df) = p.advance(lambda * dt, eps, &mut state, &mut next, &mut acc);
+            let (ds, df) = p.advance(
+                lambda * dt,
+                eps,
+                &mut state,
+                (&mut next, &mut acc, &mut window),
+            );
             success += ds;
             failure += df;
             now = t;
@@ -658,6 +676,7 @@ impl WeightedSteps {
         let eps = tolerance / times.len().max(1) as f64;
         let mut state = self.start.clone();
         let (mut next, mut acc) = (vec![0.0; n], vec![0.0; n]);
+        let mut window = PoissonWindow::default();
         let (mut success, mut failure) = (0.0, 0.0);
         let mut now = 0.0;
         let mut rows = vec![Vec::new(); times.len()];
@@ -665,9 +684,12 @@ impl WeightedSteps {
             let t = times[idx];
             let dt = t - now;
             if dt > 0.0 {
-                let (ds, df) =
-                    self.p
-                        .advance(self.lambda * dt, eps, &mut state, &mut next, &mut acc);
+                let (ds, df) = self.p.advance(
+                    self.lambda * dt,
+                    eps,
+                    &mut state,
+                    (&mut next, &mut acc, &mut window),
+                );
                 success += ds;
                 failure += df;
                 now = t;
