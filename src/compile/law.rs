@@ -533,6 +533,7 @@ pub(crate) fn counted_parallel_times(
     // same horizons and reuse its memoised law
     let mut end = 2f64.powi(start.log2().ceil() as i32);
     let mixed = non_markovian(tree);
+    let narrow = narrow_segment(tree);
     for _ in 0..MAX_DOUBLINGS {
         let b = Builder {
             tree,
@@ -541,7 +542,7 @@ pub(crate) fn counted_parallel_times(
             max_states,
             memo,
             mixed: &mixed,
-            narrow: narrow_segment(tree),
+            narrow,
             work: std::cell::Cell::new(0.0),
         };
         // laws depend on the horizon

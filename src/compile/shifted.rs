@@ -216,11 +216,6 @@ impl<P: Part> ShiftedLaw<P> {
     }
 }
 
-/// Exchanges the exits so that Failure is counted.
-fn count_failure(c: PhaseChain) -> PhaseChain {
-    c.swapped()
-}
-
 /// An atom: an empty chain returning the counted outcome at once.
 fn atom<P: Part>(shift: f64, weight: f64) -> Component<P> {
     Component {
@@ -415,12 +410,26 @@ pub(crate) fn mixture_size(
     limit: usize,
     horizon: f64,
 ) -> Result<MixtureSize, AnalysisError> {
+    Ok(match sizes(tree, id, limit, horizon)? {
+        Some(Some(law)) => MixtureSize::Holds(law.phases()),
+        Some(None) => MixtureSize::CannotHold,
+        None => MixtureSize::Over,
+    })
+}
+
+/// The mixture's algebra over [`Size`]s within `limit` phases: `None`
+/// past the limit — the algebra's own, met before allocating (`convolve`,
+/// `within_budget`, the loop's terms, the atoms' instants) —, else
+/// whether the mixture holds the node.
+fn sizes(
+    tree: &Graph,
+    id: NodeId,
+    limit: usize,
+    horizon: f64,
+) -> Result<Option<Option<ShiftedLaw<Size>>>, AnalysisError> {
     match mixture::<Size>(tree, id, limit, horizon) {
-        Ok(Some(law)) => Ok(MixtureSize::Holds(law.phases())),
-        Ok(None) => Ok(MixtureSize::CannotHold),
-        // the algebra's own limit, met before allocating (`convolve`,
-        // `within_budget`, the loop's terms, the atoms' instants)
-        Err(AnalysisError::StateBudget { .. }) => Ok(MixtureSize::Over),
+        Ok(law) => Ok(Some(law)),
+        Err(AnalysisError::StateBudget { .. }) => Ok(None),
         Err(e) => Err(e),
     }
 }
@@ -434,11 +443,9 @@ pub(crate) fn mixture_shifts(
     id: NodeId,
     limit: usize,
 ) -> Result<Option<Vec<f64>>, AnalysisError> {
-    match mixture::<Size>(tree, id, limit, f64::INFINITY) {
-        Ok(law) => Ok(law.map(|l| l.shifts().collect())),
-        Err(AnalysisError::StateBudget { .. }) => Ok(None),
-        Err(e) => Err(e),
-    }
+    Ok(sizes(tree, id, limit, f64::INFINITY)?
+        .flatten()
+        .map(|l| l.shifts().collect()))
 }
 
 /// [`shifted_law_within`] over any [`Part`]: the law, or its sizes.
@@ -480,7 +487,7 @@ fn shifted_law_unclipped<P: Part>(
             failure: vec![Component {
                 shift: 0.0,
                 weight: 1.0,
-                chain: P::of_chain(count_failure(chain)),
+                chain: P::of_chain(chain.swapped()),
             }],
         }));
     }
@@ -997,7 +1004,7 @@ fn first_return(
         law.failure.push(Component {
             shift,
             weight,
-            chain: count_failure(chain.clone()),
+            chain: chain.clone().swapped(),
         });
     };
     push(&mut law, 0.0, u[0], &p);

@@ -64,11 +64,7 @@ fn reciprocals(len: usize) -> Vec<f64> {
 
 /// [`poisson_window`] with a table of reciprocals `inv[k] = 1/k`.
 fn poisson_window_with(lambda: f64, eps: f64, inv: &[f64]) -> PoissonWindow {
-    let mut out = PoissonWindow {
-        left: 0,
-        weights: Vec::new(),
-        outside: 0.0,
-    };
+    let mut out = PoissonWindow::default();
     poisson_window_into(lambda, eps, inv, &mut out);
     out
 }
@@ -219,6 +215,25 @@ struct Uniformized {
     vals: Vec<f64>,
 }
 
+/// What [`Uniformized::advance`] works in, made once for many intervals:
+/// the next step's distribution and the Poisson-weighted sum (each of the
+/// chain's length) and the interval's Poisson window.
+struct Scratch {
+    next: Vec<f64>,
+    acc: Vec<f64>,
+    window: PoissonWindow,
+}
+
+impl Scratch {
+    fn new(n: usize) -> Scratch {
+        Scratch {
+            next: vec![0.0; n],
+            acc: vec![0.0; n],
+            window: PoissonWindow::default(),
+        }
+    }
+}
+
 impl Uniformized {
     fn new(chain: &PhaseChain, lambda: f64) -> Uniformized {
         let n = chain.len();
@@ -244,15 +259,15 @@ impl Uniformized {
     /// Advances the distribution `state` by `Λ·dt = lambda_dt` (`state ←
     /// Σ_k Pois(k; Λ·dt) state·Pᵏ`, the Poisson window truncated within
     /// `eps`); returns the mass absorbed into Success and Failure
-    /// meanwhile. `next` and `acc` are scratch of `state`'s length,
-    /// `window` of the Poisson weights.
+    /// meanwhile.
     fn advance(
         &self,
         lambda_dt: f64,
         eps: f64,
         state: &mut Vec<f64>,
-        (next, acc, window): (&mut Vec<f64>, &mut [f64], &mut PoissonWindow),
+        scratch: &mut Scratch,
     ) -> (f64, f64) {
+        let Scratch { next, acc, window } = scratch;
         poisson_window_into(lambda_dt, eps, &[], window);
         let window = &*window;
         acc.iter_mut().for_each(|x| *x = 0.0);
@@ -347,20 +362,13 @@ pub fn transient_by_intervals(
         };
         times.len()
     ];
-    let mut next = vec![0.0; n];
-    let mut acc = vec![0.0; n];
-    let mut window = PoissonWindow::default();
+    let mut scratch = Scratch::new(n);
     let p = Uniformized::new(chain, lambda.max(f64::MIN_POSITIVE));
     for &idx in &order {
         let t = times[idx];
         let dt = t - now;
         if dt > 0.0 && n > 0 && lambda > 0.0 {
-            let (ds, df) = p.advance(
-                lambda * dt,
-                eps,
-                &mut state,
-                (&mut next, &mut acc, &mut window),
-            );
+            let (ds, df) = p.advance(lambda * dt, eps, &mut state, &mut scratch);
             success += ds;
             failure += df;
             now = t;
@@ -675,8 +683,7 @@ impl WeightedSteps {
         order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
         let eps = tolerance / times.len().max(1) as f64;
         let mut state = self.start.clone();
-        let (mut next, mut acc) = (vec![0.0; n], vec![0.0; n]);
-        let mut window = PoissonWindow::default();
+        let mut scratch = Scratch::new(n);
         let (mut success, mut failure) = (0.0, 0.0);
         let mut now = 0.0;
         let mut rows = vec![Vec::new(); times.len()];
@@ -684,12 +691,9 @@ impl WeightedSteps {
             let t = times[idx];
             let dt = t - now;
             if dt > 0.0 {
-                let (ds, df) = self.p.advance(
-                    self.lambda * dt,
-                    eps,
-                    &mut state,
-                    (&mut next, &mut acc, &mut window),
-                );
+                let (ds, df) = self
+                    .p
+                    .advance(self.lambda * dt, eps, &mut state, &mut scratch);
                 success += ds;
                 failure += df;
                 now = t;
